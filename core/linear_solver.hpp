@@ -1,0 +1,62 @@
+#pragma once
+/// @file linear_solver.hpp
+/// Sparse linear solvers behind one interface. Every solve returns a `SolveReport` so the
+/// caller (the step driver) can react to a failed or slow solve instead of crashing.
+///
+/// Backends:
+///  - `cholmod`        CHOLMOD supernodal Cholesky (SPD only)            [direct]
+///  - `umfpack`        UMFPACK LU (any nonsingular matrix)               [direct]
+///  - `bicgstab_ilut`  Eigen BiCGSTAB + IncompleteLUT (the paper's choice) [iterative]
+///  - `cg_ic`          Eigen CG + IncompleteCholesky (SPD)               [iterative]
+///  - `amg`            PETSc CG (SPD) or GMRES (`symmetric=false`) preconditioned by
+///                     hypre BoomerAMG through PETSc                     [iterative]
+///  - `amg_gamg`       the same with PETSc's own smoothed-aggregation GAMG [iterative]
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/types.hpp"
+
+namespace tetfsi {
+
+enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg };
+
+/// All backend names in a stable order, e.g. for `--help` and benchmarks.
+const std::vector<std::string>& solver_names();
+/// Name ↔ kind. @throws InputError naming the unknown name and the valid ones.
+SolverKind parse_solver_kind(const std::string& name);
+std::string to_string(SolverKind kind);
+
+struct SolverOptions {
+  double rel_tol = 1e-8;       ///< iterative: stop when ||b − A x|| ≤ rel_tol ||b||
+  int max_iterations = 1000;   ///< iterative: give up (converged = false) after this many
+  bool symmetric = true;       ///< matrix is symmetric (amg: CG if true, GMRES otherwise)
+  double ilut_drop_tol = 1e-4; ///< bicgstab_ilut: IncompleteLUT drop tolerance
+  int ilut_fill = 20;          ///< bicgstab_ilut: IncompleteLUT fill factor
+};
+
+struct SolveReport {
+  std::string backend;     ///< backend name, as in solver_names()
+  bool converged = false;  ///< residual ≤ rel_tol (iterative) or factorization succeeded (direct)
+  int iterations = 0;      ///< Krylov iterations (1 for a direct solve)
+  double residual = 0.0;   ///< true relative residual ||b − A x|| / ||b|| (0 if b = 0)
+  double setup_s = 0.0;    ///< seconds of the last setup() (factorization / preconditioner)
+  double solve_s = 0.0;    ///< seconds of this solve
+};
+
+/// A solver for A x = b with A fixed between `setup` and any number of `solve` calls.
+class LinearSolver {
+ public:
+  virtual ~LinearSolver() = default;
+  virtual std::string name() const = 0;
+  /// Analyse/factor A or build the preconditioner. A must stay alive until the next setup.
+  /// @throws SolverError if the factorization fails (e.g. CHOLMOD on a non-SPD matrix).
+  virtual void setup(const SparseMatrix& A) = 0;
+  /// Solve A x = b. For iterative backends x is the initial guess on entry.
+  /// Never throws for non-convergence: the report says so.
+  virtual SolveReport solve(const VecX& b, VecX& x) = 0;
+};
+
+std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts = {});
+
+}  // namespace tetfsi

@@ -1,0 +1,29 @@
+#pragma once
+/// @file io.hpp
+/// Readers for the mesh files users bring.
+///
+/// Volume meshes: Gmsh `.msh` (ASCII v2.2 and v4.1; tets = element type 4, other element
+/// types ignored), TetGen `.node` + `.ele` (give either file; 0- or 1-based numbering as the
+/// file says), VTK `.vtu` (cells of type VTK_TETRA; others ignored).
+/// Surface meshes: `.off`, `.obj` (v/f lines; polygons fan-triangulated), `.stl` (ASCII and
+/// binary).
+/// Every reader throws `InputError` for a missing/unreadable file or a syntax error, naming
+/// the file and line, and `MeshError` for bad geometry (via validate_volume_mesh).
+#include <filesystem>
+
+#include "mesh/volume_mesh.hpp"
+
+namespace tetfsi::mesh {
+
+/// Read a tet mesh by extension (.msh, .node, .ele, .vtu), fix a globally flipped
+/// orientation, drop unused vertices and validate it.
+VolumeMesh read_volume_mesh(const std::filesystem::path& path);
+
+/// Read a triangle surface by extension (.off, .obj, .stl), merging duplicate vertices
+/// (STL). Does not check closedness: see validate_closed_surface.
+SurfaceMesh read_surface_mesh(const std::filesystem::path& path);
+
+/// Write a tet mesh as Gmsh ASCII v2.2 (for tests and for users converting meshes).
+void write_msh(const VolumeMesh& m, const std::filesystem::path& path);
+
+}  // namespace tetfsi::mesh

@@ -1,0 +1,30 @@
+#pragma once
+/// @file integrator.hpp
+/// The linearised implicit trapezoidal rule of [Chentanez06, Eqs. (4)–(5), (9)–(18)].
+#include "core/types.hpp"
+#include "solid/solid_body.hpp"
+
+namespace tetfsi::solid {
+
+/// A u^{n+1} = b for one body (the fluid-free form of [Chentanez06, Eq. (4)]).
+/// The coupling later adds −J p to this very system.
+///
+///   A = M/h + C + (h/2) K',   C = αM + βK',
+///   b = M uⁿ/h − (h/2) K' uⁿ − K(dⁿ) + f_e,
+/// with K, K' evaluated at dⁿ and M the lumped mass (diagonal, 3#V).
+/// Fixed DOFs are eliminated symmetrically: their rows and columns of A are zero except a
+/// diagonal entry m_i/h, and b is zero there, so u stays 0 on them and A stays symmetric.
+struct TrapezoidalSystem {
+  SparseMatrix A;  ///< 3#V × 3#V, symmetric
+  VecX b;          ///< 3#V
+};
+
+/// Assemble A and b at the body's current state.
+/// @param f_e external forces (3#V, N), e.g. body.external_forces(gravity)
+TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e);
+
+/// dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹), then u ← uⁿ⁺¹ [Chentanez06, Eq. (5)].
+/// @param u_new 3#V velocities (fixed DOFs must be 0)
+void advance_trapezoidal(SolidBody& body, const VecX& u_new, double h);
+
+}  // namespace tetfsi::solid

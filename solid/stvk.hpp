@@ -1,0 +1,53 @@
+#pragma once
+/// @file stvk.hpp
+/// Constant-Green-strain linear tets with an isotropic St. Venant–Kirchhoff law
+/// [OBrienHodgins99], [Chentanez06, §3.2].
+///
+/// Per tet with rest edge matrix Dm = [X1−X0, X2−X0, X3−X0] and deformed Ds likewise:
+///   F = Ds Dm⁻¹,  E = ½(FᵀF − I)  (Green strain),  S = λ tr(E) I + 2μ E  (2nd Piola–Kirchhoff),
+///   W = V0 (μ E:E + ½ λ (tr E)²)  (elastic energy).
+/// The elastic force of [Chentanez06, Eq. (3)] is K(d) = ∂W/∂x (the internal force, on the
+/// left-hand side of M a + C u + K(d) = f), and K' = ∂K/∂d is its Jacobian (symmetric).
+#include "core/types.hpp"
+#include "solid/material.hpp"
+
+namespace tetfsi::solid {
+
+/// Per-tet output fields (#T each).
+struct TetFields {
+  VecX green_strain_norm;  ///< Frobenius norm of E (dimensionless)
+  VecX von_mises_stress;   ///< von Mises stress of the Cauchy stress σ = F S Fᵀ / J (Pa)
+  VecX volume_ratio;       ///< J = det F = V / V0
+};
+
+class StvkElasticity {
+ public:
+  /// @param rest rest positions X (#V × 3, m)
+  /// @param tets positively oriented tets (#T × 4)
+  StvkElasticity(const MatX3& rest, const MatX4i& tets, const Material& material);
+
+  Index num_nodes() const { return m_num_nodes; }
+  Index num_tets() const { return static_cast<Index>(m_tets.rows()); }
+  /// Rest volume of each tet (#T, m³).
+  const VecX& rest_volumes() const { return m_rest_volume; }
+
+  /// Elastic energy W(x) (J) at deformed positions x (#V × 3).
+  double energy(const MatX3& x) const;
+  /// K(d) = ∂W/∂x (3#V, interleaved, N).
+  VecX forces(const MatX3& x) const;
+  /// K'(d) = ∂²W/∂x² (3#V × 3#V, symmetric, N/m).
+  SparseMatrix jacobian(const MatX3& x) const;
+  /// Forces and Jacobian in one pass (shares F, E, S per tet).
+  void forces_and_jacobian(const MatX3& x, VecX& forces, SparseMatrix& jacobian) const;
+  /// Strain, stress and volume-ratio fields at x.
+  TetFields tet_fields(const MatX3& x) const;
+
+ private:
+  Index m_num_nodes;
+  MatX4i m_tets;
+  LameParameters m_lame;
+  std::vector<Mat3> m_dm_inv;  ///< Dm⁻¹ per tet
+  VecX m_rest_volume;          ///< V0 per tet
+};
+
+}  // namespace tetfsi::solid

@@ -1,0 +1,157 @@
+#pragma once
+/// @file scene.hpp
+/// JSON scene files → plain structs. Strict: an unknown key is an error naming its JSON path
+/// and the nearest valid key; a wrong type, an out-of-range value or a missing file is an
+/// error naming the path and the problem. Relative paths resolve against the scene file's
+/// folder. Physics never sees JSON: `build_world` turns a Scene into solid:: objects.
+///
+/// Schema (every key optional unless marked; defaults in the structs below):
+/// ```json
+/// {
+///   "name": "sheet_sag",
+///   "mode": "dynamic" | "static",
+///   "time":   { "dt": 0.005, "end_time": 2.0 }            // or "steps": 400 (not both)
+///   "output": { "every": 4, "compression": "lz4" | "zlib" | "none" },
+///   "gravity": [0, 0, -9.81],
+///   "solver": { "linear": "cholmod", "rel_tol": 1e-8, "max_iterations": 1000 },
+///   "static": { "load_steps": 1, "rel_tol": 1e-9, "max_iterations": 60 },
+///   "bodies": [ {                                          // required, at least one
+///       "name": "sheet",                                   // required, unique
+///       "mesh": { "box": { "lo": [..], "hi": [..], "cells": [nx, ny, nz] } }
+///             | { "file": "meshes/bar.msh" }               // .msh .node .ele .vtu
+///             | { "surface": "meshes/ball.off", "cell_size": 0.02 },  // .off .obj .stl
+///       "transform": { "scale": 1.0, "rotate_deg": [0, 0, 0], "translate": [0, 0, 0] },
+///       "material": { "density": 1000, "youngs_modulus": 1e5, "poisson_ratio": 0.3,
+///                     "rayleigh_alpha": 0, "rayleigh_beta": 0 },
+///       "pins":  [ { "box": { "lo": [..], "hi": [..] }, "axes": "xyz" } | { "nodes": [0, 5], "axes": "z" } ],
+///       "loads": [ { "box": { "lo": [..], "hi": [..] }, "total_force": [0, 0, -1] } | { "nodes": [..], ... } ],
+///       "initial_velocity": [0, 0, 0]
+///   } ],
+///   "obstacles": [ { "type": "plane", "point": [0,0,0], "normal": [0,0,1],
+///                    "restitution": 0.3, "friction": 0.5 }
+///                | { "type": "box", "lo": [..], "hi": [..], "restitution": .., "friction": .. } ]
+/// }
+/// ```
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/types.hpp"
+#include "solid/material.hpp"
+#include "solid/obstacles.hpp"
+#include "solid/world.hpp"
+
+namespace tetfsi::tools {
+
+struct BoxSpec {
+  Vec3 lo = Vec3::Zero();
+  Vec3 hi = Vec3::Zero();
+  bool contains(const Vec3& x, double tol = 1e-9) const {
+    return (x.array() >= lo.array() - tol).all() && (x.array() <= hi.array() + tol).all();
+  }
+};
+
+struct MeshSpec {
+  enum class Kind { Box, File, Surface };
+  Kind kind = Kind::Box;
+  std::filesystem::path file;  ///< File / Surface: absolute (resolved against the scene folder)
+  BoxSpec box;                 ///< Box: extent
+  Vec3i cells = Vec3i::Ones(); ///< Box: hexahedra per axis (6 tets each)
+  double cell_size = 0.0;      ///< Surface: Mesh_3 cell size (m)
+};
+
+/// x ↦ translate + R (scale · x), R = Rz · Ry · Rx from rotate_deg (degrees about x, y, z).
+struct TransformSpec {
+  double scale = 1.0;
+  Vec3 rotate_deg = Vec3::Zero();
+  Vec3 translate = Vec3::Zero();
+};
+
+/// A set of nodes chosen by a box (rest positions after the transform) or an explicit list.
+struct NodeSelection {
+  std::optional<BoxSpec> box;
+  std::vector<Index> nodes;
+};
+
+struct PinSpec {
+  NodeSelection select;
+  std::string axes = "xyz";  ///< which components are fixed: any of x, y, z
+};
+
+struct LoadSpec {
+  NodeSelection select;
+  Vec3 total_force = Vec3::Zero();  ///< N, spread evenly over the selected nodes
+};
+
+struct BodySpec {
+  std::string name;
+  MeshSpec mesh;
+  TransformSpec transform;
+  solid::Material material;
+  std::vector<PinSpec> pins;
+  std::vector<LoadSpec> loads;
+  Vec3 initial_velocity = Vec3::Zero();
+};
+
+struct TimeSpec {
+  double dt = 0.01;                   ///< s, > 0
+  std::optional<double> end_time;     ///< s; default 1.0 if neither end_time nor steps given
+  std::optional<int> steps;
+  /// Number of steps the run takes: steps, or ceil(end_time / dt − 1e-9).
+  int num_steps() const;
+};
+
+struct OutputSpec {
+  int every = 1;                    ///< write a frame every this many steps (≥ 1)
+  std::string compression = "lz4";  ///< "lz4", "zlib" or "none"
+};
+
+struct SolverSpec {
+  std::string linear = "cholmod";  ///< a name of solver_names()
+  double rel_tol = 1e-8;
+  int max_iterations = 1000;
+};
+
+struct StaticSpec {
+  int load_steps = 1;
+  double rel_tol = 1e-9;
+  int max_iterations = 60;
+};
+
+enum class Mode { Dynamic, Static };
+
+struct Scene {
+  std::filesystem::path file;  ///< the scene file (absolute), or empty for an in-memory scene
+  std::string name;            ///< default: the file's stem
+  Mode mode = Mode::Dynamic;
+  TimeSpec time;
+  OutputSpec output;
+  Vec3 gravity = Vec3(0.0, 0.0, -9.81);
+  SolverSpec solver;
+  StaticSpec statics;
+  std::vector<BodySpec> bodies;
+  std::vector<solid::Obstacle> obstacles;
+  nlohmann::json resolved;  ///< the scene with every default filled in (written to the output)
+};
+
+/// Parse a scene from JSON. `file` names the scene in messages and anchors relative paths.
+/// @throws InputError "<file>: <json.path>: <problem>", e.g.
+///   "scene.json: bodies[0].material.poison_ratio: unknown key (did you mean 'poisson_ratio'?)"
+Scene parse_scene(const nlohmann::json& j, const std::filesystem::path& file);
+
+/// Read, apply `--set key.path=value` overrides (value parsed as JSON, else as a string;
+/// array elements as `bodies.0.material.density=500`), then parse.
+/// @throws InputError for a missing file, a JSON syntax error (with line and column), a bad
+///   override (naming it) or anything parse_scene rejects.
+Scene load_scene(const std::filesystem::path& file, const std::vector<std::string>& overrides = {});
+
+/// Build the bodies (read/generate/tetrahedralise meshes, transform, pins, loads, initial
+/// velocity) and obstacles of a scene.
+/// @throws InputError / MeshError naming the scene file and the body, e.g.
+///   "scene.json: bodies[1] 'flag': meshes/flag.msh: tet 17 (...) is inverted ...".
+solid::SolidWorld build_world(const Scene& scene);
+
+}  // namespace tetfsi::tools
