@@ -3,6 +3,9 @@
 /// Plain tetrahedral and triangle meshes as they come from files or generators, plus the
 /// geometric checks every solid body passes before it is simulated.
 #include <string>
+#include <vector>
+
+#include <Eigen/Geometry>  // cross()
 
 #include "core/types.hpp"
 
@@ -36,23 +39,43 @@ double tet_volume(const VolumeMesh& m, Index t);
 double total_volume(const VolumeMesh& m);
 
 /// Check a tet mesh: finite coordinates, indices in range, four distinct vertices per tet,
-/// every tet positively oriented and not degenerate (volume > 1e-12 · (mean edge)³).
+/// every tet positively oriented and not degenerate (volume > 1e-12 · (mean edge)³, the
+/// mean of the tet's own six edge lengths, so the test does not depend on units or grading).
 /// @param source file name or description used in the message ("data/meshes/bar.msh")
 /// @throws MeshError naming `source`, the first bad tet (index and vertices) and the fix,
-///   e.g. "bar.msh: tet 17 (vertices 3 9 12 40) is inverted (volume -1.2e-06 m^3): ..."
+///   e.g. "bar.msh: tet 17 (vertices 3 9 12 40) is inverted (signed volume -1.2e-06 m^3);
+///   fix the element's vertex order or remesh" (one line). An empty mesh is an error too.
 void validate_volume_mesh(const VolumeMesh& m, const std::string& source);
+
+/// The ids a file uses for the vertices and tets of a mesh (Gmsh node/element tags, TetGen
+/// numbers), so that error messages point at what the user sees in the file.
+struct MeshLabels {
+  std::vector<long long> vertex_ids;  ///< #V file id of each vertex (empty: zero-based index)
+  std::vector<long long> tet_ids;     ///< #T file id of each tet (empty: zero-based index)
+};
+
+/// validate_volume_mesh, but messages say "element <tet_ids[t]> (nodes <vertex_ids[..]>)"
+/// instead of zero-based indices where `labels` provides ids.
+void validate_volume_mesh(const VolumeMesh& m, const std::string& source,
+                          const MeshLabels& labels);
 
 /// If every tet is negatively oriented (a file written with the opposite convention), swap
 /// two vertices of each so that all are positive. Mixed orientations are left alone (and
-/// `validate_volume_mesh` then reports the first inverted tet). Returns true if flipped.
+/// `validate_volume_mesh` then reports the first inverted tet), and so is a mesh with an
+/// out-of-range index. Swaps columns 2 and 3. Returns true if flipped.
 bool fix_global_orientation(VolumeMesh& m);
 
-/// Remove vertices no tet uses and renumber. Returns the number removed.
-Index remove_unused_vertices(VolumeMesh& m);
+/// Remove vertices no tet uses and renumber (keeping the order of the rest). Returns the
+/// number removed. A mesh with an out-of-range index is left unchanged (0 returned).
+/// @param old_index optional output (#V_new): the index each kept vertex had before.
+Index remove_unused_vertices(VolumeMesh& m, VecXi* old_index = nullptr);
 
 /// The boundary triangles of a tet mesh: faces that belong to exactly one tet, oriented with
-/// outward normals, as indices into `m.vertices` (#B × 3).
-/// @param owner_tet optional output: for each boundary triangle, the tet it belongs to.
+/// outward normals, as indices into `m.vertices` (#B × 3), in order of (tet, local face).
+/// Expects positively oriented tets (validate_volume_mesh). Linear time (hash of the sorted
+/// vertex triple).
+/// @param owner_tet optional output (#B): for each boundary triangle, the tet it belongs to.
+/// @throws MeshError if a face belongs to more than two tets (non-manifold).
 MatX3i boundary_triangles(const VolumeMesh& m, VecXi* owner_tet = nullptr);
 
 /// Check a triangle surface is closed and consistently oriented (every edge shared by
