@@ -1,0 +1,61 @@
+#include "solid/integrator.hpp"
+
+#include <cmath>
+
+#include "core/error.hpp"
+
+namespace tetfsi::solid {
+
+TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e) {
+  TETFSI_REQUIRE(InputError, h > 0.0 && std::isfinite(h), "body '{}': time step h = {} must be > 0",
+                 body.name(), h);
+  const Index ndof = body.num_dofs();
+  TETFSI_CHECK(f_e.size() == ndof, "f_e has size {}, expected {}", f_e.size(), ndof);
+  const Material& mat = body.material();
+  const VecX& mass = body.lumped_mass();
+
+  TrapezoidalSystem sys;
+  VecX K;  // K(dⁿ), internal elastic force
+  body.elasticity().forces_and_jacobian(body.positions(), K, sys.A);  // sys.A holds K' for now
+  const VecX u = flat(body.velocity);
+
+  // b = M uⁿ/h − (h/2) K' uⁿ − K(dⁿ) + f_e   [Chentanez06, Eq. (4)]
+  VecX Mu(ndof);
+  for (Index i = 0; i < ndof; ++i) Mu[i] = mass[i / 3] * u[i];
+  sys.b = Mu / h - (0.5 * h) * (sys.A * u) - K + f_e;
+
+  // A = M/h + C + (h/2) K',  C = αM + βK'   [Chentanez06, Eq. (4), §3.2]
+  const double k_coef = mat.rayleigh_beta + 0.5 * h;
+  const double m_coef = 1.0 / h + mat.rayleigh_alpha;
+  sys.A *= k_coef;
+  const auto& fixed = body.fixed_dofs();
+  for (Index col = 0; col < ndof; ++col) {
+    for (SparseMatrix::InnerIterator it(sys.A, col); it; ++it) {
+      const Index row = it.row();
+      if (fixed[row] || fixed[col]) {
+        // Symmetric elimination of a fixed DOF: zero row and column, diagonal m/h.
+        it.valueRef() = (row == col) ? mass[col / 3] / h : 0.0;
+      } else if (row == col) {
+        it.valueRef() += m_coef * mass[col / 3];
+      }
+    }
+  }
+  for (Index i = 0; i < ndof; ++i)
+    if (fixed[i]) sys.b[i] = 0.0;
+  return sys;
+}
+
+void advance_trapezoidal(SolidBody& body, const VecX& u_new, double h) {
+  TETFSI_CHECK(u_new.size() == body.num_dofs(), "u_new has size {}, expected {}", u_new.size(),
+               body.num_dofs());
+  auto d = flat(body.displacement);
+  auto u = flat(body.velocity);
+  VecX un = u_new;
+  for (Index i = 0; i < body.num_dofs(); ++i)
+    if (body.is_fixed(i)) un[i] = 0.0;
+  // dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹)   [Chentanez06, Eq. (5)]
+  d += (0.5 * h) * (u + un);
+  u = un;
+}
+
+}  // namespace tetfsi::solid

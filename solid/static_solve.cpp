@@ -1,0 +1,133 @@
+#include "solid/static_solve.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+
+namespace tetfsi::solid {
+
+namespace {
+
+/// Norm of v restricted to free DOFs.
+double free_norm(const VecX& v, const std::vector<std::uint8_t>& fixed) {
+  double s = 0.0;
+  for (Index i = 0; i < v.size(); ++i)
+    if (!fixed[i]) s += v[i] * v[i];
+  return std::sqrt(s);
+}
+
+/// Solve K' Δ = r on the free DOFs (fixed rows/cols eliminated symmetrically, Δ = 0 there):
+/// CHOLMOD first (or the requested backend), UMFPACK if the factorization fails because K'
+/// is not positive definite (compressed, buckling states).
+VecX solve_newton_system(SparseMatrix& Kp, const VecX& r, const std::vector<std::uint8_t>& fixed,
+                         SolverKind kind, const std::string& body) {
+  const Index n = static_cast<Index>(r.size());
+  double diag_scale = 0.0;
+  Index nfree = 0;
+  for (Index c = 0; c < n; ++c)
+    if (!fixed[c]) {
+      diag_scale += std::abs(Kp.coeff(c, c));
+      ++nfree;
+    }
+  diag_scale = nfree > 0 && diag_scale > 0.0 ? diag_scale / nfree : 1.0;
+  for (Index c = 0; c < n; ++c)
+    for (SparseMatrix::InnerIterator it(Kp, c); it; ++it)
+      if (fixed[it.row()] || fixed[c]) it.valueRef() = (it.row() == c) ? diag_scale : 0.0;
+  VecX rhs = r;
+  for (Index i = 0; i < n; ++i)
+    if (fixed[i]) rhs[i] = 0.0;
+
+  VecX delta = VecX::Zero(n);
+  auto solver = make_linear_solver(kind);
+  try {
+    solver->setup(Kp);
+  } catch (const SolverError& e) {
+    if (kind == SolverKind::Umfpack) throw;
+    logger().debug("body '{}': static solve: {} failed ({}); using umfpack", body,
+                   to_string(kind), e.what());
+    solver = make_linear_solver(SolverKind::Umfpack);
+    solver->setup(Kp);
+  }
+  const SolveReport rep = solver->solve(rhs, delta);
+  TETFSI_REQUIRE(SolverError, rep.converged && delta.allFinite(),
+                 "body '{}': static solve: linear solve with {} failed (relative residual {:.3g})",
+                 body, rep.backend, rep.residual);
+  return delta;
+}
+
+}  // namespace
+
+StaticSolveReport solve_static(SolidBody& body, const VecX& f_e, const StaticSolveOptions& opts) {
+  TETFSI_REQUIRE(InputError, opts.load_steps >= 1 && opts.max_iterations >= 1 && opts.rel_tol > 0.0,
+                 "body '{}': static solve needs load_steps >= 1, max_iterations >= 1, rel_tol > 0",
+                 body.name());
+  const Index ndof = body.num_dofs();
+  TETFSI_CHECK(f_e.size() == ndof, "f_e has size {}, expected {}", f_e.size(), ndof);
+  const auto& fixed = body.fixed_dofs();
+  const StvkElasticity& elastic = body.elasticity();
+  const MatX3& X = body.rest_positions();
+  body.velocity.setZero();
+
+  StaticSolveReport report;
+  VecX K;
+  SparseMatrix Kp;
+  // Reference for the relative residual: the load, or (for pure prescribed-displacement
+  // problems, f_e = 0) the initial out-of-balance force.
+  const double ref = std::max(free_norm(f_e, fixed), free_norm(elastic.forces(body.positions()), fixed));
+  if (ref == 0.0) {
+    report.converged = true;
+    return report;
+  }
+
+  for (int step = 1; step <= opts.load_steps; ++step) {
+    const VecX f = f_e * (static_cast<double>(step) / opts.load_steps);
+    bool step_converged = false;
+    for (int it = 0; it <= opts.max_iterations; ++it) {
+      const MatX3 x = X + body.displacement;
+      elastic.forces_and_jacobian(x, K, Kp);
+      VecX r = f - K;  // out-of-balance force = −∇Π
+      for (Index i = 0; i < ndof; ++i)
+        if (fixed[i]) r[i] = 0.0;
+      report.residual = r.norm() / ref;
+      if (report.residual <= opts.rel_tol) {
+        step_converged = true;
+        break;
+      }
+      if (it == opts.max_iterations) break;
+      ++report.iterations;
+      const VecX delta = solve_newton_system(Kp, r, fixed, opts.linear_solver, body.name());
+
+      // Backtracking (Armijo) line search on Π(d) = W(X + d) − fᵀd.
+      const VecX d0 = flat(body.displacement);
+      const double pi0 = elastic.energy(x) - f.dot(d0);
+      const double slope = -r.dot(delta);  // ∇Π · Δ
+      double alpha = 1.0;
+      if (slope < 0.0) {
+        const double slack = 1e-13 * (std::abs(pi0) + std::abs(f.dot(d0)) + elastic.energy(x));
+        for (int ls = 0; ls < 30; ++ls) {
+          const VecX d = d0 + alpha * delta;
+          const double pi = elastic.energy(X + as_nodes(d)) - f.dot(d);
+          if (pi <= pi0 + 1e-4 * alpha * slope + slack) break;
+          alpha *= 0.5;
+        }
+      }  // else: not a descent direction (indefinite K'), take the plain Newton step
+      flat(body.displacement) = d0 + alpha * delta;
+      TETFSI_REQUIRE(SolverError, body.displacement.allFinite(),
+                     "body '{}': static solve produced a non-finite displacement", body.name());
+    }
+    if (!step_converged) {
+      throw SolverError(fmt::format(
+          "body '{}': static Newton solve did not converge in {} iterations at load step {}/{} "
+          "(relative residual {:.3g} > {:.3g}); raise load_steps or max_iterations",
+          body.name(), opts.max_iterations, step, opts.load_steps, report.residual, opts.rel_tol));
+    }
+  }
+  report.converged = true;
+  logger().debug("body '{}': static solve converged in {} Newton iterations (residual {:.3g})",
+                 body.name(), report.iterations, report.residual);
+  return report;
+}
+
+}  // namespace tetfsi::solid

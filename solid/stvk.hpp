@@ -8,6 +8,8 @@
 ///   W = V0 (μ E:E + ½ λ (tr E)²)  (elastic energy).
 /// The elastic force of [Chentanez06, Eq. (3)] is K(d) = ∂W/∂x (the internal force, on the
 /// left-hand side of M a + C u + K(d) = f), and K' = ∂K/∂d is its Jacobian (symmetric).
+#include <vector>
+
 #include "core/types.hpp"
 #include "solid/material.hpp"
 
@@ -48,6 +50,11 @@ class StvkElasticity {
   LameParameters m_lame;
   std::vector<Mat3> m_dm_inv;  ///< Dm⁻¹ per tet
   VecX m_rest_volume;          ///< V0 per tet
+  /// Sparsity pattern of K' (3#V × 3#V, values zero), built once in the constructor.
+  SparseMatrix m_pattern;
+  /// #T · 144: index into m_pattern's value array of local entry (12 i + j) of tet t, so each
+  /// Jacobian evaluation only fills values (no triplet sort).
+  std::vector<Index> m_slot;
 };
 
 }  // namespace tetfsi::solid

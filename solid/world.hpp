@@ -35,6 +35,9 @@ class SolidWorld {
 
   double kinetic_energy() const;
   double elastic_energy() const;
+
+ private:
+  bool m_warned_fallback = false;  ///< the CHOLMOD → UMFPACK fallback was logged once
 };
 
 }  // namespace tetfsi::solid
