@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/LU>
+
 #include "core/error.hpp"
 
 namespace tetfsi::solid {
