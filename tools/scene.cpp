@@ -1,0 +1,794 @@
+#include "tools/scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include <Eigen/Geometry>
+#include <fmt/format.h>
+
+#include "core/error.hpp"
+#include "core/linear_solver.hpp"
+#include "core/log.hpp"
+#include "mesh/generate.hpp"
+#include "mesh/io.hpp"
+#include "mesh/tetrahedralize.hpp"
+
+namespace tetfsi::tools {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+int TimeSpec::num_steps() const {
+  if (steps) return *steps;
+  const double n = std::ceil(end_time.value_or(1.0) / dt - 1e-9);
+  return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(std::numeric_limits<int>::max())));
+}
+
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Small helpers shared by parsing and building.
+
+/// The name a scene goes by in messages: the path as the caller gave it.
+std::string display_name(const fs::path& file) {
+  return file.empty() ? std::string("<scene>") : file.string();
+}
+
+/// Levenshtein distance (for "did you mean").
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t subst = prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1);
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, subst});
+    }
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+/// The closest of `candidates` to `word`, if close enough to be a likely typo.
+std::optional<std::string> closest(const std::string& word, const std::vector<std::string>& candidates) {
+  std::optional<std::string> best;
+  std::size_t best_d = std::max<std::size_t>(1, word.size() / 3) + 1;
+  for (const auto& c : candidates) {
+    const std::size_t d = edit_distance(word, c);
+    if (d < best_d) {
+      best_d = d;
+      best = c;
+    }
+  }
+  return best;
+}
+
+std::string join(const std::vector<std::string>& v, const std::string& sep = ", ") {
+  std::string out;
+  for (std::size_t i = 0; i < v.size(); ++i) out += (i ? sep : "") + v[i];
+  return out;
+}
+
+/// "string \"abc\"", "number 3", "array [1,2]": what a value is, for "expected X, got Y".
+std::string describe(const json& j) {
+  std::string text = j.dump();
+  if (text.size() > 40) text = text.substr(0, 37) + "...";
+  switch (j.type()) {
+    case json::value_t::null: return "null";
+    case json::value_t::boolean: return "boolean " + text;
+    case json::value_t::string: return "string " + text;
+    case json::value_t::array: return "array " + text;
+    case json::value_t::object: return "object " + text;
+    case json::value_t::number_float:
+      if (!std::isfinite(j.get<double>())) return fmt::format("number {}", j.get<double>());
+      return "number " + text;
+    default: return "number " + text;
+  }
+}
+
+std::string fmt_vec(const Vec3& v) { return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z()); }
+
+json to_json(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+// ---------------------------------------------------------------------------------------------
+// The parser: a JSON value plus its path, and typed getters that throw InputError naming both.
+
+class Parser {
+ public:
+  explicit Parser(const fs::path& file) : m_file(display_name(file)) {
+    m_folder = file.empty() ? fs::current_path() : fs::absolute(file).parent_path();
+  }
+
+  struct Node {
+    const json& j;
+    std::string path;  ///< "bodies[0].material"; empty for the top level
+  };
+
+  [[noreturn]] void fail(const std::string& path, const std::string& problem) const {
+    throw InputError(fmt::format("{}: {}: {}", m_file, path.empty() ? "(top level)" : path, problem));
+  }
+
+  static std::string child_path(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+  }
+  static std::string index_path(const std::string& path, std::size_t i) {
+    return fmt::format("{}[{}]", path, i);
+  }
+
+  /// Check `n` is an object whose keys are all in `allowed`.
+  void expect_object(const Node& n, const std::vector<std::string>& allowed) const {
+    if (!n.j.is_object()) fail(n.path, "expected an object, got " + describe(n.j));
+    for (const auto& [key, value] : n.j.items()) {
+      if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
+      if (auto guess = closest(key, allowed)) {
+        fail(child_path(n.path, key), fmt::format("unknown key (did you mean '{}'?)", *guess));
+      }
+      fail(child_path(n.path, key), fmt::format("unknown key (valid keys here: {})", join(allowed)));
+    }
+  }
+
+  static bool has(const Node& n, const std::string& key) { return n.j.contains(key); }
+  static Node child(const Node& n, const std::string& key) { return {n.j.at(key), child_path(n.path, key)}; }
+
+  double number(const Node& n) const {
+    if (!n.j.is_number()) fail(n.path, "expected a number, got " + describe(n.j));
+    const double v = n.j.get<double>();
+    if (!std::isfinite(v)) fail(n.path, "expected a finite number, got " + describe(n.j));
+    return v;
+  }
+  /// Number at `key` if present, else `fallback`.
+  double number(const Node& n, const std::string& key, double fallback) const {
+    return has(n, key) ? number(child(n, key)) : fallback;
+  }
+
+  int integer(const Node& n) const {
+    if (!n.j.is_number()) fail(n.path, "expected an integer, got " + describe(n.j));
+    const double v = n.j.get<double>();
+    if (!std::isfinite(v) || v != std::floor(v)) fail(n.path, "expected an integer, got " + describe(n.j));
+    if (std::abs(v) > std::numeric_limits<int>::max()) fail(n.path, "integer out of range: " + n.j.dump());
+    return static_cast<int>(v);
+  }
+  int integer(const Node& n, const std::string& key, int fallback) const {
+    return has(n, key) ? integer(child(n, key)) : fallback;
+  }
+
+  std::string string(const Node& n) const {
+    if (!n.j.is_string()) fail(n.path, "expected a string, got " + describe(n.j));
+    return n.j.get<std::string>();
+  }
+  std::string string(const Node& n, const std::string& key, const std::string& fallback) const {
+    return has(n, key) ? string(child(n, key)) : fallback;
+  }
+
+  /// A string that must be one of `choices`.
+  std::string choice(const Node& n, const std::vector<std::string>& choices, const std::string& what) const {
+    const std::string s = string(n);
+    if (std::find(choices.begin(), choices.end(), s) != choices.end()) return s;
+    std::string problem = fmt::format("unknown {} '{}'", what, s);
+    if (auto guess = closest(s, choices)) problem += fmt::format(" (did you mean '{}'?)", *guess);
+    else problem += fmt::format(" (valid: {})", join(choices));
+    fail(n.path, problem);
+  }
+
+  Vec3 vec3(const Node& n) const {
+    if (!n.j.is_array() || n.j.size() != 3) fail(n.path, "expected an array of 3 numbers, got " + describe(n.j));
+    Vec3 v;
+    for (int a = 0; a < 3; ++a) v[a] = number({n.j[a], index_path(n.path, a)});
+    return v;
+  }
+  Vec3 vec3(const Node& n, const std::string& key, const Vec3& fallback) const {
+    return has(n, key) ? vec3(child(n, key)) : fallback;
+  }
+
+  Node require(const Node& n, const std::string& key) const {
+    if (!has(n, key)) fail(n.path, fmt::format("missing required key '{}'", key));
+    return child(n, key);
+  }
+
+  /// A file path resolved against the scene's folder; it must exist.
+  fs::path existing_file(const Node& n) const {
+    const std::string s = string(n);
+    if (s.empty()) fail(n.path, "expected a file name, got an empty string");
+    fs::path p = fs::path(s);
+    if (p.is_relative()) p = m_folder / p;
+    p = p.lexically_normal();
+    std::error_code ec;
+    if (!fs::exists(p, ec)) fail(n.path, fmt::format("no such file '{}'", p.string()));
+    if (fs::is_directory(p, ec)) fail(n.path, fmt::format("'{}' is a folder, not a file", p.string()));
+    return p;
+  }
+
+  // ---- scene parts ----
+
+  /// An object {"lo", "hi"}; `strict`: lo < hi (a solid box), else lo <= hi (a selection box
+  /// may be flat, e.g. to pick the nodes of one face).
+  BoxSpec box(const Node& n, bool strict) const {
+    expect_object(n, {"lo", "hi"});
+    return bounds(n, strict);
+  }
+
+  /// lo/hi held by `n` (which may hold other keys too).
+  BoxSpec bounds(const Node& n, bool strict) const {
+    BoxSpec b;
+    b.lo = vec3(require(n, "lo"));
+    b.hi = vec3(require(n, "hi"));
+    for (int a = 0; a < 3; ++a) {
+      const bool bad = strict ? b.lo[a] >= b.hi[a] : b.lo[a] > b.hi[a];
+      if (bad) {
+        fail(n.path, fmt::format("lo must be {} hi in every axis, got lo = {}, hi = {} (axis {})",
+                                 strict ? "<" : "<=", fmt_vec(b.lo), fmt_vec(b.hi), "xyz"[a]));
+      }
+    }
+    return b;
+  }
+
+  MeshSpec mesh(const Node& n) const {
+    expect_object(n, {"box", "file", "surface", "cell_size"});
+    std::vector<std::string> given;
+    for (const char* k : {"box", "file", "surface"}) {
+      if (has(n, k)) given.push_back(fmt::format("'{}'", k));
+    }
+    if (given.size() != 1) {
+      fail(n.path, given.empty() ? std::string("give exactly one of 'box', 'file' or 'surface'")
+                                 : "give exactly one of 'box', 'file' or 'surface', got " + join(given, " and "));
+    }
+    MeshSpec m;
+    if (has(n, "box")) {
+      m.kind = MeshSpec::Kind::Box;
+      const Node b = child(n, "box");
+      expect_object(b, {"lo", "hi", "cells"});
+      m.box = bounds(b, true);
+      if (has(b, "cells")) {
+        const Node c = child(b, "cells");
+        if (!c.j.is_array() || c.j.size() != 3) fail(c.path, "expected an array of 3 positive integers, got " + describe(c.j));
+        for (int a = 0; a < 3; ++a) {
+          const Node e{c.j[a], index_path(c.path, a)};
+          m.cells[a] = integer(e);
+          if (m.cells[a] < 1) fail(e.path, fmt::format("cell counts must be positive integers, got {}", m.cells[a]));
+        }
+      }
+    } else if (has(n, "file")) {
+      m.kind = MeshSpec::Kind::File;
+      m.file = existing_file(child(n, "file"));
+    } else {
+      m.kind = MeshSpec::Kind::Surface;
+      m.file = existing_file(child(n, "surface"));
+      if (!has(n, "cell_size")) fail(n.path, "a 'surface' mesh needs 'cell_size' (> 0, m): the target tet size");
+    }
+    if (has(n, "cell_size")) {
+      const Node c = child(n, "cell_size");
+      if (m.kind != MeshSpec::Kind::Surface) fail(c.path, "cell_size applies only to a 'surface' mesh");
+      m.cell_size = number(c);
+      if (m.cell_size <= 0) fail(c.path, fmt::format("must be > 0 (m), got {}", m.cell_size));
+    }
+    return m;
+  }
+
+  TransformSpec transform(const Node& n) const {
+    expect_object(n, {"scale", "rotate_deg", "translate"});
+    TransformSpec t;
+    t.scale = number(n, "scale", t.scale);
+    if (t.scale <= 0) fail(child_path(n.path, "scale"), fmt::format("must be > 0, got {}", t.scale));
+    t.rotate_deg = vec3(n, "rotate_deg", t.rotate_deg);
+    t.translate = vec3(n, "translate", t.translate);
+    return t;
+  }
+
+  solid::Material material(const Node& n) const {
+    expect_object(n, {"density", "youngs_modulus", "poisson_ratio", "rayleigh_alpha", "rayleigh_beta"});
+    solid::Material m;
+    auto positive = [&](const char* key, double& v, const char* unit) {
+      v = number(n, key, v);
+      if (v <= 0) fail(child_path(n.path, key), fmt::format("must be > 0 ({}), got {}", unit, v));
+    };
+    positive("density", m.density, "kg/m^3");
+    positive("youngs_modulus", m.youngs_modulus, "Pa");
+    m.poisson_ratio = number(n, "poisson_ratio", m.poisson_ratio);
+    const std::string nu_path = child_path(n.path, "poisson_ratio");
+    if (m.poisson_ratio >= 0.5) {
+      fail(nu_path, fmt::format("must be < 0.5, got {} (0.5 is incompressible and locks linear tets; "
+                                "use at most 0.49)", m.poisson_ratio));
+    }
+    if (m.poisson_ratio <= -1.0) {
+      fail(nu_path, fmt::format("must be > -1, got {} (-1 or less makes the material unstable)", m.poisson_ratio));
+    }
+    for (const char* key : {"rayleigh_alpha", "rayleigh_beta"}) {
+      double& v = std::string(key) == "rayleigh_alpha" ? m.rayleigh_alpha : m.rayleigh_beta;
+      v = number(n, key, v);
+      if (v < 0) fail(child_path(n.path, key), fmt::format("must be >= 0 (negative damping adds energy), got {}", v));
+    }
+    return m;
+  }
+
+  /// Either "box" or "nodes" (exactly one) from an object that may hold other keys too.
+  NodeSelection selection(const Node& n) const {
+    const bool b = has(n, "box"), l = has(n, "nodes");
+    if (b == l) fail(n.path, b ? "give either 'box' or 'nodes', not both" : "give 'box' or 'nodes' to select nodes");
+    NodeSelection s;
+    if (b) {
+      s.box = box(child(n, "box"), false);
+    } else {
+      const Node list = child(n, "nodes");
+      if (!list.j.is_array() || list.j.empty()) {
+        fail(list.path, "expected a non-empty array of node indices, got " + describe(list.j));
+      }
+      for (std::size_t i = 0; i < list.j.size(); ++i) {
+        const Node e{list.j[i], index_path(list.path, i)};
+        const int v = integer(e);
+        if (v < 0) fail(e.path, fmt::format("node indices are >= 0, got {}", v));
+        s.nodes.push_back(v);
+      }
+    }
+    return s;
+  }
+
+  PinSpec pin(const Node& n) const {
+    expect_object(n, {"box", "nodes", "axes"});
+    PinSpec p;
+    p.select = selection(n);
+    p.axes = string(n, "axes", p.axes);
+    bool ok = !p.axes.empty();
+    std::set<char> seen;
+    for (char c : p.axes) ok = ok && (c == 'x' || c == 'y' || c == 'z') && seen.insert(c).second;
+    if (!ok) fail(child_path(n.path, "axes"), fmt::format("must be a non-empty subset of \"xyz\" (e.g. \"xz\"), got \"{}\"", p.axes));
+    return p;
+  }
+
+  LoadSpec load(const Node& n) const {
+    expect_object(n, {"box", "nodes", "total_force"});
+    LoadSpec l;
+    l.select = selection(n);
+    l.total_force = vec3(require(n, "total_force"));
+    return l;
+  }
+
+  BodySpec body(const Node& n) const {
+    expect_object(n, {"name", "mesh", "transform", "material", "pins", "loads", "initial_velocity"});
+    BodySpec b;
+    b.name = string(require(n, "name"));
+    if (b.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
+    b.mesh = mesh(require(n, "mesh"));
+    if (has(n, "transform")) b.transform = transform(child(n, "transform"));
+    if (has(n, "material")) b.material = material(child(n, "material"));
+    for (const char* key : {"pins", "loads"}) {
+      if (!has(n, key)) continue;
+      const Node list = child(n, key);
+      if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
+      for (std::size_t i = 0; i < list.j.size(); ++i) {
+        const Node e{list.j[i], index_path(list.path, i)};
+        if (std::string(key) == "pins") b.pins.push_back(pin(e));
+        else b.loads.push_back(load(e));
+      }
+    }
+    b.initial_velocity = vec3(n, "initial_velocity", b.initial_velocity);
+    return b;
+  }
+
+  solid::Obstacle obstacle(const Node& n, std::size_t index) const {
+    if (!n.j.is_object()) fail(n.path, "expected an object, got " + describe(n.j));
+    solid::Obstacle o;
+    const std::string type = choice(require(n, "type"), {"plane", "box"}, "obstacle type");
+    if (type == "plane") {
+      expect_object(n, {"type", "name", "point", "normal", "restitution", "friction"});
+      o.kind = solid::Obstacle::Kind::Plane;
+      o.point = vec3(n, "point", o.point);
+      o.normal = vec3(n, "normal", o.normal);
+      if (o.normal.norm() < 1e-12) fail(child_path(n.path, "normal"), "must not be zero");
+    } else {
+      expect_object(n, {"type", "name", "lo", "hi", "restitution", "friction"});
+      o.kind = solid::Obstacle::Kind::Box;
+      const BoxSpec b = bounds(n, true);
+      o.lo = b.lo;
+      o.hi = b.hi;
+    }
+    o.name = string(n, "name", fmt::format("{}{}", type, index));
+    o.restitution = number(n, "restitution", o.restitution);
+    if (o.restitution < 0 || o.restitution > 1) {
+      fail(child_path(n.path, "restitution"), fmt::format("must be in [0, 1], got {}", o.restitution));
+    }
+    o.friction = number(n, "friction", o.friction);
+    if (o.friction < 0) fail(child_path(n.path, "friction"), fmt::format("must be >= 0, got {}", o.friction));
+    return o;
+  }
+
+
+ private:
+  std::string m_file;
+  fs::path m_folder;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Scene → JSON with every default filled in.
+
+json selection_json(const NodeSelection& s) {
+  json j = json::object();
+  if (s.box) j["box"] = {{"lo", to_json(s.box->lo)}, {"hi", to_json(s.box->hi)}};
+  else j["nodes"] = s.nodes;
+  return j;
+}
+
+json resolve(const Scene& s) {
+  json j;
+  j["name"] = s.name;
+  if (!s.description.empty()) j["description"] = s.description;
+  j["mode"] = s.mode == Mode::Static ? "static" : "dynamic";
+  j["time"] = {{"dt", s.time.dt}};
+  if (s.time.steps) j["time"]["steps"] = *s.time.steps;
+  else j["time"]["end_time"] = s.time.end_time.value_or(1.0);
+  j["output"] = {{"every", s.output.every}, {"compression", s.output.compression}};
+  j["gravity"] = to_json(s.gravity);
+  j["solver"] = {{"linear", s.solver.linear}, {"rel_tol", s.solver.rel_tol}, {"max_iterations", s.solver.max_iterations}};
+  j["static"] = {{"load_steps", s.statics.load_steps},
+                 {"rel_tol", s.statics.rel_tol},
+                 {"max_iterations", s.statics.max_iterations}};
+  j["bodies"] = json::array();
+  for (const BodySpec& b : s.bodies) {
+    json jb;
+    jb["name"] = b.name;
+    switch (b.mesh.kind) {
+      case MeshSpec::Kind::Box:
+        jb["mesh"] = {{"box",
+                       {{"lo", to_json(b.mesh.box.lo)},
+                        {"hi", to_json(b.mesh.box.hi)},
+                        {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
+        break;
+      case MeshSpec::Kind::File: jb["mesh"] = {{"file", b.mesh.file.string()}}; break;
+      case MeshSpec::Kind::Surface:
+        jb["mesh"] = {{"surface", b.mesh.file.string()}, {"cell_size", b.mesh.cell_size}};
+        break;
+    }
+    jb["transform"] = {{"scale", b.transform.scale},
+                       {"rotate_deg", to_json(b.transform.rotate_deg)},
+                       {"translate", to_json(b.transform.translate)}};
+    jb["material"] = {{"density", b.material.density},
+                      {"youngs_modulus", b.material.youngs_modulus},
+                      {"poisson_ratio", b.material.poisson_ratio},
+                      {"rayleigh_alpha", b.material.rayleigh_alpha},
+                      {"rayleigh_beta", b.material.rayleigh_beta}};
+    jb["pins"] = json::array();
+    for (const PinSpec& p : b.pins) {
+      json jp = selection_json(p.select);
+      jp["axes"] = p.axes;
+      jb["pins"].push_back(jp);
+    }
+    jb["loads"] = json::array();
+    for (const LoadSpec& l : b.loads) {
+      json jl = selection_json(l.select);
+      jl["total_force"] = to_json(l.total_force);
+      jb["loads"].push_back(jl);
+    }
+    jb["initial_velocity"] = to_json(b.initial_velocity);
+    j["bodies"].push_back(jb);
+  }
+  j["obstacles"] = json::array();
+  for (const solid::Obstacle& o : s.obstacles) {
+    json jo;
+    if (o.kind == solid::Obstacle::Kind::Plane) {
+      jo = {{"type", "plane"}, {"point", to_json(o.point)}, {"normal", to_json(o.normal)}};
+    } else {
+      jo = {{"type", "box"}, {"lo", to_json(o.lo)}, {"hi", to_json(o.hi)}};
+    }
+    jo["name"] = o.name;
+    jo["restitution"] = o.restitution;
+    jo["friction"] = o.friction;
+    j["obstacles"].push_back(jo);
+  }
+  return j;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+Scene parse_scene(const json& j, const fs::path& file) {
+  const Parser p(file);
+  using Node = Parser::Node;
+  const Node root{j, ""};
+  p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver", "static", "bodies",
+                         "obstacles"});
+
+  Scene s;
+  s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
+  s.name = p.string(root, "name", file.empty() ? std::string("scene") : file.stem().string());
+  if (s.name.empty()) p.fail("name", "must not be empty");
+  s.description = p.string(root, "description", "");
+  if (Parser::has(root, "mode")) {
+    s.mode = p.choice(Parser::child(root, "mode"), {"dynamic", "static"}, "mode") == "static" ? Mode::Static
+                                                                                                : Mode::Dynamic;
+  }
+
+  if (Parser::has(root, "time")) {
+    const Node t = Parser::child(root, "time");
+    p.expect_object(t, {"dt", "end_time", "steps"});
+    s.time.dt = p.number(t, "dt", s.time.dt);
+    if (s.time.dt <= 0) p.fail("time.dt", fmt::format("must be > 0 (s), got {}", s.time.dt));
+    if (Parser::has(t, "end_time") && Parser::has(t, "steps")) {
+      p.fail("time", "give either 'end_time' or 'steps', not both");
+    }
+    if (Parser::has(t, "end_time")) {
+      s.time.end_time = p.number(Parser::child(t, "end_time"));
+      if (*s.time.end_time <= 0) p.fail("time.end_time", fmt::format("must be > 0 (s), got {}", *s.time.end_time));
+    }
+    if (Parser::has(t, "steps")) {
+      s.time.steps = p.integer(Parser::child(t, "steps"));
+      if (*s.time.steps < 1) p.fail("time.steps", fmt::format("must be >= 1, got {}", *s.time.steps));
+    }
+  }
+  if (!s.time.steps && !s.time.end_time) s.time.end_time = 1.0;
+  if (!s.time.steps && *s.time.end_time / s.time.dt > 1e9) {
+    p.fail("time", fmt::format("end_time / dt = {:.3g} steps is more than 1e9: check the units", *s.time.end_time / s.time.dt));
+  }
+
+  if (Parser::has(root, "output")) {
+    const Node o = Parser::child(root, "output");
+    p.expect_object(o, {"every", "compression"});
+    s.output.every = p.integer(o, "every", s.output.every);
+    if (s.output.every < 1) p.fail("output.every", fmt::format("must be >= 1, got {}", s.output.every));
+    if (Parser::has(o, "compression")) {
+      s.output.compression = p.choice(Parser::child(o, "compression"), {"lz4", "zlib", "none"}, "compression");
+    }
+  }
+
+  s.gravity = p.vec3(root, "gravity", s.gravity);
+
+  if (Parser::has(root, "solver")) {
+    const Node o = Parser::child(root, "solver");
+    p.expect_object(o, {"linear", "rel_tol", "max_iterations"});
+    if (Parser::has(o, "linear")) {
+      s.solver.linear = p.choice(Parser::child(o, "linear"), solver_names(), "linear solver");
+    }
+    s.solver.rel_tol = p.number(o, "rel_tol", s.solver.rel_tol);
+    if (s.solver.rel_tol <= 0) p.fail("solver.rel_tol", fmt::format("must be > 0, got {}", s.solver.rel_tol));
+    s.solver.max_iterations = p.integer(o, "max_iterations", s.solver.max_iterations);
+    if (s.solver.max_iterations < 1) {
+      p.fail("solver.max_iterations", fmt::format("must be >= 1, got {}", s.solver.max_iterations));
+    }
+  }
+
+  if (Parser::has(root, "static")) {
+    const Node o = Parser::child(root, "static");
+    p.expect_object(o, {"load_steps", "rel_tol", "max_iterations"});
+    s.statics.load_steps = p.integer(o, "load_steps", s.statics.load_steps);
+    if (s.statics.load_steps < 1) p.fail("static.load_steps", fmt::format("must be >= 1, got {}", s.statics.load_steps));
+    s.statics.rel_tol = p.number(o, "rel_tol", s.statics.rel_tol);
+    if (s.statics.rel_tol <= 0) p.fail("static.rel_tol", fmt::format("must be > 0, got {}", s.statics.rel_tol));
+    s.statics.max_iterations = p.integer(o, "max_iterations", s.statics.max_iterations);
+    if (s.statics.max_iterations < 1) {
+      p.fail("static.max_iterations", fmt::format("must be >= 1, got {}", s.statics.max_iterations));
+    }
+  }
+
+  const Node bodies = p.require(root, "bodies");
+  if (!bodies.j.is_array()) p.fail("bodies", "expected an array of bodies, got " + describe(bodies.j));
+  if (bodies.j.empty()) p.fail("bodies", "a scene needs at least one body");
+  for (std::size_t i = 0; i < bodies.j.size(); ++i) {
+    BodySpec b = p.body({bodies.j[i], Parser::index_path("bodies", i)});
+    for (std::size_t k = 0; k < s.bodies.size(); ++k) {
+      if (s.bodies[k].name == b.name) {
+        p.fail(Parser::index_path("bodies", i) + ".name",
+               fmt::format("duplicate body name '{}' (also bodies[{}])", b.name, k));
+      }
+    }
+    s.bodies.push_back(std::move(b));
+  }
+
+  if (Parser::has(root, "obstacles")) {
+    const Node obs = Parser::child(root, "obstacles");
+    if (!obs.j.is_array()) p.fail("obstacles", "expected an array, got " + describe(obs.j));
+    for (std::size_t i = 0; i < obs.j.size(); ++i) {
+      s.obstacles.push_back(p.obstacle({obs.j[i], Parser::index_path("obstacles", i)}, i));
+    }
+  }
+
+  s.resolved = resolve(s);
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// Set `root[path] = value` for a dotted path; numeric components index arrays.
+void apply_override(json& root, const std::string& text, const std::string& scene_name) {
+  auto bad = [&](const std::string& why) {
+    throw InputError(fmt::format("{}: --set '{}': {}", scene_name, text, why));
+  };
+  const auto eq = text.find('=');
+  if (eq == std::string::npos) bad("expected key.path=value (no '=')");
+  const std::string key = text.substr(0, eq);
+  const std::string value_text = text.substr(eq + 1);
+  if (key.empty()) bad("empty key path before '='");
+
+  std::vector<std::string> parts;
+  std::stringstream ss(key);
+  for (std::string part; std::getline(ss, part, '.');) parts.push_back(part);
+  if (key.back() == '.') parts.emplace_back();
+
+  json* cur = &root;
+  std::string walked;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const std::string& part = parts[i];
+    if (part.empty()) bad("empty component in the key path");
+    const bool numeric = std::all_of(part.begin(), part.end(), [](unsigned char c) { return std::isdigit(c); });
+    if (cur->is_array()) {
+      if (!numeric) bad(fmt::format("'{}' is an array: index it with a number, not '{}'", walked, part));
+      const std::size_t idx = std::stoul(part);
+      if (idx >= cur->size()) {
+        bad(fmt::format("index {} is out of range ('{}' has {} element{})", idx, walked, cur->size(),
+                        cur->size() == 1 ? "" : "s"));
+      }
+      cur = &(*cur)[idx];
+    } else if (cur->is_object() || cur->is_null()) {
+      cur = &(*cur)[part];  // creates the key; parse_scene rejects keys the schema lacks
+    } else {
+      bad(fmt::format("'{}' is {}, not an object", walked, describe(*cur)));
+    }
+    walked += (walked.empty() ? "" : ".") + part;
+  }
+  json value = json::parse(value_text, nullptr, /*allow_exceptions=*/false);
+  if (value.is_discarded()) value = value_text;
+  *cur = std::move(value);
+}
+
+}  // namespace
+
+Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides) {
+  const std::string name = display_name(file);
+  std::error_code ec;
+  if (!fs::exists(file, ec)) {
+    throw InputError(fmt::format("{}: no such scene file ('{}')", name, fs::absolute(file).lexically_normal().string()));
+  }
+  if (fs::is_directory(file, ec)) throw InputError(fmt::format("{}: is a folder, not a scene file", name));
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open the scene file for reading", name));
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string text = buffer.str();
+
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    // e.byte is 1-based (the last byte read); turn it into a line and column.
+    const std::size_t byte = std::min<std::size_t>(e.byte == 0 ? 1 : e.byte, text.size() + 1);
+    std::size_t line = 1, line_start = 0;
+    for (std::size_t i = 0; i + 1 < byte; ++i) {
+      if (text[i] == '\n') {
+        ++line;
+        line_start = i + 1;
+      }
+    }
+    const std::size_t column = byte - line_start;
+    std::string reason = e.what();
+    const auto colon = reason.find(": ", reason.find("parse error"));
+    if (colon != std::string::npos) reason = reason.substr(colon + 2);
+    throw InputError(fmt::format("{}: line {}, column {}: invalid JSON: {}", name, line, column, reason));
+  }
+  for (const std::string& o : overrides) apply_override(j, o, name);
+  return parse_scene(j, file);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// x ↦ translate + R (scale · x), R = Rz · Ry · Rx.
+void apply_transform(const TransformSpec& t, MatX3& x) {
+  constexpr double deg = M_PI / 180.0;
+  const Mat3 R = (Eigen::AngleAxisd(t.rotate_deg.z() * deg, Vec3::UnitZ()) *
+                  Eigen::AngleAxisd(t.rotate_deg.y() * deg, Vec3::UnitY()) *
+                  Eigen::AngleAxisd(t.rotate_deg.x() * deg, Vec3::UnitX()))
+                     .toRotationMatrix();
+  for (Index i = 0; i < x.rows(); ++i) {
+    x.row(i) = (t.translate + R * (t.scale * x.row(i).transpose())).transpose();
+  }
+}
+
+mesh::VolumeMesh make_mesh(const MeshSpec& m) {
+  switch (m.kind) {
+    case MeshSpec::Kind::Box: return mesh::make_box(m.box.lo, m.box.hi, m.cells);
+    case MeshSpec::Kind::File: return mesh::read_volume_mesh(m.file);
+    case MeshSpec::Kind::Surface: {
+      const mesh::SurfaceMesh surface = mesh::read_surface_mesh(m.file);
+      mesh::TetrahedralizeParams params;
+      params.cell_size = m.cell_size;
+      return mesh::tetrahedralize_surface(surface, params, m.file.string());
+    }
+  }
+  throw InternalError("unknown mesh kind");
+}
+
+/// The nodes a selection picks, checked against the body; `where` is "<file>: bodies[0].pins[1]".
+std::vector<Index> select_nodes(const NodeSelection& sel, const MatX3& rest, const std::string& where) {
+  const Index n = static_cast<Index>(rest.rows());
+  std::vector<Index> out;
+  if (sel.box) {
+    for (Index i = 0; i < n; ++i) {
+      if (sel.box->contains(rest.row(i).transpose())) out.push_back(i);
+    }
+    if (out.empty()) {
+      throw InputError(fmt::format("{}: the box {}..{} selects no node; the body spans {}..{}", where,
+                                   fmt_vec(sel.box->lo), fmt_vec(sel.box->hi),
+                                   fmt_vec(rest.colwise().minCoeff().transpose()),
+                                   fmt_vec(rest.colwise().maxCoeff().transpose())));
+    }
+  } else {
+    for (std::size_t k = 0; k < sel.nodes.size(); ++k) {
+      const Index v = sel.nodes[k];
+      if (v < 0 || v >= n) {
+        throw InputError(fmt::format("{}.nodes[{}]: node {} is out of range (the body has {} nodes, 0..{})", where, k,
+                                     v, n, n - 1));
+      }
+      out.push_back(v);
+    }
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    if (out.empty()) throw InputError(fmt::format("{}: selects no node", where));
+  }
+  return out;
+}
+
+}  // namespace
+
+solid::SolidWorld build_world(const Scene& scene) {
+  const std::string file = display_name(scene.file);
+  solid::SolidWorld world;
+  world.gravity = scene.gravity;
+  world.linear_solver = parse_solver_kind(scene.solver.linear);
+  world.solver_options.rel_tol = scene.solver.rel_tol;
+  world.solver_options.max_iterations = scene.solver.max_iterations;
+  world.bodies.reserve(scene.bodies.size());
+
+  for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
+    const BodySpec& spec = scene.bodies[bi];
+    const std::string body_where = fmt::format("{}: bodies[{}] '{}'", file, bi, spec.name);
+    // Mesh and body construction: wrap errors so they name the scene and the body.
+    try {
+      mesh::VolumeMesh m = make_mesh(spec.mesh);
+      apply_transform(spec.transform, m.vertices);
+      world.bodies.emplace_back(spec.name, std::move(m), spec.material);
+    } catch (const MeshError& e) {
+      throw MeshError(fmt::format("{}: {}", body_where, e.what()));
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{}: {}", body_where, e.what()));
+    }
+    solid::SolidBody& body = world.bodies.back();
+    const MatX3& rest = body.rest_positions();
+    const Index n = body.num_nodes();
+
+    for (std::size_t k = 0; k < spec.pins.size(); ++k) {
+      const PinSpec& pin = spec.pins[k];
+      const auto nodes = select_nodes(pin.select, rest, fmt::format("{}: bodies[{}].pins[{}]", file, bi, k));
+      for (Index v : nodes) {
+        for (char c : pin.axes) body.fix_dof(v, c - 'x');
+      }
+    }
+    if (body.applied_force.rows() != n) body.applied_force = MatX3::Zero(n, 3);
+    for (std::size_t k = 0; k < spec.loads.size(); ++k) {
+      const LoadSpec& load = spec.loads[k];
+      const auto nodes = select_nodes(load.select, rest, fmt::format("{}: bodies[{}].loads[{}]", file, bi, k));
+      const Vec3 per_node = load.total_force / static_cast<double>(nodes.size());
+      for (Index v : nodes) body.applied_force.row(v) += per_node.transpose();
+    }
+    if (body.velocity.rows() != n) body.velocity = MatX3::Zero(n, 3);
+    for (Index v = 0; v < n; ++v) {
+      for (int a = 0; a < 3; ++a) {
+        if (!body.is_fixed(3 * v + a)) body.velocity(v, a) = spec.initial_velocity[a];
+      }
+    }
+    logger().info("{}: body '{}': {} nodes, {} tets, {} fixed DOFs, mass {:.4g} kg", file, spec.name, n,
+                  body.num_tets(), body.num_fixed_dofs(), body.total_mass());
+  }
+
+  for (solid::Obstacle o : scene.obstacles) {
+    if (o.kind == solid::Obstacle::Kind::Plane) o.normal.normalize();
+    world.obstacles.push_back(o);
+  }
+  return world;
+}
+
+}  // namespace tetfsi::tools

@@ -9,6 +9,7 @@
 /// ```json
 /// {
 ///   "name": "sheet_sag",
+///   "description": "free text, kept in the resolved scene",
 ///   "mode": "dynamic" | "static",
 ///   "time":   { "dt": 0.005, "end_time": 2.0 }            // or "steps": 400 (not both)
 ///   "output": { "every": 4, "compression": "lz4" | "zlib" | "none" },
@@ -126,6 +127,7 @@ enum class Mode { Dynamic, Static };
 struct Scene {
   std::filesystem::path file;  ///< the scene file (absolute), or empty for an in-memory scene
   std::string name;            ///< default: the file's stem
+  std::string description;     ///< free text (optional)
   Mode mode = Mode::Dynamic;
   TimeSpec time;
   OutputSpec output;
