@@ -11,6 +11,13 @@
 ///  - `amg`            PETSc CG (SPD) or GMRES (`symmetric=false`) preconditioned by
 ///                     hypre BoomerAMG through PETSc                     [iterative]
 ///  - `amg_gamg`       the same with PETSc's own smoothed-aggregation GAMG [iterative]
+///
+/// PETSc (and with it MPI) is initialised lazily by the first `amg`/`amg_gamg` solver and
+/// finalised at program exit; a program that never makes one never touches MPI.
+///
+/// Symmetric but possibly indefinite systems (e.g. 3n × 3n StVK stiffness under
+/// compression): try `cholmod`; its `setup` throws `SolverError` when the matrix is not
+/// SPD, and the caller falls back to `umfpack`, which takes any nonsingular matrix.
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,5 +65,12 @@ class LinearSolver {
 };
 
 std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts = {});
+
+/// True relative residual ||b − A x||₂ / ||b||₂ (||A x||₂ if b = 0, so x = 0 gives 0).
+/// @param A n × n, @param b length n, @param x length n.
+double relative_residual(const SparseMatrix& A, const VecX& b, const VecX& x);
+
+/// Whether A is square and |A_ij − A_ji| ≤ rel_tol · max|A| for all i, j.
+bool is_symmetric(const SparseMatrix& A, double rel_tol = 1e-12);
 
 }  // namespace tetfsi

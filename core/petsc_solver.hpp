@@ -1,0 +1,21 @@
+#pragma once
+/// @file petsc_solver.hpp
+/// Internal: the PETSc-backed `amg` (hypre BoomerAMG) and `amg_gamg` (PETSc GAMG) solvers.
+/// Keeps PETSc out of every header; only `core/petsc_solver.cpp` includes PETSc.
+///
+/// PETSc is initialised on the first call of `make_petsc_solver` (which also initialises MPI
+/// if nobody did), with PETSc's signal handler off and no `.petscrc` read, and finalised at
+/// exit. Tuning can be overridden at run time through `PETSC_OPTIONS` with the prefixes
+/// `tetfsi_amg_` and `tetfsi_gamg_`, e.g.
+/// `PETSC_OPTIONS="-tetfsi_amg_pc_hypre_boomeramg_strong_threshold 0.6"`.
+#include <memory>
+
+#include "core/linear_solver.hpp"
+
+namespace tetfsi::detail {
+
+/// @param kind SolverKind::Amg or SolverKind::AmgGamg.
+/// @throws SolverError if PETSc cannot be initialised.
+std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOptions& opts);
+
+}  // namespace tetfsi::detail
