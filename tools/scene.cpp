@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <set>
 #include <sstream>
 
@@ -634,6 +635,51 @@ void apply_override(json& root, const std::string& text, const std::string& scen
   *cur = std::move(value);
 }
 
+/// A parser callback that rejects a key given twice in one object (nlohmann would silently
+/// keep the last), naming the JSON path.
+json::parser_callback_t duplicate_key_check(const std::string& scene_name) {
+  struct Frame {
+    bool is_object;
+    std::string path;
+    std::set<std::string> keys;
+    std::string last_key;
+    std::size_t next_index = 0;
+  };
+  auto stack = std::make_shared<std::vector<Frame>>();
+  // The path of a value starting now, as a child of the innermost open container.
+  auto child_here = [stack]() -> std::string {
+    if (stack->empty()) return "";
+    Frame& f = stack->back();
+    if (f.is_object) return Parser::child_path(f.path, f.last_key);
+    return Parser::index_path(f.path, f.next_index++);
+  };
+  return [stack, child_here, scene_name](int /*depth*/, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start:
+      case json::parse_event_t::array_start:
+        stack->push_back({event == json::parse_event_t::object_start, child_here(), {}, {}, 0});
+        break;
+      case json::parse_event_t::key: {
+        Frame& f = stack->back();
+        f.last_key = parsed.get<std::string>();
+        if (!f.keys.insert(f.last_key).second) {
+          throw InputError(fmt::format("{}: {}: duplicate key (JSON keeps only the last value; remove one)",
+                                       scene_name, Parser::child_path(f.path, f.last_key)));
+        }
+        break;
+      }
+      case json::parse_event_t::value:
+        if (!stack->empty() && !stack->back().is_object) ++stack->back().next_index;
+        break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        stack->pop_back();
+        break;
+    }
+    return true;
+  };
+}
+
 }  // namespace
 
 Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides) {
@@ -651,7 +697,7 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
 
   json j;
   try {
-    j = json::parse(text);
+    j = json::parse(text, duplicate_key_check(name));
   } catch (const json::parse_error& e) {
     // e.byte is 1-based (the last byte read); turn it into a line and column.
     const std::size_t byte = std::min<std::size_t>(e.byte == 0 ? 1 : e.byte, text.size() + 1);
@@ -767,14 +813,12 @@ solid::SolidWorld build_world(const Scene& scene) {
         for (char c : pin.axes) body.fix_dof(v, c - 'x');
       }
     }
-    if (body.applied_force.rows() != n) body.applied_force = MatX3::Zero(n, 3);
     for (std::size_t k = 0; k < spec.loads.size(); ++k) {
       const LoadSpec& load = spec.loads[k];
       const auto nodes = select_nodes(load.select, rest, fmt::format("{}: bodies[{}].loads[{}]", file, bi, k));
       const Vec3 per_node = load.total_force / static_cast<double>(nodes.size());
       for (Index v : nodes) body.applied_force.row(v) += per_node.transpose();
     }
-    if (body.velocity.rows() != n) body.velocity = MatX3::Zero(n, 3);
     for (Index v = 0; v < n; ++v) {
       for (int a = 0; a < 3; ++a) {
         if (!body.is_fixed(3 * v + a)) body.velocity(v, a) = spec.initial_velocity[a];

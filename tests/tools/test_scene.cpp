@@ -347,6 +347,14 @@ TEST_CASE("load_scene: missing file, JSON syntax errors with line and column") {
   check_input_error([&] { load_scene(p); }, {"broken.json: line 4, column 3: invalid JSON"});
   const fs::path q = dir.write("truncated.json", "{ \"bodies\": [");
   check_input_error([&] { load_scene(q); }, {"truncated.json: line 1, column", "invalid JSON"});
+  // A key given twice would silently keep the last value: rejected, with its path.
+  const fs::path d = dir.write("dup.json", R"({ "bodies": [ { "name": "a", "mesh": { "box": { "lo": [0, 0, 0],
+      "hi": [1, 1, 1] } } }, { "name": "b", "mesh": {}, "name": "c" } ] })");
+  check_input_error([&] { load_scene(d); }, {"dup.json: bodies[1].name: duplicate key"});
+  const fs::path d2 = dir.write("dup2.json", R"({ "time": { "dt": 0.1 }, "gravity": [0, 0, -1], "time": {} })");
+  check_input_error([&] { load_scene(d2); }, {"dup2.json: time: duplicate key"});
+  const fs::path d3 = dir.write("dup3.json", R"({ "bodies": [ [1, 2, {}], { "mesh": { "file": "a", "file": "b" } } ] })");
+  check_input_error([&] { load_scene(d3); }, {"dup3.json: bodies[1].mesh.file: duplicate key"});
 }
 
 TEST_CASE("--set overrides change values, create allowed keys and reject malformed ones") {
@@ -481,4 +489,19 @@ TEST_CASE("build_world: a mesh file with an inverted tet names the scene, the bo
   REQUIRE(w.bodies.size() == 1);
   CHECK(w.bodies[0].num_tets() == 2);
   CHECK(w.bodies[0].num_fixed_dofs() == 3);
+}
+
+TEST_CASE("build_world: a closed surface is tetrahedralised at the requested cell size") {
+  json j = minimal_json();
+  j["bodies"][0]["mesh"] = {{"surface", "cube.off"}, {"cell_size", 0.25}};
+  j["bodies"][0]["material"] = {{"density", 500.0}};
+  const Scene s = parse_scene(j, fixtures / "surface_scene.json");  // in-memory, anchored there
+  CHECK(s.bodies[0].mesh.file == fixtures / "cube.off");
+  const solid::SolidWorld w = build_world(s);
+  const solid::SolidBody& b = w.bodies[0];
+  CHECK(b.num_tets() > 12);
+  // Mesh_3 approximates the cube's volume (sharp edges are not protected): mass ≈ ρ · 1 m³.
+  CHECK(b.total_mass() == doctest::Approx(500.0).epsilon(0.15));
+  CHECK(b.rest_positions().minCoeff() >= -1e-6);
+  CHECK(b.rest_positions().maxCoeff() <= 1.0 + 1e-6);
 }
