@@ -8,7 +8,11 @@
 namespace tetfsi::solid {
 
 struct StaticSolveOptions {
-  double rel_tol = 1e-9;       ///< stop when ||f_e − K(d)||_free ≤ rel_tol ||f_e||_free
+  /// Stop when ||f_e − K(d)||_free ≤ rel_tol ||f_e||_free, or when the residual reaches the
+  /// round-off floor ε max|x| ||K'||_∞ sqrt(#free) (stiff, slender bodies under small loads).
+  /// If f_e = 0 on the free DOFs (pure prescribed displacements) the reference is the
+  /// initial out-of-balance force instead of ||f_e||.
+  double rel_tol = 1e-9;
   int max_iterations = 60;     ///< Newton iterations per load step
   int load_steps = 1;          ///< apply f_e in this many equal increments
   SolverKind linear_solver = SolverKind::Cholmod;  ///< falls back to UMFPACK if not SPD
