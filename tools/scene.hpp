@@ -31,8 +31,21 @@
 ///   "obstacles": [ { "type": "plane", "point": [0,0,0], "normal": [0,0,1],
 ///                    "restitution": 0.3, "friction": 0.5 }
 ///                | { "type": "box", "lo": [..], "hi": [..], "restitution": .., "friction": .. } ]
+///                                                // each may have a "name" (default "plane0", "box1", ...)
 /// }
 /// ```
+/// Rules beyond the types: a pin or load gives exactly one of "box" / "nodes"; a load needs
+/// "total_force"; selection boxes may be flat (lo ≤ hi, e.g. one face of a box body; they
+/// include nodes within 1e-9 m), mesh and obstacle boxes need lo < hi; a key given twice in
+/// one object is an error (load_scene only: nlohmann would keep the last silently).
+///
+/// Every error is one line, "<scene file as given>: <json.path>: <problem>", e.g.
+///   "scene.json: time.dt: expected a number, got string \"abc\""
+///   "scene.json: bodies[0].mesh.file: no such file '/abs/meshes/x.msh'"
+///   "scene.json: line 4, column 24: invalid JSON: syntax error while parsing object - ..."
+///   "scene.json: --set 'time.dt': expected key.path=value (no '=')"
+///   "scene.json: bodies[0].pins[1]: the box [..]..[..] selects no node; the body spans [..]..[..]"
+/// The top level is named "(top level)".
 #include <filesystem>
 #include <optional>
 #include <string>
