@@ -23,7 +23,10 @@
 #include <vtkCellType.h>
 #include <vtkCommand.h>
 #include <vtkIdList.h>
+#include <vtkLogger.h>
 #include <vtkNew.h>
+#include <vtkObjectFactory.h>
+#include <vtkOutputWindow.h>
 #include <vtkPoints.h>
 #include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
@@ -360,6 +363,11 @@ RawVolume read_gmsh(const fs::path& path) {
     const std::string_view key = r.tokens()[0];
     if (key.empty() || key[0] != '$') r.fail("a section header such as $MeshFormat");
     const std::string name(key.substr(1));
+    if (major == 0 && (name == "NOD" || name == "ELM")) {
+      throw InputError(fmt::format(
+          "{}:{}: Gmsh format version 1 is not supported; re-save as ASCII version 2.2 or 4.1",
+          r.path(), r.line_no()));
+    }
     if (name == "MeshFormat") {
       r.require_next("'version file-type data-size'");
       r.need(3, "'version file-type data-size'");
@@ -367,8 +375,8 @@ RawVolume read_gmsh(const fs::path& path) {
       const long long file_type = r.integer(1, "file-type 0 (ASCII) or 1 (binary)");
       if (file_type == 1) {
         throw InputError(fmt::format(
-            "{}: binary .msh is not supported; re-save as ASCII (Gmsh: File > Export, or "
-            "'gmsh -save -format msh22 file.msh' / -format msh41 with Mesh.Binary=0)",
+            "{}: binary .msh is not supported; re-save as ASCII (gmsh option Mesh.Binary = 0, "
+            "format 2.2 or 4.1)",
             r.path()));
       }
       if (file_type != 0) r.fail("file-type 0 (ASCII) or 1 (binary)");
@@ -474,7 +482,20 @@ RawVolume read_tetgen(const fs::path& path) {
 // VTK .vtu
 // ---------------------------------------------------------------------------------------
 
-/// Collects the first error VTK reports instead of letting it print to the output window.
+/// "ERROR: In file.cxx, line 12\nvtkClass (0x1234): message\n\n" → "message" on one line.
+std::string clean_vtk_message(std::string msg) {
+  if (msg.rfind("ERROR: In ", 0) == 0 || msg.rfind("Warning: In ", 0) == 0) {
+    const auto nl = msg.find('\n');
+    msg = nl == std::string::npos ? "" : msg.substr(nl + 1);
+  }
+  const auto obj = msg.find("): ");
+  if (obj != std::string::npos && msg.find(" (0x") < obj) msg = msg.substr(obj + 3);
+  std::replace(msg.begin(), msg.end(), '\n', ' ');
+  while (!msg.empty() && std::isspace(static_cast<unsigned char>(msg.back()))) msg.pop_back();
+  return msg;
+}
+
+/// Collects the first error VTK reports to an object's observers.
 class VtkErrorCatcher : public vtkCommand {
  public:
   static VtkErrorCatcher* New() { return new VtkErrorCatcher; }
@@ -487,12 +508,58 @@ class VtkErrorCatcher : public vtkCommand {
   std::string m_message;
 };
 
+/// An output window that keeps VTK's messages instead of printing them, so that a bad file
+/// gives one InputError and nothing on stderr. Installed only for the duration of a read.
+class CapturingOutputWindow : public vtkOutputWindow {
+ public:
+  static CapturingOutputWindow* New();
+  vtkTypeMacro(CapturingOutputWindow, vtkOutputWindow);
+  void DisplayText(const char* text) override { keep(text); }
+  void DisplayErrorText(const char* text) override { keep(text); }
+  void DisplayWarningText(const char* text) override { keep(text); }
+  void DisplayGenericWarningText(const char* text) override { keep(text); }
+  void DisplayDebugText(const char*) override {}
+  const std::string& first_message() const { return m_first; }
+
+ private:
+  void keep(const char* text) {
+    if (m_first.empty() && text) m_first = text;
+  }
+  std::string m_first;
+};
+vtkStandardNewMacro(CapturingOutputWindow);
+
+/// Installs a CapturingOutputWindow and silences VTK's logger on stderr for its lifetime
+/// (VTK 9 logs errors to stderr besides the output window). Restores the previous window
+/// and the logger's verbosity cutoff afterwards. Not thread-safe: VTK's are globals.
+class ScopedVtkCapture {
+ public:
+  ScopedVtkCapture()
+      : m_previous(vtkOutputWindow::GetInstance()),
+        m_verbosity(vtkLogger::GetCurrentVerbosityCutoff()) {
+    vtkOutputWindow::SetInstance(m_window);
+    vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);
+  }
+  ~ScopedVtkCapture() {
+    vtkOutputWindow::SetInstance(m_previous);
+    vtkLogger::SetStderrVerbosity(m_verbosity);
+  }
+  ScopedVtkCapture(const ScopedVtkCapture&) = delete;
+  ScopedVtkCapture& operator=(const ScopedVtkCapture&) = delete;
+  const std::string& first_message() const { return m_window->first_message(); }
+
+ private:
+  vtkNew<CapturingOutputWindow> m_window;
+  vtkSmartPointer<vtkOutputWindow> m_previous;
+  vtkLogger::Verbosity m_verbosity;
+};
+
 RawVolume read_vtu(const fs::path& path) {
   require_file(path);
+  const ScopedVtkCapture capture;
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   vtkNew<VtkErrorCatcher> catcher;
   reader->AddObserver(vtkCommand::ErrorEvent, catcher);
-  reader->AddObserver(vtkCommand::WarningEvent, catcher);
   if (!reader->CanReadFile(path.string().c_str())) {
     throw InputError(fmt::format(
         "{}: not a VTK XML UnstructuredGrid file; expected '<VTKFile type=\"UnstructuredGrid\"'",
@@ -501,10 +568,12 @@ RawVolume read_vtu(const fs::path& path) {
   reader->SetFileName(path.string().c_str());
   reader->Update();
   vtkUnstructuredGrid* grid = reader->GetOutput();
-  if (!catcher->message().empty() || grid == nullptr) {
-    std::string msg = catcher->message();
-    std::replace(msg.begin(), msg.end(), '\n', ' ');
-    throw InputError(fmt::format("{}: VTK could not read the file: {}", path.string(), msg));
+  if (!catcher->message().empty() || !capture.first_message().empty() || grid == nullptr) {
+    // The parser's own message (line, column) is the useful one; the reader's comes second.
+    const std::string detail = clean_vtk_message(
+        !capture.first_message().empty() ? capture.first_message() : catcher->message());
+    throw InputError(fmt::format("{}: VTK could not read the file: {}", path.string(),
+                                 detail.empty() ? "unknown error" : detail));
   }
   RawVolume raw;
   const vtkIdType np = grid->GetNumberOfPoints();

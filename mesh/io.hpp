@@ -8,7 +8,16 @@
 /// Surface meshes: `.off`, `.obj` (v/f lines; polygons fan-triangulated), `.stl` (ASCII and
 /// binary).
 /// Every reader throws `InputError` for a missing/unreadable file or a syntax error, naming
-/// the file and line, and `MeshError` for bad geometry (via validate_volume_mesh).
+/// the file and line, and `MeshError` for bad geometry (via validate_volume_mesh). Messages
+/// are one line:
+///   "<path>: no such file"
+///   "<path>:<line>: expected <what>, got '<line text>'"   (or "..., got end of file")
+///   "<path>:<line>: element 7 refers to node 9, which $Nodes does not define"
+///   "<path>: binary .msh is not supported; re-save as ASCII (...)"
+///   "<path>: element 26 (nodes 3 9 12 40) is inverted (signed volume -0.000167 m^3); fix the
+///    element's vertex order or remesh"   (file's element and node ids)
+/// Node and element ids in messages are the file's own (Gmsh tags, TetGen numbers, VTK
+/// zero-based point and cell ids).
 #include <filesystem>
 
 #include "mesh/volume_mesh.hpp"

@@ -36,8 +36,9 @@ using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Triangulation, Domain::Corn
                                                      Domain::Curve_index>;
 using Criteria = CGAL::Mesh_criteria_3<Triangulation>;
 
-/// Dihedral angle (degrees) below which a surface edge is a sharp feature to protect
-/// (CGAL's default): keeps the edges and corners of a box exact.
+/// A surface edge whose two face normals differ by more than this angle (degrees) is a sharp
+/// feature that Mesh_3 protects (CGAL's default): keeps the edges and corners of a box exact,
+/// leaves a finely tessellated sphere smooth.
 constexpr double kFeatureAngleDeg = 60.0;
 
 CgalSurface to_cgal(const SurfaceMesh& s, const std::string& source) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "core/error.hpp"
 #include "core/log.hpp"
@@ -216,6 +217,8 @@ MatX3i boundary_triangles(const VolumeMesh& m, VecXi* owner_tet) {
   std::vector<int> slot_face(capacity, -1);
   std::vector<std::uint8_t> slot_count(capacity, 0);
   std::vector<std::uint32_t> face_slot(num_faces);
+  TETFSI_CHECK(indices_in_range(m), "boundary_triangles needs tet indices in 0..{} (call "
+               "validate_volume_mesh first)", m.num_vertices() - 1);
   for (Index t = 0; t < nt; ++t) {
     for (int f = 0; f < 4; ++f) {
       const std::size_t id = 4 * static_cast<std::size_t>(t) + static_cast<std::size_t>(f);
@@ -229,11 +232,16 @@ MatX3i boundary_triangles(const VolumeMesh& m, VecXi* owner_tet) {
       }
       if (slot_face[s] < 0) slot_face[s] = static_cast<int>(id);
       if (slot_count[s] == 2) {
-        const int first = slot_face[s] / 4;
+        // Error path only: find the two earlier tets with this face for the message.
+        std::vector<Index> sharing;
+        for (std::size_t j = 0; j < id; ++j) {
+          if (key[j] == k) sharing.push_back(static_cast<Index>(j / 4));
+        }
+        sharing.push_back(t);
         throw MeshError(fmt::format(
-            "mesh: face (vertices {} {} {}) is shared by more than two tets ({}, ... and {}); "
-            "the mesh is non-manifold: remove the overlapping tets or remesh",
-            k[0], k[1], k[2], first, t));
+            "mesh: face (vertices {} {} {}) is shared by tets {}; a face may belong to at most "
+            "two tets (non-manifold mesh): remove the overlapping tets or remesh",
+            k[0], k[1], k[2], fmt::join(sharing, ", ")));
       }
       ++slot_count[s];
       face_slot[id] = static_cast<std::uint32_t>(s);

@@ -157,6 +157,28 @@ TEST_CASE("syntax errors name path:line and what was expected") {
         obj.string() +
             ":4: face vertex 4 refers to vertex 4, but only 3 vertices are defined so far");
 
+  const fs::path vtu = write_text(
+      "truncated.vtu",
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\">\n"
+      "<UnstructuredGrid><Piece NumberOfPoints=\"4\" NumberOfCells=\"1\"><Points>\n");
+  const std::string vtu_msg = message_of<InputError>([&] { read_volume_mesh(vtu); });
+  INFO(vtu_msg);
+  CHECK(vtu_msg.rfind(vtu.string() + ": VTK could not read the file: Error parsing XML in stream "
+                      "at line 4",
+                      0) == 0);
+  CHECK_FALSE(contains(vtu_msg, "\n"));
+  const fs::path not_vtu = write_text("poly.vtu", "<VTKFile type=\"PolyData\"></VTKFile>\n");
+  CHECK(contains(message_of<InputError>([&] { read_volume_mesh(not_vtu); }),
+                 "not a VTK XML UnstructuredGrid file"));
+
+  const fs::path v1 = write_text("v1.msh", "$NOD\n1\n1 0 0 0\n$ENDNOD\n");
+  CHECK(contains(message_of<InputError>([&] { read_volume_mesh(v1); }), "version 1"));
+
+  const fs::path tg = write_text("bad_header.node", "4 2 0 0\n");
+  write_text("bad_header.ele", "0 4 0\n");
+  CHECK(message_of<InputError>([&] { read_volume_mesh(tg); }) ==
+        tg.string() + ":1: expected dimension 3, got 2");
+
   const fs::path stl = write_text("bad.stl", "not an stl\n");
   CHECK(contains(message_of<InputError>([&] { read_surface_mesh(stl); }), "not an STL file"));
 }
