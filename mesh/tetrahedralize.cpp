@@ -143,16 +143,25 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
     m.vertices.row(static_cast<Index>(v)) = points[v].transpose();
   }
   m.tets.resize(static_cast<Index>(tets.size()), 4);
-  // CGAL's cells are positively oriented in CGAL's sense; make ours positive by our formula
-  // (signed_volume), whichever convention that is, tet by tet.
+  // CGAL's cells are positively oriented by its exact predicate, whose sign is that of
+  // signed_volume; a near-flat cell's floating-point volume may still disagree, so each tet
+  // is checked (validate_volume_mesh then rejects any that is truly degenerate).
+  Index num_swapped = 0;
   for (std::size_t t = 0; t < tets.size(); ++t) {
     Vec4i tet = tets[t];
     const double v = signed_volume(points[static_cast<std::size_t>(tet(0))],
                                    points[static_cast<std::size_t>(tet(1))],
                                    points[static_cast<std::size_t>(tet(2))],
                                    points[static_cast<std::size_t>(tet(3))]);
-    if (v < 0.0) std::swap(tet(2), tet(3));
+    if (v < 0.0) {
+      std::swap(tet(2), tet(3));
+      ++num_swapped;
+    }
     m.tets.row(static_cast<Index>(t)) = tet.transpose();
+  }
+  if (num_swapped > 0) {
+    logger().debug("{}: {} of {} Mesh_3 cells had negative floating-point volume; swapped",
+                   source, num_swapped, m.num_tets());
   }
   logger().info("{}: Mesh_3 made {} vertices, {} tets from {} surface triangles in {:.2f} s",
                 source, m.num_vertices(), m.num_tets(), surface.num_triangles(),

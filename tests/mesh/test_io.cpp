@@ -93,6 +93,24 @@ TEST_CASE("read TetGen .node/.ele (globally inverted, 1-based) and .vtu: same me
   CHECK(vtu.tets == ref.tets);
 }
 
+TEST_CASE("small hand-written files: 0-based TetGen, CRLF Gmsh, tabs and comments") {
+  write_text("one.ele", "# zero-based\n1 4 0\n0\t0 1 2 3\n");
+  const fs::path node = write_text("one.node",
+                                   "4 3 0 0 # header\n0 0 0 0\n1 2 0 0\n\n2 0 2 0\n3 0 0 2\n");
+  const VolumeMesh tg = read_volume_mesh(node);
+  CHECK(tg.num_tets() == 1);
+  CHECK(total_volume(tg) == doctest::Approx(8.0 / 6.0).epsilon(1e-15));
+
+  const fs::path crlf = write_text(
+      "crlf.msh",
+      "$MeshFormat\r\n2.2 0 8\r\n$EndMeshFormat\r\n$Nodes\r\n4\r\n1 0 0 0\r\n2 1 0 0\r\n"
+      "3 0 1 0\r\n4 0 0 1\r\n$EndNodes\r\n$Elements\r\n1\r\n1 4 0 1 2 3 4\r\n"
+      "$EndElements\r\n");
+  const VolumeMesh g = read_volume_mesh(crlf);
+  CHECK(g.num_tets() == 1);
+  CHECK(total_volume(g) == doctest::Approx(1.0 / 6.0).epsilon(1e-15));
+}
+
 TEST_CASE("write_msh / read_volume_mesh round trip is exact") {
   const VolumeMesh m = make_box(Vec3(-0.1, 1.0 / 3.0, 2e-3), Vec3(0.7, 0.9, 0.05), Vec3i(3, 2, 4));
   const fs::path p = scratch_dir() / "roundtrip.msh";
