@@ -250,7 +250,7 @@ TEST_CASE("Rayleigh damping: the modal damping ratio is alpha/(2 omega) + beta o
   struct Case {
     double alpha_over, beta_over;  // α/ω and βω
   };
-  for (const Case c : {Case{0.04, 0.0}, Case{0.0, 0.04}, Case{0.02, 0.02}}) {
+  for (const Case& c : {Case{0.04, 0.0}, Case{0.0, 0.04}, Case{0.02, 0.02}}) {
     Oscillator o = make_oscillator(c.alpha_over, c.beta_over);
     SolidBody& b = o.world.bodies[0];
     const Material& mat = b.material();
