@@ -6,7 +6,7 @@
 /// PETSc is initialised on the first call of `make_petsc_solver` (which also initialises MPI
 /// if nobody did), with PETSc's signal handler off and no `.petscrc` read, and finalised at
 /// exit. Tuning can be overridden at run time through `PETSC_OPTIONS` with the prefixes
-/// `tetfsi_amg_` and `tetfsi_gamg_`, e.g.
+/// `tetfsi_amg_`, `tetfsi_gamg_` and (GAMG, `symmetric = false`) `tetfsi_gamg_nonsym_`, e.g.
 /// `PETSC_OPTIONS="-tetfsi_amg_pc_hypre_boomeramg_strong_threshold 0.6"`.
 #include <memory>
 
