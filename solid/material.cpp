@@ -21,8 +21,7 @@ void validate_material(const Material& m, const std::string& where) {
                  "{}.youngs_modulus: {} is out of range; need a finite Young's modulus > 0 (Pa)",
                  where, m.youngs_modulus);
   TETFSI_REQUIRE(InputError,
-                 std::isfinite(m.poisson_ratio) && m.poisson_ratio > -1.0 &&
-                     m.poisson_ratio < 0.5,
+                 std::isfinite(m.poisson_ratio) && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5,
                  "{}.poisson_ratio: {} is out of range; need -1 < poisson_ratio < 0.5 (0.5 is "
                  "incompressible and locks linear tets)",
                  where, m.poisson_ratio);

@@ -6,11 +6,11 @@
 namespace tetfsi::solid {
 
 struct Material {
-  double density = 1000.0;         ///< ρ (kg/m³), > 0
-  double youngs_modulus = 1.0e5;   ///< E (Pa), > 0
-  double poisson_ratio = 0.3;      ///< ν, in (−1, 0.5)
-  double rayleigh_alpha = 0.0;     ///< α (1/s): C = αM + βK'  [Chentanez06, §3.2]
-  double rayleigh_beta = 0.0;      ///< β (s)
+  double density = 1000.0;        ///< ρ (kg/m³), > 0
+  double youngs_modulus = 1.0e5;  ///< E (Pa), > 0
+  double poisson_ratio = 0.3;     ///< ν, in (−1, 0.5)
+  double rayleigh_alpha = 0.0;    ///< α (1/s): C = αM + βK'  [Chentanez06, §3.2]
+  double rayleigh_beta = 0.0;     ///< β (s)
 };
 
 struct LameParameters {

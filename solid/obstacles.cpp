@@ -47,8 +47,8 @@ Index resolve_collisions(SolidBody& body, const std::vector<Obstacle>& obstacles
   for (const Obstacle& o : obstacles) {
     TETFSI_REQUIRE(InputError, o.restitution >= 0.0 && o.restitution <= 1.0,
                    "obstacle '{}': restitution {} must be in [0, 1]", o.name, o.restitution);
-    TETFSI_REQUIRE(InputError, o.friction >= 0.0, "obstacle '{}': friction {} must be >= 0",
-                   o.name, o.friction);
+    TETFSI_REQUIRE(InputError, o.friction >= 0.0, "obstacle '{}': friction {} must be >= 0", o.name,
+                   o.friction);
     if (o.kind == Obstacle::Kind::Plane)
       TETFSI_REQUIRE(InputError, std::abs(o.normal.norm() - 1.0) < 1e-9,
                      "obstacle '{}': plane normal must have unit length (got {})", o.name,

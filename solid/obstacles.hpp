@@ -28,6 +28,11 @@ struct Obstacle {
 /// point of its surface (displacement changed), the normal velocity component, if
 /// approaching, becomes −e times itself, and the tangential component is reduced by at most
 /// μ times the normal velocity change (stopping, not reversing).
+/// Restitution and friction act per node: for a multi-node body the macroscopic rebound
+/// follows from momentum sharing (a tet landing on a face with e = 1 keeps (3e − 1)/4 of its
+/// speed). Projection stores about ½ k (v h)² of elastic energy per contact, i.e. a fraction
+/// (ωh)² of the impact energy: harmless when the body's modes are resolved (ωh < 1), but a
+/// stiff body with ωh ≫ 1 can be launched by it — reduce h or soften the body.
 /// @return the number of nodes in contact.
 Index resolve_collisions(SolidBody& body, const std::vector<Obstacle>& obstacles);
 

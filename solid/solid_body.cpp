@@ -71,7 +71,9 @@ double SolidBody::kinetic_energy() const {
   return 0.5 * (m_mass.array() * velocity.rowwise().squaredNorm().array()).sum();
 }
 
-double SolidBody::elastic_energy() const { return m_elasticity.energy(positions()); }
+double SolidBody::elastic_energy() const {
+  return m_elasticity.energy(positions());
+}
 
 double SolidBody::gravity_potential(const Vec3& gravity) const {
   return -(m_mass.array() * (positions() * gravity).array()).sum();

@@ -47,9 +47,9 @@ class SolidBody {
   Index num_fixed_dofs() const;
 
   // ---- state ----
-  MatX3 displacement;    ///< d (#V × 3, m)
-  MatX3 velocity;        ///< u (#V × 3, m/s)
-  MatX3 applied_force;   ///< loads set by the scene, gravity excluded (#V × 3, N)
+  MatX3 displacement;   ///< d (#V × 3, m)
+  MatX3 velocity;       ///< u (#V × 3, m/s)
+  MatX3 applied_force;  ///< loads set by the scene, gravity excluded (#V × 3, N)
 
   /// f_e = applied_force + m_i g for every node (3#V, interleaved, N).
   VecX external_forces(const Vec3& gravity) const;

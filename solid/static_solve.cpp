@@ -46,8 +46,8 @@ VecX solve_newton_system(SparseMatrix& Kp, const VecX& r, const std::vector<std:
     solver->setup(Kp);
   } catch (const SolverError& e) {
     if (kind == SolverKind::Umfpack) throw;
-    logger().debug("body '{}': static solve: {} failed ({}); using umfpack", body,
-                   to_string(kind), e.what());
+    logger().debug("body '{}': static solve: {} failed ({}); using umfpack", body, to_string(kind),
+                   e.what());
     solver = make_linear_solver(SolverKind::Umfpack);
     solver->setup(Kp);
   }
@@ -88,7 +88,8 @@ StaticSolveReport solve_static(SolidBody& body, const VecX& f_e, const StaticSol
   SparseMatrix Kp;
   // Reference for the relative residual: the load, or (for pure prescribed-displacement
   // problems, f_e = 0) the initial out-of-balance force.
-  const double ref = std::max(free_norm(f_e, fixed), free_norm(elastic.forces(body.positions()), fixed));
+  const double ref =
+      std::max(free_norm(f_e, fixed), free_norm(elastic.forces(body.positions()), fixed));
   if (ref == 0.0) {
     report.converged = true;
     return report;
@@ -112,9 +113,10 @@ StaticSolveReport solve_static(SolidBody& body, const VecX& f_e, const StaticSol
                            max_row_abs_sum(Kp) * std::sqrt(nfree);
       if (report.residual <= opts.rel_tol || r_norm <= floor) {
         if (report.residual > opts.rel_tol)
-          logger().debug("body '{}': static solve stopped at the round-off floor (relative "
-                         "residual {:.3g}, floor {:.3g})",
-                         body.name(), report.residual, floor / ref);
+          logger().debug(
+              "body '{}': static solve stopped at the round-off floor (relative "
+              "residual {:.3g}, floor {:.3g})",
+              body.name(), report.residual, floor / ref);
         step_converged = true;
         break;
       }

@@ -13,20 +13,21 @@ struct StaticSolveOptions {
   /// If f_e = 0 on the free DOFs (pure prescribed displacements) the reference is the
   /// initial out-of-balance force instead of ||f_e||.
   double rel_tol = 1e-9;
-  int max_iterations = 60;     ///< Newton iterations per load step
-  int load_steps = 1;          ///< apply f_e in this many equal increments
+  int max_iterations = 60;                         ///< Newton iterations per load step
+  int load_steps = 1;                              ///< apply f_e in this many equal increments
   SolverKind linear_solver = SolverKind::Cholmod;  ///< falls back to UMFPACK if not SPD
 };
 
 struct StaticSolveReport {
   bool converged = false;
-  int iterations = 0;          ///< Newton iterations summed over load steps
-  double residual = 0.0;       ///< final relative residual
+  int iterations = 0;     ///< Newton iterations summed over load steps
+  double residual = 0.0;  ///< final relative residual
 };
 
 /// Solve for the body's displacement in place (fixed DOFs keep their value; velocity is
 /// set to zero). Starts from the current displacement.
 /// @throws SolverError if Newton does not converge, naming the body and residual.
-StaticSolveReport solve_static(SolidBody& body, const VecX& f_e, const StaticSolveOptions& opts = {});
+StaticSolveReport solve_static(SolidBody& body, const VecX& f_e,
+                               const StaticSolveOptions& opts = {});
 
 }  // namespace tetfsi::solid

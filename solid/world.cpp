@@ -28,9 +28,10 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
         // LU still solves it.
         if (linear_solver != SolverKind::Cholmod) throw;
         if (!m_warned_fallback) {
-          logger().warn("body '{}': cholmod failed ({}): A is not positive definite; falling "
-                        "back to umfpack (warned once)",
-                        body.name(), e.what());
+          logger().warn(
+              "body '{}': cholmod failed ({}): A is not positive definite; falling "
+              "back to umfpack (warned once)",
+              body.name(), e.what());
           m_warned_fallback = true;
         }
         solver = make_linear_solver(SolverKind::Umfpack, solver_options);

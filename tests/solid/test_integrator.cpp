@@ -87,193 +87,193 @@ double peak_decay_rate(const std::vector<double>& d, double h) {
 }  // namespace
 
 TEST_SUITE("solid") {
-
-TEST_CASE("a free body under gravity falls with acceleration g and keeps its shape") {
-  SolidWorld world;
-  world.gravity = Vec3(0.0, 0.0, -9.81);
-  world.bodies.push_back(make_box_body("free", Vec3::Zero(), Vec3(0.3, 0.2, 0.1), Vec3i(3, 2, 1),
-                                       make_material(800.0, 1e5, 0.3, 0.0, 0.01)));
-  // β damping (βK') leaves rigid motion alone; α damping (αM) would act as a drag on the
-  // absolute velocity, so it is 0 here.
-  PhaseTimes times;
-  const double h = 0.01;
-  const int steps = 100;
-  for (int n = 0; n < steps; ++n) world.step(h, times);
-  const SolidBody& b = world.bodies[0];
-  const double t = steps * h;
-  // Trapezoidal rule is exact for constant acceleration: u = g t, d = ½ g t².
-  for (Index i = 0; i < b.num_nodes(); ++i) {
-    CHECK((b.velocity.row(i).transpose() - world.gravity * t).norm() <= 1e-10 * 9.81 * t);
-    CHECK((b.displacement.row(i).transpose() - 0.5 * world.gravity * t * t).norm() <=
-          1e-10 * 9.81 * t * t);
+  TEST_CASE("a free body under gravity falls with acceleration g and keeps its shape") {
+    SolidWorld world;
+    world.gravity = Vec3(0.0, 0.0, -9.81);
+    world.bodies.push_back(make_box_body("free", Vec3::Zero(), Vec3(0.3, 0.2, 0.1), Vec3i(3, 2, 1),
+                                         make_material(800.0, 1e5, 0.3, 0.0, 0.01)));
+    // β damping (βK') leaves rigid motion alone; α damping (αM) would act as a drag on the
+    // absolute velocity, so it is 0 here.
+    PhaseTimes times;
+    const double h = 0.01;
+    const int steps = 100;
+    for (int n = 0; n < steps; ++n) world.step(h, times);
+    const SolidBody& b = world.bodies[0];
+    const double t = steps * h;
+    // Trapezoidal rule is exact for constant acceleration: u = g t, d = ½ g t².
+    for (Index i = 0; i < b.num_nodes(); ++i) {
+      CHECK((b.velocity.row(i).transpose() - world.gravity * t).norm() <= 1e-10 * 9.81 * t);
+      CHECK((b.displacement.row(i).transpose() - 0.5 * world.gravity * t * t).norm() <=
+            1e-10 * 9.81 * t * t);
+    }
+    const TetFields fl = b.elasticity().tet_fields(b.positions());
+    CHECK(fl.green_strain_norm.maxCoeff() <= 1e-10);
+    CHECK(times.get("assemble") > 0.0);
+    CHECK(times.get("solve") > 0.0);
+    CHECK(times.get("update") > 0.0);
   }
-  const TetFields fl = b.elasticity().tet_fields(b.positions());
-  CHECK(fl.green_strain_norm.maxCoeff() <= 1e-10);
-  CHECK(times.get("assemble") > 0.0);
-  CHECK(times.get("solve") > 0.0);
-  CHECK(times.get("update") > 0.0);
-}
 
-TEST_CASE("A is symmetric, fixed DOFs are eliminated and stay exactly fixed") {
-  SolidWorld world;
-  world.gravity = Vec3(0.0, -9.81, 0.0);
-  world.bodies.push_back(make_box_body("beam", Vec3::Zero(), Vec3(1.0, 0.1, 0.1), Vec3i(10, 1, 1),
-                                       make_material(1000.0, 1e6, 0.3, 0.1, 0.001)));
-  SolidBody& b = world.bodies[0];
-  const auto clamped = nodes_at(b, 0, 0.0, 1.0);
-  for (Index i : clamped) b.pin_node(i);
-  b.fix_dof(nodes_at(b, 0, 1.0, 1.0)[0], 2);  // one single fixed component too
-  PhaseTimes times;
-  const double h = 0.005;
-  for (int n = 0; n < 40; ++n) {
-    const SolidStepReport rep = world.step(h, times);
-    CHECK(rep.converged);
+  TEST_CASE("A is symmetric, fixed DOFs are eliminated and stay exactly fixed") {
+    SolidWorld world;
+    world.gravity = Vec3(0.0, -9.81, 0.0);
+    world.bodies.push_back(make_box_body("beam", Vec3::Zero(), Vec3(1.0, 0.1, 0.1), Vec3i(10, 1, 1),
+                                         make_material(1000.0, 1e6, 0.3, 0.1, 0.001)));
+    SolidBody& b = world.bodies[0];
+    const auto clamped = nodes_at(b, 0, 0.0, 1.0);
+    for (Index i : clamped) b.pin_node(i);
+    b.fix_dof(nodes_at(b, 0, 1.0, 1.0)[0], 2);  // one single fixed component too
+    PhaseTimes times;
+    const double h = 0.005;
+    for (int n = 0; n < 40; ++n) {
+      const SolidStepReport rep = world.step(h, times);
+      CHECK(rep.converged);
+    }
+    for (Index i : clamped) {
+      CHECK(b.displacement.row(i).norm() == 0.0);  // exactly
+      CHECK(b.velocity.row(i).norm() == 0.0);
+    }
+    CHECK(b.displacement(nodes_at(b, 0, 1.0, 1.0)[0], 2) == 0.0);
+    CHECK(b.displacement.col(1).minCoeff() < -1e-4);  // the rest of the beam did move
+    const TrapezoidalSystem sys = assemble_trapezoidal(b, h, b.external_forces(world.gravity));
+    const SparseMatrix At = sys.A.transpose();
+    CHECK((sys.A - At).norm() == 0.0);  // symmetric to the last bit
+    const Index dof = 3 * clamped[0];
+    CHECK(sys.b[dof] == 0.0);
+    CHECK(sys.A.coeff(dof, dof) == doctest::Approx(b.lumped_mass()[clamped[0]] / h).epsilon(1e-15));
+    CHECK(sys.A.col(dof).norm() == doctest::Approx(b.lumped_mass()[clamped[0]] / h).epsilon(1e-15));
   }
-  for (Index i : clamped) {
-    CHECK(b.displacement.row(i).norm() == 0.0);  // exactly
-    CHECK(b.velocity.row(i).norm() == 0.0);
-  }
-  CHECK(b.displacement(nodes_at(b, 0, 1.0, 1.0)[0], 2) == 0.0);
-  CHECK(b.displacement.col(1).minCoeff() < -1e-4);  // the rest of the beam did move
-  const TrapezoidalSystem sys = assemble_trapezoidal(b, h, b.external_forces(world.gravity));
-  const SparseMatrix At = sys.A.transpose();
-  CHECK((sys.A - At).norm() == 0.0);  // symmetric to the last bit
-  const Index dof = 3 * clamped[0];
-  CHECK(sys.b[dof] == 0.0);
-  CHECK(sys.A.coeff(dof, dof) == doctest::Approx(b.lumped_mass()[clamped[0]] / h).epsilon(1e-15));
-  CHECK(sys.A.col(dof).norm() == doctest::Approx(b.lumped_mass()[clamped[0]] / h).epsilon(1e-15));
-}
 
-TEST_CASE("a non-finite state is reported as a SolverError naming the body") {
-  SolidWorld world;
-  world.bodies.push_back(make_box_body("blob", Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1),
-                                       make_material(1000.0, 1e5, 0.3)));
-  world.bodies[0].velocity(0, 0) = NAN;
-  PhaseTimes times;
-  try {
-    world.step(0.01, times);
-    FAIL("expected SolverError");
-  } catch (const SolverError& e) {
-    CHECK(std::string(e.what()).find("body 'blob': state became non-finite") != std::string::npos);
+  TEST_CASE("a non-finite state is reported as a SolverError naming the body") {
+    SolidWorld world;
+    world.bodies.push_back(make_box_body("blob", Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1),
+                                         make_material(1000.0, 1e5, 0.3)));
+    world.bodies[0].velocity(0, 0) = NAN;
+    PhaseTimes times;
+    try {
+      world.step(0.01, times);
+      FAIL("expected SolverError");
+    } catch (const SolverError& e) {
+      CHECK(std::string(e.what()).find("body 'blob': state became non-finite") !=
+            std::string::npos);
+    }
   }
-}
 
-TEST_CASE("Eq. (4) on a linear system: exact discrete energy balance, O(h) numerical damping") {
-  // On a linear system (K(d) = K d, K' = K) Eqs. (4)–(5) give M(u1 − u0)/h = −K d1 with
-  // d1 = d0 + h/2 (u0 + u1) — Newmark γ = 1, β = 1/4 ([Chentanez06, Eqs. (10)–(13)] with
-  // their β = 1/2, γ = 1). Multiplying by (d1 − d0) gives the discrete energy identity
-  //   E1 − E0 = −½ (d1 − d0)ᵀ K (d1 − d0) ≤ 0,   E = ½ uᵀMu + ½ dᵀKd,
-  // so the scheme never gains energy but loses O(h) per unit time: the per-step amplitude
-  // factor is |λ| = (1 + (ωh)²/2)^(-1/2), a numerical damping ratio ≈ ωh/4. It is NOT exactly
-  // energy conserving (that would need γ = 1/2, i.e. K' weighted h/4 instead of h/2).
-  // Small amplitude (strain 1e-6) makes StVK linear to ~1e-6.
-  std::vector<double> loss_per_period;
-  for (int steps_per_period : {500, 1000}) {
-    Oscillator o = make_oscillator(0.0, 0.0);
-    SolidBody& b = o.world.bodies[0];
-    const double amp = 1e-7;  // m, on an edge of 0.1 m
-    b.displacement(3, 2) = amp;
-    const double T = 2 * M_PI / o.omega;
-    const double h = T / steps_per_period;
+  TEST_CASE("Eq. (4) on a linear system: exact discrete energy balance, O(h) numerical damping") {
+    // On a linear system (K(d) = K d, K' = K) Eqs. (4)–(5) give M(u1 − u0)/h = −K d1 with
+    // d1 = d0 + h/2 (u0 + u1) — Newmark γ = 1, β = 1/4 ([Chentanez06, Eqs. (10)–(13)] with
+    // their β = 1/2, γ = 1). Multiplying by (d1 − d0) gives the discrete energy identity
+    //   E1 − E0 = −½ (d1 − d0)ᵀ K (d1 − d0) ≤ 0,   E = ½ uᵀMu + ½ dᵀKd,
+    // so the scheme never gains energy but loses O(h) per unit time: the per-step amplitude
+    // factor is |λ| = (1 + (ωh)²/2)^(-1/2), a numerical damping ratio ≈ ωh/4. It is NOT exactly
+    // energy conserving (that would need γ = 1/2, i.e. K' weighted h/4 instead of h/2).
+    // Small amplitude (strain 1e-6) makes StVK linear to ~1e-6.
+    std::vector<double> loss_per_period;
+    for (int steps_per_period : {500, 1000}) {
+      Oscillator o = make_oscillator(0.0, 0.0);
+      SolidBody& b = o.world.bodies[0];
+      const double amp = 1e-7;  // m, on an edge of 0.1 m
+      b.displacement(3, 2) = amp;
+      const double T = 2 * M_PI / o.omega;
+      const double h = T / steps_per_period;
+      auto energy = [&] {
+        return 0.5 * o.m * b.velocity(3, 2) * b.velocity(3, 2) +
+               0.5 * o.k * b.displacement(3, 2) * b.displacement(3, 2);
+      };
+      const double e0 = energy();
+      double predicted_change = 0.0, max_increase = 0.0;
+      PhaseTimes times;
+      const int periods = 3;
+      for (int n = 0; n < periods * steps_per_period; ++n) {
+        const double d_old = b.displacement(3, 2), e_old = energy();
+        o.world.step(h, times);
+        const double dd = b.displacement(3, 2) - d_old;
+        predicted_change += -0.5 * o.k * dd * dd;
+        max_increase = std::max(max_increase, energy() - e_old);
+      }
+      const double change = energy() - e0;
+      // The identity holds to the StVK nonlinearity (strain 1e-6): assert 1e-4 relative.
+      CHECK(std::abs(change - predicted_change) <= 1e-4 * std::abs(change));
+      CHECK(max_increase <= 1e-9 * e0);  // never gains energy (beyond round-off)
+      const double r = discrete_decay_per_step(o.m, 0.0, o.k, h);
+      const double predicted_per_period = 1.0 - std::pow(r, 2.0 * steps_per_period);
+      const double measured_per_period = 1.0 - std::pow(energy() / e0, 1.0 / periods);
+      MESSAGE("undamped Eq. (4), " << steps_per_period << " steps/period: energy lost per period "
+                                   << measured_per_period
+                                   << " (predicted 1 - |lambda|^(2N) = " << predicted_per_period
+                                   << ", pi*omega*h = " << M_PI * o.omega * h << ")");
+      CHECK(measured_per_period == doctest::Approx(predicted_per_period).epsilon(1e-3));
+      loss_per_period.push_back(measured_per_period);
+    }
+    // First order in h: halving h halves the loss, so the drift vanishes as h → 0.
+    CHECK(loss_per_period[0] / loss_per_period[1] == doctest::Approx(2.0).epsilon(0.01));
+  }
+
+  TEST_CASE("pinned box, small amplitude: energy never grows and obeys the discrete identity") {
+    SolidWorld world;
+    world.gravity = Vec3::Zero();
+    world.bodies.push_back(make_box_body("box", Vec3::Zero(), Vec3(0.4, 0.1, 0.1), Vec3i(4, 1, 1),
+                                         make_material(1000.0, 1e6, 0.3)));
+    SolidBody& b = world.bodies[0];
+    for (Index i : nodes_at(b, 0, 0.0, 1.0)) b.pin_node(i);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> uni(-1.0, 1.0);
+    for (Index i = 0; i < b.num_nodes(); ++i)
+      for (int k = 0; k < 3; ++k)
+        if (!b.is_fixed(3 * i + k)) b.velocity(i, k) = 1e-5 * uni(rng);  // m/s (strain ~1e-7)
+    const SparseMatrix K0 = b.elasticity().jacobian(b.rest_positions());
     auto energy = [&] {
-      return 0.5 * o.m * b.velocity(3, 2) * b.velocity(3, 2) +
-             0.5 * o.k * b.displacement(3, 2) * b.displacement(3, 2);
+      const VecX d = flat(b.displacement);
+      return b.kinetic_energy() + 0.5 * d.dot(K0 * d);
     };
-    const double e0 = energy();
-    double predicted_change = 0.0, max_increase = 0.0;
     PhaseTimes times;
-    const int periods = 3;
-    for (int n = 0; n < periods * steps_per_period; ++n) {
-      const double d_old = b.displacement(3, 2), e_old = energy();
-      o.world.step(h, times);
-      const double dd = b.displacement(3, 2) - d_old;
-      predicted_change += -0.5 * o.k * dd * dd;
-      max_increase = std::max(max_increase, energy() - e_old);
+    const double h = 2e-4;
+    double worst = 0.0;
+    for (int n = 0; n < 300; ++n) {
+      const VecX d_old = flat(b.displacement);
+      const double e_old = energy();
+      world.step(h, times);
+      const VecX dd = flat(b.displacement) - d_old;
+      const double change = energy() - e_old, predicted = -0.5 * dd.dot(K0 * dd);
+      worst = std::max(worst, std::abs(change - predicted) / e_old);
+      CHECK(change <= 1e-12 * e_old);
     }
-    const double change = energy() - e0;
-    // The identity holds to the StVK nonlinearity (strain 1e-6): assert 1e-4 relative.
-    CHECK(std::abs(change - predicted_change) <= 1e-4 * std::abs(change));
-    CHECK(max_increase <= 1e-9 * e0);  // never gains energy (beyond round-off)
-    const double r = discrete_decay_per_step(o.m, 0.0, o.k, h);
-    const double predicted_per_period = 1.0 - std::pow(r, 2.0 * steps_per_period);
-    const double measured_per_period = 1.0 - std::pow(energy() / e0, 1.0 / periods);
-    MESSAGE("undamped Eq. (4), " << steps_per_period << " steps/period: energy lost per period "
-                                 << measured_per_period << " (predicted 1 - |lambda|^(2N) = "
-                                 << predicted_per_period << ", pi*omega*h = "
-                                 << M_PI * o.omega * h << ")");
-    CHECK(measured_per_period == doctest::Approx(predicted_per_period).epsilon(1e-3));
-    loss_per_period.push_back(measured_per_period);
+    MESSAGE("pinned box: worst |dE - (-1/2 dd^T K dd)| / E per step = " << worst);
+    CHECK(worst <= 1e-6);  // StVK nonlinearity at strain ~1e-7 plus round-off
   }
-  // First order in h: halving h halves the loss, so the drift vanishes as h → 0.
-  CHECK(loss_per_period[0] / loss_per_period[1] == doctest::Approx(2.0).epsilon(0.01));
-}
 
-TEST_CASE("pinned box, small amplitude: energy never grows and obeys the discrete identity") {
-  SolidWorld world;
-  world.gravity = Vec3::Zero();
-  world.bodies.push_back(make_box_body("box", Vec3::Zero(), Vec3(0.4, 0.1, 0.1), Vec3i(4, 1, 1),
-                                       make_material(1000.0, 1e6, 0.3)));
-  SolidBody& b = world.bodies[0];
-  for (Index i : nodes_at(b, 0, 0.0, 1.0)) b.pin_node(i);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> uni(-1.0, 1.0);
-  for (Index i = 0; i < b.num_nodes(); ++i)
-    for (int k = 0; k < 3; ++k)
-      if (!b.is_fixed(3 * i + k)) b.velocity(i, k) = 1e-5 * uni(rng);  // m/s (strain ~1e-7)
-  const SparseMatrix K0 = b.elasticity().jacobian(b.rest_positions());
-  auto energy = [&] {
-    const VecX d = flat(b.displacement);
-    return b.kinetic_energy() + 0.5 * d.dot(K0 * d);
-  };
-  PhaseTimes times;
-  const double h = 2e-4;
-  double worst = 0.0;
-  for (int n = 0; n < 300; ++n) {
-    const VecX d_old = flat(b.displacement);
-    const double e_old = energy();
-    world.step(h, times);
-    const VecX dd = flat(b.displacement) - d_old;
-    const double change = energy() - e_old, predicted = -0.5 * dd.dot(K0 * dd);
-    worst = std::max(worst, std::abs(change - predicted) / e_old);
-    CHECK(change <= 1e-12 * e_old);
-  }
-  MESSAGE("pinned box: worst |dE - (-1/2 dd^T K dd)| / E per step = " << worst);
-  CHECK(worst <= 1e-6);  // StVK nonlinearity at strain ~1e-7 plus round-off
-}
-
-TEST_CASE("Rayleigh damping: the modal damping ratio is alpha/(2 omega) + beta omega/2") {
-  // Single-mode vibration of the one-DOF oscillator; ζ measured from the decay of the
-  // log of successive peaks. Reference: ζ = α/(2ω) + βω/2 for C = αM + βK (e.g. Chopra,
-  // Dynamics of Structures, §11.4). At h = T/4000 the scheme's own damping ωh/4 = 3.9e-4
-  // adds 2% to ζ = 0.02, hence the 3% tolerance; the discrete prediction from the exact
-  // amplification factor of Eqs. (4)–(5) is matched to 0.5%.
-  struct Case {
-    double alpha_over, beta_over;  // α/ω and βω
-  };
-  for (const Case& c : {Case{0.04, 0.0}, Case{0.0, 0.04}, Case{0.02, 0.02}}) {
-    Oscillator o = make_oscillator(c.alpha_over, c.beta_over);
-    SolidBody& b = o.world.bodies[0];
-    const Material& mat = b.material();
-    const double zeta = mat.rayleigh_alpha / (2 * o.omega) + mat.rayleigh_beta * o.omega / 2;
-    b.displacement(3, 2) = 1e-7;
-    const int steps_per_period = 4000;
-    const double h = 2 * M_PI / o.omega / steps_per_period;
-    std::vector<double> d;
-    PhaseTimes times;
-    for (int n = 0; n < 5 * steps_per_period; ++n) {
-      o.world.step(h, times);
-      d.push_back(b.displacement(3, 2));
+  TEST_CASE("Rayleigh damping: the modal damping ratio is alpha/(2 omega) + beta omega/2") {
+    // Single-mode vibration of the one-DOF oscillator; ζ measured from the decay of the
+    // log of successive peaks. Reference: ζ = α/(2ω) + βω/2 for C = αM + βK (e.g. Chopra,
+    // Dynamics of Structures, §11.4). At h = T/4000 the scheme's own damping ωh/4 = 3.9e-4
+    // adds 2% to ζ = 0.02, hence the 3% tolerance; the discrete prediction from the exact
+    // amplification factor of Eqs. (4)–(5) is matched to 0.5%.
+    struct Case {
+      double alpha_over, beta_over;  // α/ω and βω
+    };
+    for (const Case& c : {Case{0.04, 0.0}, Case{0.0, 0.04}, Case{0.02, 0.02}}) {
+      Oscillator o = make_oscillator(c.alpha_over, c.beta_over);
+      SolidBody& b = o.world.bodies[0];
+      const Material& mat = b.material();
+      const double zeta = mat.rayleigh_alpha / (2 * o.omega) + mat.rayleigh_beta * o.omega / 2;
+      b.displacement(3, 2) = 1e-7;
+      const int steps_per_period = 4000;
+      const double h = 2 * M_PI / o.omega / steps_per_period;
+      std::vector<double> d;
+      PhaseTimes times;
+      for (int n = 0; n < 5 * steps_per_period; ++n) {
+        o.world.step(h, times);
+        d.push_back(b.displacement(3, 2));
+      }
+      const double zeta_measured = -peak_decay_rate(d, h) / o.omega;
+      const double r =
+          discrete_decay_per_step(o.m, mat.rayleigh_alpha * o.m + mat.rayleigh_beta * o.k, o.k, h);
+      const double zeta_discrete = -std::log(r) / (h * o.omega);
+      MESSAGE("Rayleigh alpha/omega = " << c.alpha_over << ", beta*omega = " << c.beta_over
+                                        << ": zeta measured " << zeta_measured << ", theory "
+                                        << zeta << ", discrete Eq. (4) " << zeta_discrete);
+      CHECK(zeta_measured == doctest::Approx(zeta).epsilon(0.03));
+      CHECK(zeta_measured == doctest::Approx(zeta_discrete).epsilon(0.005));
     }
-    const double zeta_measured = -peak_decay_rate(d, h) / o.omega;
-    const double r = discrete_decay_per_step(o.m, mat.rayleigh_alpha * o.m + mat.rayleigh_beta * o.k,
-                                             o.k, h);
-    const double zeta_discrete = -std::log(r) / (h * o.omega);
-    MESSAGE("Rayleigh alpha/omega = " << c.alpha_over << ", beta*omega = " << c.beta_over
-                                      << ": zeta measured " << zeta_measured << ", theory "
-                                      << zeta << ", discrete Eq. (4) " << zeta_discrete);
-    CHECK(zeta_measured == doctest::Approx(zeta).epsilon(0.03));
-    CHECK(zeta_measured == doctest::Approx(zeta_discrete).epsilon(0.005));
   }
-}
 
 }  // TEST_SUITE
