@@ -1,1 +1,154 @@
-int main() { return 0; }
+/// @file main.cpp
+/// The `tetfsi` command line:
+///   tetfsi run SCENE [--out DIR] [--set key.path=value ...] [--steps N | --end-time T]
+///                    [--progress auto|tty|plain|off]
+///   tetfsi validate SCENE [--set key.path=value ...]
+///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
+///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
+/// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
+/// command-line usage errors are reported by CLI11 with its exit code.
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "tools/bench_solvers.hpp"
+#include "tools/run.hpp"
+#include "tools/scene.hpp"
+
+#ifndef TETFSI_VERSION
+#define TETFSI_VERSION "unknown"
+#endif
+
+namespace {
+
+/// Print `error: <message>` as exactly one line on stderr.
+int report_error(std::string message) {
+  for (char& c : message)
+    if (c == '\n' || c == '\r') c = ' ';
+  std::fflush(stdout);
+  std::fprintf(stderr, "error: %s\n", message.c_str());
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace tetfsi;
+
+  CLI::App app{
+      "tetfsi: incompressible fluids coupled with deformable linear-tet FEM solids "
+      "(this version: solids only, with ParaView output)",
+      "tetfsi"};
+  app.set_version_flag("--version", std::string("tetfsi ") + TETFSI_VERSION);
+  app.require_subcommand(1);
+  app.fallthrough();  // --log-level is accepted after the subcommand too
+
+  std::string log_level = "info";
+  app.add_option(
+         "--log-level", log_level,
+         "log messages on stderr at least this severe: trace, debug, info, warn, error, off")
+      ->capture_default_str();
+
+  // ---- run ----
+  CLI::App* run = app.add_subcommand("run", "simulate a scene and write ParaView output");
+  std::string run_scene_file;
+  std::string run_out;
+  std::vector<std::string> run_sets;
+  int run_steps = 0;
+  double run_end_time = 0.0;
+  std::string run_progress = "auto";
+  run->add_option("SCENE", run_scene_file, "scene file (JSON)")->required();
+  run->add_option("--out,-o", run_out, "output folder (default: out/<scene name>)");
+  run->add_option("--set", run_sets,
+                  "override a scene value, e.g. --set time.dt=0.002 --set "
+                  "bodies.0.material.density=500 (repeatable)")
+      ->allow_extra_args(false);
+  auto* steps_opt = run->add_option("--steps", run_steps, "number of steps (overrides the scene)")
+                        ->check(CLI::Range(1, std::numeric_limits<int>::max()));
+  auto* end_opt =
+      run->add_option("--end-time", run_end_time, "end time in s (overrides the scene)");
+  steps_opt->excludes(end_opt);
+  run->add_option("--progress", run_progress,
+                  "progress on stderr: auto (live line on a terminal, else plain), tty, plain, off")
+      ->check(CLI::IsMember({"auto", "tty", "plain", "off"}))
+      ->capture_default_str();
+
+  // ---- validate ----
+  CLI::App* validate =
+      app.add_subcommand("validate", "check a scene: parse it, build its bodies, print a summary");
+  std::string val_scene_file;
+  std::vector<std::string> val_sets;
+  validate->add_option("SCENE", val_scene_file, "scene file (JSON)")->required();
+  validate->add_option("--set", val_sets, "override a scene value (repeatable)")
+      ->allow_extra_args(false);
+
+  // ---- bench ----
+  CLI::App* bench = app.add_subcommand("bench", "benchmarks");
+  bench->require_subcommand(1);
+  CLI::App* bench_solvers_cmd =
+      bench->add_subcommand("solvers", "time the linear-solver backends on a 3D Poisson problem");
+  int bench_n = 100000;
+  std::string bench_json;
+  std::vector<std::string> bench_backends;
+  bench_solvers_cmd->add_option("--n", bench_n, "number of unknowns")
+      ->check(CLI::Range(1, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+  bench_solvers_cmd->add_option("--json", bench_json, "also write the results to this JSON file");
+  bench_solvers_cmd
+      ->add_option(
+          "--backends", bench_backends,
+          "comma-separated backends (default: all): " +
+              [] {
+                std::string s;
+                for (const auto& n : solver_names()) s += (s.empty() ? "" : ",") + n;
+                return s;
+              }())
+      ->delimiter(',');
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  try {
+    set_log_level(log_level);
+
+    if (*run) {
+      const tools::Scene scene = tools::load_scene(run_scene_file, run_sets);
+      tools::RunOptions opt;
+      opt.out_dir = run_out.empty() ? std::filesystem::path("out") / scene.name
+                                    : std::filesystem::path(run_out);
+      if (*steps_opt) opt.steps = run_steps;
+      if (*end_opt) opt.end_time = run_end_time;
+      opt.progress = tools::parse_progress_mode(run_progress);
+      const tools::RunResult r = tools::run_scene(scene, opt);
+      tools::print_summary(r, std::cout);
+      std::cout.flush();
+      if (!r.completed) return report_error(r.error);
+      return 0;
+    }
+    if (*validate) {
+      const tools::Scene scene = tools::load_scene(val_scene_file, val_sets);
+      const solid::SolidWorld world = tools::build_world(scene);
+      tools::print_world_summary(scene, world, std::cout);
+      std::cout << "ok\n";
+      return 0;
+    }
+    if (*bench_solvers_cmd) {
+      return tools::bench_solvers(bench_n, bench_json, bench_backends, std::cout);
+    }
+  } catch (const std::exception& e) {
+    return report_error(e.what());  // tetfsi::Error and everything else: one line
+  } catch (...) {
+    return report_error("unknown internal error");
+  }
+  return 0;
+}

@@ -1,0 +1,387 @@
+#include "tools/run.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/timer.hpp"
+#include "solid/static_solve.hpp"
+#include "tools/output.hpp"
+
+namespace tetfsi::tools {
+
+ProgressMode parse_progress_mode(const std::string& name) {
+  if (name == "auto") return ProgressMode::Auto;
+  if (name == "tty") return ProgressMode::Tty;
+  if (name == "plain") return ProgressMode::Plain;
+  if (name == "off") return ProgressMode::Off;
+  throw InputError(fmt::format("unknown progress mode '{}': use auto, tty, plain or off", name));
+}
+
+namespace {
+
+/// "4.2 s", "3 min 12 s", "1 h 02 min".
+std::string format_duration(double s) {
+  if (!std::isfinite(s) || s < 0) return "?";
+  if (s < 60) return fmt::format("{:.1f} s", s);
+  const long total = std::lround(s);
+  if (total < 3600) return fmt::format("{} min {:02d} s", total / 60, static_cast<int>(total % 60));
+  return fmt::format("{} h {:02d} min", total / 3600, static_cast<int>((total % 3600) / 60));
+}
+
+/// Progress on stderr. This is user-interface output (asked for with --progress), so it is
+/// printed directly rather than through the logger, whose level may hide it.
+class Progress {
+ public:
+  Progress(ProgressMode mode, int total_steps) : m_total(total_steps), m_start(now_seconds()) {
+    if (mode == ProgressMode::Auto)
+      mode = isatty(fileno(stderr)) ? ProgressMode::Tty : ProgressMode::Plain;
+    m_mode = mode;
+    m_last_print = m_start;
+  }
+
+  /// Call after step `step` (1-based) ended at time t.
+  void update(int step, double t) {
+    if (m_mode == ProgressMode::Off) return;
+    const double now = now_seconds();
+    const double elapsed = now - m_start;
+    const double ms_per_step = 1e3 * elapsed / std::max(step, 1);
+    const double eta = 1e-3 * ms_per_step * (m_total - step);
+    const int pct = m_total > 0 ? static_cast<int>(100.0 * step / m_total) : 100;
+    if (m_mode == ProgressMode::Tty) {
+      if (step < m_total && now - m_last_print < 0.1) return;
+      std::fprintf(stderr, "\rstep %d/%d  t = %.6g s  %.3g ms/step  ETA %s\x1b[K", step, m_total, t,
+                   ms_per_step, format_duration(eta).c_str());
+      std::fflush(stderr);
+      m_line_open = true;
+    } else {
+      const bool tenth = pct / 10 > m_last_tenth;
+      if (!(tenth || now - m_last_print >= 2.0 || step == m_total)) return;
+      m_last_tenth = pct / 10;
+      std::fprintf(stderr, "step %d/%d (%d%%)  t = %.6g s  %.3g ms/step  ETA %s\n", step, m_total,
+                   pct, t, ms_per_step, format_duration(eta).c_str());
+      std::fflush(stderr);
+    }
+    m_last_print = now;
+  }
+
+  /// End the live line (TTY mode) so that later output starts on a fresh line.
+  void finish() {
+    if (m_line_open) {
+      std::fputc('\n', stderr);
+      std::fflush(stderr);
+      m_line_open = false;
+    }
+  }
+
+  ~Progress() { finish(); }
+
+ private:
+  ProgressMode m_mode = ProgressMode::Off;
+  int m_total;
+  double m_start;
+  double m_last_print;
+  int m_last_tenth = 0;
+  bool m_line_open = false;
+};
+
+/// Energies of the whole world into a stats row, and the result's final values.
+void fill_energies(const solid::SolidWorld& world, StepStats& row) {
+  row.kinetic_energy = 0.0;
+  row.elastic_energy = 0.0;
+  row.gravity_potential = 0.0;
+  for (const auto& b : world.bodies) {
+    row.kinetic_energy += b.kinetic_energy();
+    row.elastic_energy += b.elastic_energy();
+    row.gravity_potential += b.gravity_potential(world.gravity);
+  }
+}
+
+void fill_final(const solid::SolidWorld& world, RunResult& r) {
+  StepStats e;
+  fill_energies(world, e);
+  r.kinetic_energy = e.kinetic_energy;
+  r.elastic_energy = e.elastic_energy;
+  r.gravity_potential = e.gravity_potential;
+  r.bodies.clear();
+  for (const auto& b : world.bodies) {
+    BodySummary s;
+    s.name = b.name();
+    s.nodes = b.num_nodes();
+    s.tets = b.num_tets();
+    s.max_displacement = b.num_nodes() > 0 ? b.displacement.rowwise().norm().maxCoeff() : 0.0;
+    r.bodies.push_back(s);
+  }
+}
+
+/// The state (d, u) of every body, to go back to the last good state when a step fails, so
+/// that the summary reports it rather than a diverged one.
+class StateSnapshot {
+ public:
+  void save(const solid::SolidWorld& world) {
+    m_state.resize(world.bodies.size());
+    for (size_t i = 0; i < world.bodies.size(); ++i) {
+      m_state[i].first = world.bodies[i].displacement;
+      m_state[i].second = world.bodies[i].velocity;
+    }
+  }
+  void restore(solid::SolidWorld& world) const {
+    for (size_t i = 0; i < m_state.size() && i < world.bodies.size(); ++i) {
+      world.bodies[i].displacement = m_state[i].first;
+      world.bodies[i].velocity = m_state[i].second;
+    }
+  }
+
+ private:
+  std::vector<std::pair<MatX3, MatX3>> m_state;
+};
+
+/// Make a message one line (the CLI prints errors as exactly one line).
+std::string one_line(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  return s;
+}
+
+/// The scene with the command-line step/end-time overrides applied (also in `resolved`, so
+/// that scene.resolved.json reproduces the run).
+Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
+  Scene s = scene;
+  TETFSI_REQUIRE(InputError, !(opt.steps && opt.end_time),
+                 "give either a step count or an end time, not both");
+  if (!opt.steps && !opt.end_time) return s;
+  if (s.mode == Mode::Static) {
+    logger().warn("scene '{}' is static: the step count / end time override is ignored", s.name);
+    return s;
+  }
+  nlohmann::json* time = nullptr;
+  if (s.resolved.is_object()) time = &s.resolved["time"];
+  if (opt.steps) {
+    TETFSI_REQUIRE(InputError, *opt.steps >= 1, "the step count must be at least 1, got {}",
+                   *opt.steps);
+    s.time.steps = *opt.steps;
+    s.time.end_time.reset();
+    if (time) {
+      if (time->is_object()) time->erase("end_time");
+      (*time)["steps"] = *opt.steps;
+    }
+  } else {
+    TETFSI_REQUIRE(InputError, std::isfinite(*opt.end_time) && *opt.end_time > 0,
+                   "the end time must be positive, got {}", *opt.end_time);
+    s.time.end_time = *opt.end_time;
+    s.time.steps.reset();
+    if (time) {
+      if (time->is_object()) time->erase("steps");
+      (*time)["end_time"] = *opt.end_time;
+    }
+  }
+  return s;
+}
+
+void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out,
+                 const RunOptions& opt, RunResult& r) {
+  const double dt = scene.time.dt;
+  const int n = scene.time.num_steps();
+  const int every = std::max(1, scene.output.every);
+  r.steps_planned = n;
+  r.dt = dt;
+  Progress progress(opt.progress, n);
+  StepStats row;
+  StateSnapshot last_good;
+  for (int step = 1; step <= n; ++step) {
+    const double t = step * dt;
+    row.phases.reset();
+    const double t0 = now_seconds();
+    last_good.save(world);
+    try {
+      const solid::SolidStepReport rep = world.step(dt, row.phases);
+      row.solver_iterations = rep.iterations;
+      row.solver_residual = rep.residual;
+      row.contacts = rep.contacts;
+      r.solver_iterations += rep.iterations;
+      if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
+      if (step % every == 0 || step == n) {
+        ScopedTimer timer(row.phases, "output");
+        out.write_frame(world, step, t);
+      }
+      fill_energies(world, row);
+    } catch (const Error& e) {
+      progress.finish();
+      last_good.restore(world);  // the summary reports the state after the last good step
+      r.error = one_line(fmt::format("step {}/{} (t = {:.6g} s) failed: {}", step, n, t, e.what()));
+      return;
+    }
+    row.phases.add("total", now_seconds() - t0);
+    row.step = step;
+    row.time = t;
+    row.dt = dt;
+    out.write_stats(row);
+    r.steps_done = step;
+    r.end_time = t;
+    progress.update(step, t);
+  }
+  progress.finish();
+  r.completed = true;
+}
+
+void run_static(const Scene& scene, solid::SolidWorld& world, OutputWriter& out, RunResult& r) {
+  r.steps_planned = 1;
+  r.dt = 1.0;
+  if (!world.obstacles.empty())
+    logger().warn("scene '{}' is static: its {} obstacle(s) are ignored", scene.name,
+                  world.obstacles.size());
+  solid::StaticSolveOptions so;
+  so.rel_tol = scene.statics.rel_tol;
+  so.max_iterations = scene.statics.max_iterations;
+  so.load_steps = scene.statics.load_steps;
+  so.linear_solver = world.linear_solver;
+  StepStats row;
+  StateSnapshot initial;
+  initial.save(world);
+  const double t0 = now_seconds();
+  try {
+    {
+      ScopedTimer timer(row.phases, "solve");
+      for (auto& body : world.bodies) {
+        const solid::StaticSolveReport rep =
+            solid::solve_static(body, body.external_forces(world.gravity), so);
+        logger().info("body '{}': static equilibrium in {} Newton iterations (residual {:.3g})",
+                      body.name(), rep.iterations, rep.residual);
+        row.solver_iterations += rep.iterations;
+        row.solver_residual = std::max(row.solver_residual, rep.residual);
+      }
+    }
+    {
+      ScopedTimer timer(row.phases, "output");
+      out.write_frame(world, 1, 1.0);
+    }
+  } catch (const Error& e) {
+    initial.restore(world);
+    r.error = one_line(fmt::format("static solve failed: {}", e.what()));
+    return;
+  }
+  row.phases.add("total", now_seconds() - t0);
+  fill_energies(world, row);
+  row.step = 1;
+  row.time = 1.0;
+  row.dt = 1.0;
+  out.write_stats(row);
+  r.solver_iterations = row.solver_iterations;
+  r.steps_done = 1;
+  r.end_time = 1.0;
+  r.completed = true;
+}
+
+}  // namespace
+
+RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
+  TETFSI_REQUIRE(InputError, !opt.out_dir.empty(), "no output folder given");
+  const Scene scene = apply_overrides(scene_in, opt);
+  RunResult r;
+  r.scene_name = scene.name;
+  r.mode = scene.mode == Mode::Static ? "static" : "dynamic";
+  r.out_dir = opt.out_dir;
+
+  double t = now_seconds();
+  solid::SolidWorld world = build_world(scene);
+  r.build_s = now_seconds() - t;
+  logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world.bodies.size(),
+                world.bodies.size() == 1 ? "y" : "ies", r.build_s);
+
+  t = now_seconds();
+  OutputWriter out(opt.out_dir, scene, world);
+  out.write_frame(world, 0, 0.0);
+  if (scene.mode == Mode::Static)
+    run_static(scene, world, out, r);
+  else
+    run_dynamic(scene, world, out, opt, r);
+  r.wall_s = now_seconds() - t;
+  r.frames_written = out.frames_written();
+  fill_final(world, r);
+  try {
+    out.write_summary(summary_json(r));
+  } catch (const Error& e) {
+    if (r.completed) throw;
+    logger().warn("{}", e.what());  // the step error is the one to report
+  }
+  return r;
+}
+
+std::string summary_json(const RunResult& r) {
+  nlohmann::json j;
+  j["scene"] = r.scene_name;
+  j["mode"] = r.mode;
+  j["completed"] = r.completed;
+  j["error"] = r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error);
+  j["steps"] = r.steps_done;
+  j["steps_planned"] = r.steps_planned;
+  j["dt"] = r.dt;
+  j["end_time"] = r.end_time;
+  j["build_seconds"] = r.build_s;
+  j["wall_seconds"] = r.wall_s;
+  j["ms_per_step"] = r.ms_per_step();
+  j["frames_written"] = r.frames_written;
+  j["solver_iterations"] = r.solver_iterations;
+  j["unconverged_steps"] = r.unconverged_steps;
+  j["output_dir"] = r.out_dir.string();
+  j["energy"] = {{"kinetic", r.kinetic_energy},
+                 {"elastic", r.elastic_energy},
+                 {"gravity_potential", r.gravity_potential},
+                 {"total", r.kinetic_energy + r.elastic_energy + r.gravity_potential}};
+  nlohmann::json bodies = nlohmann::json::array();
+  for (const auto& b : r.bodies)
+    bodies.push_back({{"name", b.name},
+                      {"nodes", b.nodes},
+                      {"tets", b.tets},
+                      {"max_displacement", b.max_displacement}});
+  j["bodies"] = bodies;
+  return j.dump(2) + "\n";
+}
+
+void print_summary(const RunResult& r, std::ostream& out) {
+  if (r.mode == "static") {
+    out << fmt::format(
+        "scene '{}' (static): {} in {} Newton iterations, {:.3g} s wall, {} frame{}\n",
+        r.scene_name, r.completed ? "equilibrium" : "FAILED", r.solver_iterations, r.wall_s,
+        r.frames_written, r.frames_written == 1 ? "" : "s");
+  } else {
+    out << fmt::format(
+        "scene '{}' (dynamic): {}{}/{} steps of {:.6g} s to t = {:.6g} s in {:.3g} s wall "
+        "({:.3g} ms/step), {} frame{}\n",
+        r.scene_name, r.completed ? "" : "FAILED after ", r.steps_done, r.steps_planned, r.dt,
+        r.end_time, r.wall_s, r.ms_per_step(), r.frames_written, r.frames_written == 1 ? "" : "s");
+  }
+  out << fmt::format("output: {}\n", r.out_dir.string());
+  out << fmt::format("energy (J): kinetic {:.6g}, elastic {:.6g}, gravity {:.6g}, total {:.6g}\n",
+                     r.kinetic_energy, r.elastic_energy, r.gravity_potential,
+                     r.kinetic_energy + r.elastic_energy + r.gravity_potential);
+  for (const auto& b : r.bodies)
+    out << fmt::format("body '{}': max |d| = {:.6g} m\n", b.name, b.max_displacement);
+  if (r.unconverged_steps > 0)
+    out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",
+                       r.unconverged_steps);
+}
+
+void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out) {
+  out << fmt::format("scene '{}' ({}): ", scene.name,
+                     scene.mode == Mode::Static ? "static" : "dynamic");
+  if (scene.mode == Mode::Static)
+    out << fmt::format("load steps {}, rel_tol {:.3g}\n", scene.statics.load_steps,
+                       scene.statics.rel_tol);
+  else
+    out << fmt::format("dt = {:.6g} s, {} steps, a frame every {} ({})\n", scene.time.dt,
+                       scene.time.num_steps(), scene.output.every, scene.output.compression);
+  for (const auto& b : world.bodies)
+    out << fmt::format("body '{}': {} nodes, {} tets, mass {:.6g} kg, {} fixed DOFs\n", b.name(),
+                       b.num_nodes(), b.num_tets(), b.total_mass(), b.num_fixed_dofs());
+  out << fmt::format("obstacles: {}\n", world.obstacles.size());
+}
+
+}  // namespace tetfsi::tools

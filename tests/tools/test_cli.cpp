@@ -1,0 +1,330 @@
+// End-to-end tests of the `tetfsi` executable (tools/main.cpp): runs it as a user would, on
+// tiny scenes written to a temporary folder, and checks exit codes, stderr and the output
+// folder. TETFSI_EXE is the path of the built executable (tests/tools/CMakeLists.txt).
+#include <doctest/doctest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <vtkNew.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkXMLDataElement.h>
+#include <vtkXMLDataParser.h>
+#include <vtkXMLUnstructuredGridReader.h>
+#include <nlohmann/json.hpp>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path path;
+  explicit TempDir(const std::string& name) {
+    path = fs::temp_directory_path() / fmt::format("tetfsi_test_cli_{}_{}", name, getpid());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+std::string read_text(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::stringstream ss(text);
+  for (std::string l; std::getline(ss, l);) lines.push_back(l);
+  return lines;
+}
+
+struct Result {
+  int code = -1;
+  std::string out;
+  std::string err;
+  std::vector<std::string> err_lines() const { return lines_of(err); }
+};
+
+/// Run `tetfsi <args>` in folder `cwd`, capturing stdout and stderr.
+Result tetfsi(const fs::path& cwd, const std::string& args) {
+  const fs::path out = cwd / "cli_stdout.txt";
+  const fs::path err = cwd / "cli_stderr.txt";
+  const std::string cmd = fmt::format("cd '{}' && '{}' {} >'{}' 2>'{}'", cwd.string(), TETFSI_EXE,
+                                      args, out.string(), err.string());
+  const int status = std::system(cmd.c_str());
+  Result r;
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = read_text(out);
+  r.err = read_text(err);
+  fs::remove(out);
+  fs::remove(err);
+  return r;
+}
+
+/// A 2×2×2-cell box (27 nodes, 48 tets) of soft rubber, bottom face pinned, under gravity.
+nlohmann::json tiny_scene(int steps = 5) {
+  return nlohmann::json::parse(fmt::format(R"({{
+    "name": "tiny",
+    "time": {{ "dt": 0.01, "steps": {} }},
+    "output": {{ "every": 1, "compression": "lz4" }},
+    "bodies": [ {{
+      "name": "block",
+      "mesh": {{ "box": {{ "lo": [0, 0, 0], "hi": [1, 1, 1], "cells": [2, 2, 2] }} }},
+      "material": {{ "density": 1000, "youngs_modulus": 1e5, "poisson_ratio": 0.3 }},
+      "pins": [ {{ "box": {{ "lo": [-1, -1, -0.01], "hi": [2, 2, 0.01] }}, "axes": "xyz" }} ]
+    }} ]
+  }})",
+                                           steps));
+}
+
+fs::path write_scene(const fs::path& dir, const nlohmann::json& j,
+                     const std::string& file = "tiny.json") {
+  const fs::path p = dir / file;
+  std::ofstream(p) << j.dump(2);
+  return p;
+}
+
+struct Pvd {
+  std::vector<double> times;
+  std::vector<std::string> files;
+};
+
+/// Parse a .pvd with VTK's XML parser; `ok` is false if it does not parse.
+Pvd parse_pvd(const fs::path& p, bool& ok) {
+  Pvd out;
+  vtkNew<vtkXMLDataParser> parser;
+  parser->SetFileName(p.c_str());
+  ok = parser->Parse() == 1;
+  if (!ok) return out;
+  vtkXMLDataElement* coll = parser->GetRootElement()->FindNestedElementWithName("Collection");
+  ok = coll != nullptr;
+  if (!ok) return out;
+  for (int i = 0; i < coll->GetNumberOfNestedElements(); ++i) {
+    out.times.push_back(std::stod(coll->GetNestedElement(i)->GetAttribute("timestep")));
+    out.files.emplace_back(coll->GetNestedElement(i)->GetAttribute("file"));
+  }
+  return out;
+}
+
+/// Number of points of a .vtu (−1 if VTK cannot read it).
+long vtu_points(const fs::path& p) {
+  vtkNew<vtkXMLUnstructuredGridReader> r;
+  r->SetFileName(p.c_str());
+  r->Update();
+  if (r->GetErrorCode() != 0 || !r->GetOutput()) return -1;
+  return static_cast<long>(r->GetOutput()->GetNumberOfPoints());
+}
+
+}  // namespace
+
+TEST_CASE("tetfsi run: a 5-step scene writes frames, collection, stats and summary") {
+  TempDir dir("run");
+  write_scene(dir.path, tiny_scene(5));
+  const Result r = tetfsi(dir.path, "run tiny.json --progress plain");
+  INFO("stderr: " << r.err);
+  REQUIRE(r.code == 0);
+
+  const fs::path out = dir.path / "out" / "tiny";  // default: out/<scene name>
+  CHECK(fs::exists(out / "scene.resolved.json"));
+  CHECK(fs::exists(out / "summary.json"));
+  REQUIRE(fs::exists(out / "stats.csv"));
+  REQUIRE(fs::exists(out / "block.pvd"));
+
+  const auto stats = lines_of(read_text(out / "stats.csv"));
+  REQUIRE(stats.size() == 6);  // header + 5 steps
+  CHECK(stats[0].rfind("step,time,dt,", 0) == 0);
+  CHECK(stats[5].rfind("5,", 0) == 0);
+
+  bool ok = false;
+  const Pvd pvd = parse_pvd(out / "block.pvd", ok);
+  REQUIRE(ok);
+  REQUIRE(pvd.times.size() == 6);  // frame 0 and one per step
+  for (int i = 0; i <= 5; ++i) {
+    CHECK(pvd.times[i] == doctest::Approx(0.01 * i).epsilon(1e-12));
+    CHECK(pvd.files[i] == fmt::format("block/block_{:06d}.vtu", i));
+    CHECK(vtu_points(out / pvd.files[i]) == 27);
+  }
+
+  const auto resolved = nlohmann::json::parse(read_text(out / "scene.resolved.json"));
+  CHECK(resolved["bodies"][0]["name"] == "block");
+  const auto summary = nlohmann::json::parse(read_text(out / "summary.json"));
+  CHECK(summary["completed"] == true);
+  CHECK(summary["steps"] == 5);
+  CHECK(summary["frames_written"] == 6);
+  // Under gravity with a pinned base the block sags: it moved, and the summary says so.
+  CHECK(summary["bodies"][0]["max_displacement"].get<double>() > 0.0);
+  CHECK(r.out.find("5/5 steps") != std::string::npos);
+  CHECK(r.out.find("max |d|") != std::string::npos);
+}
+
+TEST_CASE("tetfsi run: --set, --steps, --end-time and output.every change the run") {
+  TempDir dir("overrides");
+  write_scene(dir.path, tiny_scene(5));
+
+  SUBCASE("--set time.steps=3") {
+    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --set time.steps=3");
+    INFO("stderr: " << r.err);
+    REQUIRE(r.code == 0);
+    CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 4);
+  }
+  SUBCASE("--steps 2 overrides the scene and is recorded in scene.resolved.json") {
+    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --steps 2");
+    INFO("stderr: " << r.err);
+    REQUIRE(r.code == 0);
+    CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 3);
+    const auto resolved = nlohmann::json::parse(read_text(dir.path / "o" / "scene.resolved.json"));
+    CHECK(resolved["time"]["steps"] == 2);
+  }
+  SUBCASE("--end-time 0.035 takes ceil(0.035 / 0.01) = 4 steps") {
+    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --end-time 0.035");
+    INFO("stderr: " << r.err);
+    REQUIRE(r.code == 0);
+    CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 5);
+  }
+  SUBCASE("output.every=2: frames at steps 0, 2, 4 and always the last one (5)") {
+    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --set output.every=2");
+    INFO("stderr: " << r.err);
+    REQUIRE(r.code == 0);
+    bool ok = false;
+    const Pvd pvd = parse_pvd(dir.path / "o" / "block.pvd", ok);
+    REQUIRE(ok);
+    CHECK(pvd.files == std::vector<std::string>{"block/block_000000.vtu", "block/block_000002.vtu",
+                                                "block/block_000004.vtu",
+                                                "block/block_000005.vtu"});
+    CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 6);  // stats every step
+  }
+  SUBCASE("--steps and --end-time together are a usage error") {
+    const Result r = tetfsi(dir.path, "run tiny.json --steps 2 --end-time 1");
+    CHECK(r.code != 0);
+    CHECK(!fs::exists(dir.path / "out"));
+  }
+}
+
+TEST_CASE("tetfsi run: static mode writes frame 0 and the equilibrium at pseudo-time 1") {
+  TempDir dir("static");
+  nlohmann::json s = tiny_scene(5);
+  s["mode"] = "static";
+  write_scene(dir.path, s);
+  const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off");
+  INFO("stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  bool ok = false;
+  const Pvd pvd = parse_pvd(dir.path / "o" / "block.pvd", ok);
+  REQUIRE(ok);
+  CHECK(pvd.times == std::vector<double>{0.0, 1.0});
+  CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 2);
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  CHECK(summary["completed"] == true);
+  CHECK(summary["solver_iterations"].get<int>() >= 1);
+}
+
+TEST_CASE("tetfsi validate: summary of a good scene, one-line error for an unknown key") {
+  TempDir dir("validate");
+  write_scene(dir.path, tiny_scene());
+  const Result good = tetfsi(dir.path, "validate tiny.json");
+  INFO("stderr: " << good.err);
+  CHECK(good.code == 0);
+  CHECK(good.out.find("27 nodes") != std::string::npos);
+  CHECK(good.out.find("48 tets") != std::string::npos);
+  CHECK(good.out.find("27 fixed DOFs") != std::string::npos);  // 9 bottom nodes × 3
+  const auto out_lines = lines_of(good.out);
+  REQUIRE(!out_lines.empty());
+  CHECK(out_lines.back() == "ok");
+
+  nlohmann::json bad = tiny_scene();
+  bad["bodies"][0]["material"].erase("poisson_ratio");
+  bad["bodies"][0]["material"]["poison_ratio"] = 0.3;
+  write_scene(dir.path, bad, "bad.json");
+  const Result r = tetfsi(dir.path, "validate bad.json");
+  CHECK(r.code != 0);
+  const auto lines = r.err_lines();
+  REQUIRE(lines.size() == 1);
+  CHECK(lines[0].rfind("error: ", 0) == 0);
+  CHECK(lines[0].find("poison_ratio") != std::string::npos);
+  CHECK(lines[0].find("did you mean") != std::string::npos);
+
+  // --set goes through the same checks.
+  const Result r2 = tetfsi(dir.path, "validate tiny.json --set time.stpes=3");
+  CHECK(r2.code != 0);
+  REQUIRE(r2.err_lines().size() == 1);
+  CHECK(r2.err.find("stpes") != std::string::npos);
+}
+
+TEST_CASE("tetfsi: a missing scene file is a one-line error") {
+  TempDir dir("missing");
+  for (const char* cmd : {"run nowhere.json", "validate nowhere.json"}) {
+    CAPTURE(cmd);
+    const Result r = tetfsi(dir.path, cmd);
+    CHECK(r.code == 1);
+    const auto lines = r.err_lines();
+    REQUIRE(lines.size() == 1);
+    CHECK(lines[0].rfind("error: ", 0) == 0);
+    CHECK(lines[0].find("nowhere.json") != std::string::npos);
+  }
+}
+
+TEST_CASE("tetfsi run: a failing step leaves a readable collection and a non-zero exit") {
+  TempDir dir("fail");
+  // Absurd gravity: the first step moves the nodes by ~1e296 m, the next step's strain
+  // overflows and SolidWorld::step throws (state non-finite / factorization failure).
+  nlohmann::json s = tiny_scene(10);
+  s["gravity"] = {0.0, 0.0, -1e300};
+  write_scene(dir.path, s);
+  const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --log-level off");
+  CHECK(r.code != 0);
+  const auto lines = r.err_lines();
+  REQUIRE(lines.size() == 1);
+  CHECK(lines[0].rfind("error: step ", 0) == 0);
+
+  bool ok = false;
+  const Pvd pvd = parse_pvd(dir.path / "o" / "block.pvd", ok);
+  REQUIRE(ok);
+  REQUIRE(!pvd.files.empty());
+  CHECK(pvd.times[0] == 0.0);
+  for (const auto& f : pvd.files) CHECK(vtu_points(dir.path / "o" / f) == 27);
+  for (const auto& e : fs::recursive_directory_iterator(dir.path / "o"))
+    CHECK(e.path().extension() != ".tmp");
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  CHECK(summary["completed"] == false);
+  CHECK(summary["error"].is_string());
+  // stats.csv holds exactly the completed steps.
+  CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() ==
+        1 + summary["steps"].get<size_t>());
+}
+
+TEST_CASE("tetfsi --help, --version and usage errors") {
+  TempDir dir("help");
+  const Result help = tetfsi(dir.path, "--help");
+  CHECK(help.code == 0);
+  for (const char* word : {"run", "validate", "bench", "--log-level"})
+    CHECK(help.out.find(word) != std::string::npos);
+  const Result run_help = tetfsi(dir.path, "run --help");
+  CHECK(run_help.code == 0);
+  for (const char* word : {"--out", "--set", "--steps", "--end-time", "--progress"})
+    CHECK(run_help.out.find(word) != std::string::npos);
+
+  const Result version = tetfsi(dir.path, "--version");
+  CHECK(version.code == 0);
+  CHECK(version.out.rfind("tetfsi ", 0) == 0);
+
+  CHECK(tetfsi(dir.path, "").code != 0);  // a subcommand is required
+  CHECK(tetfsi(dir.path, "frobnicate").code != 0);
+  CHECK(tetfsi(dir.path, "run x.json --progress loud").code != 0);
+  const Result lvl = tetfsi(dir.path, "validate x.json --log-level chatty");
+  CHECK(lvl.code == 1);
+  CHECK(lvl.err_lines().size() == 1);
+}

@@ -1,0 +1,182 @@
+#pragma once
+/// @file output.hpp
+/// Simulation output for ParaView: one `.vtu` per body and frame, a `.pvd` collection per
+/// body that lists the frames with their times, and a `stats.csv` with one row per step.
+///
+/// Layout of an output folder `OUT` (all of it written by `OutputWriter`):
+/// ```
+/// OUT/scene.resolved.json          the scene with every default filled in
+/// OUT/<body>.pvd                   collection: (time, file) per frame, open this in ParaView
+/// OUT/<body>/<body>_<step>.vtu     frames (step number, 6 digits)
+/// OUT/stats.csv                    one row per step (see StatsWriter::columns())
+/// OUT/summary.json                 written by the run loop at the end (tools/run.hpp)
+/// ```
+/// Robustness: every file is written under a temporary name and renamed into place, and the
+/// `.pvd` is rewritten after every frame, so a run killed at any moment leaves a collection
+/// that ParaView can open, listing only complete frames. (Atomic against a killed process;
+/// no fsync, so not against power loss.) Nothing that tetfsi did not write is ever deleted.
+///
+/// VTK stays inside output.cpp; this header only sees plain types.
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/timer.hpp"
+#include "core/types.hpp"
+#include "solid/solid_body.hpp"
+
+namespace tetfsi::solid {
+class SolidWorld;
+}
+
+namespace tetfsi::tools {
+
+struct Scene;
+
+/// Compression of the appended binary data of a `.vtu`.
+/// LZ4 is the default: 1M tets in ~0.07 s (23 MiB); ZLib level 1 is ~40% smaller but ~10×
+/// slower to write (DESIGN.md §6).
+enum class Compression { None, LZ4, ZLib };
+
+/// "none" | "lz4" | "zlib" → Compression. @throws InputError naming the value and the valid ones.
+Compression parse_compression(const std::string& name);
+std::string to_string(Compression c);
+
+/// Write the body's current deformed mesh as an XML unstructured grid (appended raw binary).
+///
+/// Points are x = X + d (m); cells are VTK_TETRA. Point data (Float64, 3 components unless
+/// noted): `displacement` d (m), `velocity` u (m/s), `external_force` = applied loads + m g
+/// (N), `rest_position` X (m), `fixed` (UInt8, 1 component: 1 if any DOF of the node is
+/// fixed). Cell data (Float64): `green_strain_norm` |E|_F, `von_mises_stress` (Pa),
+/// `volume_ratio` J = V/V0 (StvkElasticity::tet_fields).
+///
+/// Written to `<path>.tmp` and renamed to `path` (an existing file is replaced atomically).
+/// @param gravity m/s², for `external_force`
+/// @throws InputError naming the file if it cannot be written.
+void write_body_vtu(const std::filesystem::path& path, const solid::SolidBody& body,
+                    const Vec3& gravity, Compression compression);
+
+/// Write `text` to `path` atomically: `<path>.tmp`, flush, close, rename over `path`.
+/// @throws InputError naming the file if it cannot be written.
+void write_text_file_atomic(const std::filesystem::path& path, const std::string& text);
+
+/// One entry of a `.pvd` collection.
+struct PvdEntry {
+  double time = 0.0;  ///< s (pseudo-time for static runs)
+  std::string file;   ///< path of the dataset relative to the `.pvd`'s folder
+};
+
+/// A ParaView data collection (`.pvd`) for one stream of frames. VTK has no writer for it,
+/// so the XML is written here:
+/// ```xml
+/// <?xml version="1.0"?>
+/// <VTKFile type="Collection" version="0.1" byte_order="LittleEndian">
+///   <Collection>
+///     <DataSet timestep="0.5" group="" part="0" file="sheet/sheet_000050.vtu"/>
+///   </Collection>
+/// </VTKFile>
+/// ```
+/// Times are printed with 17 significant digits (they read back bit-identical).
+class PvdWriter {
+ public:
+  /// @param pvd_path the collection file; nothing is written before the first `add`
+  explicit PvdWriter(std::filesystem::path pvd_path);
+
+  /// Append a frame and rewrite the whole collection atomically.
+  /// @param relative_file dataset path relative to the `.pvd`'s folder ('/' separators)
+  void add(double time, const std::string& relative_file);
+
+  const std::filesystem::path& path() const { return m_path; }
+  const std::vector<PvdEntry>& entries() const { return m_entries; }
+
+  /// The XML text of a collection (exposed for tests).
+  static std::string to_xml(const std::vector<PvdEntry>& entries);
+
+ private:
+  std::filesystem::path m_path;
+  std::vector<PvdEntry> m_entries;
+};
+
+/// One row of stats.csv.
+struct StepStats {
+  int step = 0;       ///< step number, 1-based (0 would be the initial state)
+  double time = 0.0;  ///< s, time at the end of the step
+  double dt = 0.0;    ///< s
+  PhaseTimes phases;  ///< seconds per phase; columns assemble, solve, update, output, total
+  int solver_iterations = 0;
+  double solver_residual = 0.0;
+  Index contacts = 0;
+  double kinetic_energy = 0.0;     ///< J, summed over bodies
+  double elastic_energy = 0.0;     ///< J
+  double gravity_potential = 0.0;  ///< J, −Σ m g·x
+  /// kinetic + elastic + gravity potential (J); the work of applied loads is not included.
+  double total_energy() const { return kinetic_energy + elastic_energy + gravity_potential; }
+};
+
+/// stats.csv: a header line, then one row per `write` (flushed at once so that a killed run
+/// keeps every completed step). Doubles are printed with 17 significant digits.
+class StatsWriter {
+ public:
+  /// Creates (truncates) the file and writes the header.
+  /// @throws InputError naming the file if it cannot be opened.
+  explicit StatsWriter(const std::filesystem::path& path);
+  ~StatsWriter();
+  StatsWriter(const StatsWriter&) = delete;
+  StatsWriter& operator=(const StatsWriter&) = delete;
+
+  void write(const StepStats& row);
+
+  /// The column names in order: step, time, dt, the phases of `phase_columns()`,
+  /// solver_iterations, solver_residual, contacts, kinetic_energy, elastic_energy,
+  /// gravity_potential, total_energy.
+  static const std::vector<std::string>& columns();
+  /// The timed phases that get a column (seconds): assemble, solve, update, output, total.
+  static const std::vector<std::string>& phase_columns();
+
+ private:
+  std::filesystem::path m_path;
+  std::FILE* m_file = nullptr;
+};
+
+/// Owns the output folder of one run: writes scene.resolved.json, the frames and their
+/// `.pvd` collections, and stats.csv.
+class OutputWriter {
+ public:
+  /// Creates `out_dir` (and parents) and one subfolder per body, writes
+  /// `scene.resolved.json` and starts `stats.csv`. If the folder holds an earlier run
+  /// (a stats.csv, summary.json or scene.resolved.json), logs a warning: our files are
+  /// overwritten, nothing else is touched or deleted.
+  /// @throws InputError if the folder cannot be created or written, or if two body names map
+  ///   to the same file name.
+  OutputWriter(const std::filesystem::path& out_dir, const Scene& scene,
+               const solid::SolidWorld& world);
+
+  /// Write one `.vtu` per body for the world's current state, labelled `step` (file name)
+  /// and `time` (in the `.pvd`), and update every `.pvd`.
+  void write_frame(const solid::SolidWorld& world, int step, double time);
+  /// Append a row to stats.csv.
+  void write_stats(const StepStats& row) { m_stats.write(row); }
+  /// Write `summary.json` (pretty JSON text, atomically).
+  void write_summary(const std::string& json_text);
+
+  const std::filesystem::path& out_dir() const { return m_out; }
+  int frames_written() const { return m_frames; }
+  Compression compression() const { return m_compression; }
+  /// The `.pvd` of each body, in body order.
+  std::vector<std::filesystem::path> pvd_paths() const;
+
+ private:
+  std::filesystem::path m_out;
+  Compression m_compression;
+  std::vector<std::string> m_file_names;  ///< per body: file-system safe name
+  std::vector<PvdWriter> m_pvd;           ///< per body
+  StatsWriter m_stats;
+  int m_frames = 0;
+};
+
+/// A body name made safe for file names: characters other than [A-Za-z0-9_.-] become '_'
+/// (an empty name becomes "body").
+std::string file_safe_name(const std::string& name);
+
+}  // namespace tetfsi::tools

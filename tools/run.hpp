@@ -1,0 +1,88 @@
+#pragma once
+/// @file run.hpp
+/// The run loop behind `tetfsi run`: build the world of a scene, step it, write frames,
+/// stats and a summary (layout in tools/output.hpp), report progress.
+#include <filesystem>
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "solid/world.hpp"
+#include "tools/scene.hpp"
+
+namespace tetfsi::tools {
+
+/// How progress is shown on stderr.
+enum class ProgressMode {
+  Auto,   ///< Tty if stderr is a terminal, Plain otherwise
+  Tty,    ///< one live line rewritten with '\r': step i/N, t, ms/step, ETA
+  Plain,  ///< a line every ~2 s or 10% of the steps
+  Off,
+};
+
+/// "auto" | "tty" | "plain" | "off". @throws InputError naming the value.
+ProgressMode parse_progress_mode(const std::string& name);
+
+struct RunOptions {
+  std::filesystem::path out_dir;   ///< required: the output folder (created if missing)
+  std::optional<int> steps;        ///< overrides the scene's step count (dynamic mode)
+  std::optional<double> end_time;  ///< overrides it by end time: ceil(T / dt) steps
+  ProgressMode progress = ProgressMode::Auto;
+};
+
+/// Final state of one body.
+struct BodySummary {
+  std::string name;
+  Index nodes = 0;
+  Index tets = 0;
+  double max_displacement = 0.0;  ///< max over nodes of |d| (m)
+};
+
+struct RunResult {
+  bool completed = false;  ///< every step ran; false if a step failed (see `error`)
+  std::string error;       ///< one line: where and why the run stopped (empty if completed)
+  std::string scene_name;
+  std::string mode;           ///< "dynamic" or "static"
+  int steps_planned = 0;      ///< steps requested (1 for static)
+  int steps_done = 0;         ///< steps completed
+  double dt = 0.0;            ///< s (1.0 pseudo-time for static)
+  double end_time = 0.0;      ///< s, time of the last completed step
+  double wall_s = 0.0;        ///< wall-clock seconds of the whole run (build excluded)
+  double build_s = 0.0;       ///< seconds to build the world
+  int frames_written = 0;     ///< frames (each: one .vtu per body)
+  int solver_iterations = 0;  ///< linear (dynamic) or Newton (static) iterations, summed
+  int unconverged_steps = 0;  ///< steps whose linear solve reported converged = false
+  std::filesystem::path out_dir;
+  double kinetic_energy = 0.0;     ///< final, J
+  double elastic_energy = 0.0;     ///< final, J
+  double gravity_potential = 0.0;  ///< final, J
+  std::vector<BodySummary> bodies;
+
+  double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
+};
+
+/// Run a scene. Writes frame 0 at t = 0, then
+///  - dynamic: `world.step(dt)` per step; a frame every `output.every` steps and always the
+///    last one; a stats row every step;
+///  - static: `solid::solve_static` on each body with f_e = external_forces(gravity) and the
+///    scene's static options, then frame 1 at pseudo-time 1.0 and one stats row.
+/// Ends by writing summary.json. A step that throws a tetfsi::Error (e.g. SolverError:
+/// diverged) does not throw out of here: the run stops, the frames, the `.pvd` files and the
+/// stats rows written so far stay valid, and the result says `completed = false` with a
+/// one-line `error` (also recorded in summary.json).
+/// @throws InputError / MeshError for a scene that cannot be built or an output folder that
+///   cannot be written.
+RunResult run_scene(const Scene& scene, const RunOptions& options);
+
+/// The summary of a run as JSON text (what summary.json holds).
+std::string summary_json(const RunResult& r);
+
+/// Print a human-readable summary of a run (a few lines).
+void print_summary(const RunResult& r, std::ostream& out);
+
+/// Print one line per body (nodes, tets, mass, fixed DOFs) and a line per obstacle count,
+/// for `tetfsi validate`.
+void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out);
+
+}  // namespace tetfsi::tools
