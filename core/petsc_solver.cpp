@@ -67,6 +67,9 @@ void init_petsc_once() {
     static char* args[] = {a0, a1, a2, a3, a4, nullptr};
     static int argc = 5;
     static char** argv = args;
+    // A serial Open MPI start (not under mpirun) spends ~0.3 s probing UCX, whose
+    // transports a single process never uses: ask for the ob1 layer unless the user chose.
+    if (std::getenv("OMPI_COMM_WORLD_SIZE") == nullptr) setenv("OMPI_MCA_pml", "ob1", 0);
     const PetscErrorCode ierr = PetscInitialize(&argc, &argv, nullptr, nullptr);
     if (ierr != 0) {
       g_petsc_init_error = fmt::format("PetscInitialize failed with error {}", (int)ierr);

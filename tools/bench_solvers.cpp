@@ -78,7 +78,11 @@ int bench_solvers(int n, const std::string& json_path, const std::vector<std::st
     }
     logger().info("bench solvers: {} on {} unknowns", name, N);
     try {
+      const double t_make = now_seconds();
       auto solver = make_linear_solver(kind, opts);
+      const double init_s = now_seconds() - t_make;
+      if (init_s > 0.01)  // amg/amg_gamg: PETSc and MPI start once per process
+        out << fmt::format("{}: one-time start-up {:.2f} s (not in the table)\n", name, init_s);
       solver->setup(A);
       VecX x = VecX::Zero(N);
       rows.push_back({name, solver->solve(b, x)});
