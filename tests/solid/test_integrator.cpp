@@ -86,7 +86,7 @@ double peak_decay_rate(const std::vector<double>& d, double h) {
 
 }  // namespace
 
-TEST_SUITE("solid") {
+TEST_SUITE("unit") {
   TEST_CASE("a free body under gravity falls with acceleration g and keeps its shape") {
     SolidWorld world;
     world.gravity = Vec3(0.0, 0.0, -9.81);
@@ -113,7 +113,7 @@ TEST_SUITE("solid") {
     CHECK(times.get("update") > 0.0);
   }
 
-  TEST_CASE("A is symmetric, fixed DOFs are eliminated and stay exactly fixed") {
+  TEST_CASE("A is symmetric and fixed DOFs are eliminated and stay exactly fixed") {
     SolidWorld world;
     world.gravity = Vec3(0.0, -9.81, 0.0);
     world.bodies.push_back(make_box_body("beam", Vec3::Zero(), Vec3(1.0, 0.1, 0.1), Vec3i(10, 1, 1),
@@ -158,29 +158,30 @@ TEST_SUITE("solid") {
     }
   }
 
-  TEST_CASE("an indefinite A (strong compression, large h) falls back from cholmod to umfpack") {
-  // StVK softens under compression: the uniaxial force ∝ s(s² − 1)/2 has a negative slope
-  // below s = 1/√3, so at s = 0.4 K' is indefinite and, with h large, so is
-  // A = M/h + (h/2)K'.
-  SolidWorld world;
-  world.gravity = Vec3::Zero();
-  world.bodies.push_back(make_box_body("squashed", Vec3::Zero(), Vec3::Ones(), Vec3i(2, 2, 2),
-                                       make_material(1000.0, 1e6, 0.3)));
-  SolidBody& b = world.bodies[0];
-  b.displacement = -0.6 * b.rest_positions();
-  const double h = 1.0;
-  const TrapezoidalSystem sys = assemble_trapezoidal(b, h, b.external_forces(world.gravity));
-  auto cholmod = make_linear_solver(SolverKind::Cholmod);
-  REQUIRE_THROWS_AS(cholmod->setup(sys.A), SolverError);
-  PhaseTimes times;
-  SolidStepReport rep;
-  CHECK_NOTHROW(rep = world.step(h, times));
-  CHECK(rep.converged);
-  CHECK(rep.residual < 1e-8);
-  CHECK(b.displacement.allFinite());
-}
+  TEST_CASE("an indefinite A (strong compression and large h) falls back from cholmod to umfpack") {
+    // StVK softens under compression: the uniaxial force ∝ s(s² − 1)/2 has a negative slope
+    // below s = 1/√3, so at s = 0.4 K' is indefinite and, with h large, so is
+    // A = M/h + (h/2)K'.
+    SolidWorld world;
+    world.gravity = Vec3::Zero();
+    world.bodies.push_back(make_box_body("squashed", Vec3::Zero(), Vec3::Ones(), Vec3i(2, 2, 2),
+                                         make_material(1000.0, 1e6, 0.3)));
+    SolidBody& b = world.bodies[0];
+    b.displacement = -0.6 * b.rest_positions();
+    const double h = 1.0;
+    const TrapezoidalSystem sys = assemble_trapezoidal(b, h, b.external_forces(world.gravity));
+    auto cholmod = make_linear_solver(SolverKind::Cholmod);
+    REQUIRE_THROWS_AS(cholmod->setup(sys.A), SolverError);
+    PhaseTimes times;
+    SolidStepReport rep;
+    CHECK_NOTHROW(rep = world.step(h, times));
+    CHECK(rep.converged);
+    CHECK(rep.residual < 1e-8);
+    CHECK(b.displacement.allFinite());
+  }
 
-TEST_CASE("Eq. (4) on a linear system: exact discrete energy balance, O(h) numerical damping") {
+  TEST_CASE(
+      "Eq. (4) on a linear system: exact discrete energy balance and O(h) numerical damping") {
     // On a linear system (K(d) = K d, K' = K) Eqs. (4)–(5) give M(u1 − u0)/h = −K d1 with
     // d1 = d0 + h/2 (u0 + u1) — Newmark γ = 1, β = 1/4 ([Chentanez06, Eqs. (10)–(13)] with
     // their β = 1/2, γ = 1). Multiplying by (d1 − d0) gives the discrete energy identity
@@ -230,7 +231,7 @@ TEST_CASE("Eq. (4) on a linear system: exact discrete energy balance, O(h) numer
     CHECK(loss_per_period[0] / loss_per_period[1] == doctest::Approx(2.0).epsilon(0.01));
   }
 
-  TEST_CASE("pinned box, small amplitude: energy never grows and obeys the discrete identity") {
+  TEST_CASE("pinned box at small amplitude: energy never grows and obeys the discrete identity") {
     SolidWorld world;
     world.gravity = Vec3::Zero();
     world.bodies.push_back(make_box_body("box", Vec3::Zero(), Vec3(0.4, 0.1, 0.1), Vec3i(4, 1, 1),

@@ -45,8 +45,8 @@ Vec3 com_velocity(const SolidBody& b) {
 
 }  // namespace
 
-TEST_SUITE("solid") {
-  TEST_CASE("contact law: projection, restitution and Coulomb friction on a plane") {
+TEST_SUITE("unit") {
+  TEST_CASE("contact law: projection with restitution and Coulomb friction on a plane") {
     struct Case {
       double e, mu;
       Vec3 expected;  // velocity after contact of a node arriving with (1, 0, −2) m/s

@@ -56,7 +56,7 @@ constexpr double kCsm1Uy = -66.10e-3;
 
 }  // namespace
 
-TEST_SUITE("solid") {
+TEST_SUITE("unit") {
   TEST_CASE("patch test: an affine boundary displacement is reproduced inside") {
     const Material mat = make_material(1000.0, 1e6, 0.3);
     SolidBody body = make_box_body("patch", Vec3::Zero(), Vec3::Ones(), Vec3i(3, 3, 3), mat);
@@ -158,7 +158,7 @@ TEST_SUITE("solid") {
     CHECK(errors.back() < 0.05);
   }
 
-  TEST_CASE("Turek-Hron CSM1, coarse meshes: converging towards the reference") {
+  TEST_CASE("Turek-Hron CSM1 on coarse meshes: converging towards the reference") {
     // Cells of aspect 2:1 (dx = 2 dy), 4 → 16 cells through the thickness. Linear tets lock in
     // bending (plane strain, ν = 0.4), so the coarse errors are large; they fall by about 3×
     // per refinement. Measured here: 54%/32%, 20%/11%, 5.6%/2.9% (u_x/u_y). The finest case
@@ -184,7 +184,7 @@ TEST_SUITE("solid") {
 }  // TEST_SUITE
 
 TEST_SUITE("long") {
-  TEST_CASE("Turek-Hron CSM1, fine meshes: within 3% of the reference") {
+  TEST_CASE("Turek-Hron CSM1 on fine meshes: within 3% of the reference") {
     // Square cells, 8 → 32 cells through the thickness; the finest (111k DOFs) is the finest
     // that runs in well under a minute here. Measured: 13.6%/7.0%, 3.4%/1.7%, 0.52%/0.24%.
     std::vector<double> ex, ey;

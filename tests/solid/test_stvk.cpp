@@ -14,7 +14,7 @@ using namespace tetfsi;
 using namespace tetfsi::solid;
 using namespace tetfsi::solid::testing;
 
-TEST_SUITE("solid") {
+TEST_SUITE("unit") {
   TEST_CASE("material: Lame parameters and validation") {
     Material m = make_material(1000.0, 1.4e6, 0.4);
     const LameParameters l = lame_parameters(m);
@@ -48,7 +48,7 @@ TEST_SUITE("solid") {
     CHECK_THROWS_AS(validate_material(m, "m"), InputError);
   }
 
-  TEST_CASE("SolidBody rejects a bad material or mesh, naming the body") {
+  TEST_CASE("SolidBody rejects a bad material or mesh and names the body") {
     mesh::VolumeMesh box = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1));
     CHECK_THROWS_AS(SolidBody("b", box, make_material(1000.0, 1e5, 0.5)), InputError);
     mesh::VolumeMesh inverted = box;
@@ -57,7 +57,7 @@ TEST_SUITE("solid") {
     CHECK_THROWS_AS(SolidBody("b", inverted, make_material(1000.0, 1e5, 0.3)), MeshError);
   }
 
-  TEST_CASE("rigid motions give zero strain, zero energy and zero force") {
+  TEST_CASE("rigid motions give zero strain and zero energy and zero force") {
     const Material mat = make_material(1000.0, 1e6, 0.3);
     SolidBody body =
         make_box_body("patch", Vec3(0, 0, 0), Vec3(1.0, 0.6, 0.8), Vec3i(3, 2, 2), mat);
