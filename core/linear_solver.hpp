@@ -12,8 +12,19 @@
 ///                     hypre BoomerAMG through PETSc                     [iterative]
 ///  - `amg_gamg`       the same with PETSc's own smoothed-aggregation GAMG [iterative]
 ///
+/// Conventions of every backend:
+///  - `cholmod` and `cg_ic` check symmetry in `setup` (|A − Aᵀ| ≤ 1e-12 max|A|) and throw
+///    `SolverError` for a nonsymmetric matrix rather than use half of it;
+///  - iterative solves start from x (zeros if x has the wrong size or is not finite), stop
+///    on the *true* residual ||b − A x|| ≤ rel_tol ||b|| (restarting if the Krylov method's
+///    recursive residual drifted), and return x = 0, iterations = 0 for b = 0;
+///  - the direct solvers factor a 64-bit-index copy of A (SuiteSparse's int versions ran
+///    out of workspace on 3D problems of a few 100k unknowns).
+///
 /// PETSc (and with it MPI) is initialised lazily by the first `amg`/`amg_gamg` solver and
-/// finalised at program exit; a program that never makes one never touches MPI.
+/// finalised at program exit; a program that never makes one never touches MPI. PETSc
+/// errors become `SolverError`; a failing MPI start (e.g. a bad `OMPI_MCA_*` setting) is
+/// Open MPI's and aborts. The one-time start costs ~0.1–0.2 s (it is not in `setup_s`).
 ///
 /// Symmetric but possibly indefinite systems (e.g. 3n × 3n StVK stiffness under
 /// compression): try `cholmod`; its `setup` throws `SolverError` when the matrix is not
