@@ -108,6 +108,15 @@ TEST_SUITE("unit") {
     }
     const TetFields fl = b.elasticity().tet_fields(b.positions());
     CHECK(fl.green_strain_norm.maxCoeff() <= 1e-10);
+    // Kinetic + gravitational energy is conserved in free fall (the gravity potential
+    // starts at −Σ m g·X, the kinetic energy at 0).
+    const double pe0 =
+        -(b.lumped_mass().array() * (b.rest_positions() * world.gravity).array()).sum();
+    CHECK(b.kinetic_energy() + b.gravity_potential(world.gravity) ==
+          doctest::Approx(pe0).epsilon(1e-10));
+    CHECK(b.kinetic_energy() ==
+          doctest::Approx(0.5 * b.total_mass() * std::pow(9.81 * t, 2)).epsilon(1e-12));
+    CHECK(world.elastic_energy() <= 1e-12 * world.kinetic_energy());
     CHECK(times.get("assemble") > 0.0);
     CHECK(times.get("solve") > 0.0);
     CHECK(times.get("update") > 0.0);
