@@ -7,6 +7,8 @@
 
 using namespace tetfsi;
 
+TEST_SUITE("unit") {
+
 TEST_CASE("TETFSI_CHECK throws InternalError with location and formatted message") {
   CHECK_NOTHROW(TETFSI_CHECK(1 + 1 == 2, "never {}", "shown"));
   try {
@@ -32,3 +34,5 @@ TEST_CASE("TETFSI_REQUIRE throws the chosen type with just the message") {
   CHECK_THROWS_AS(TETFSI_REQUIRE(SolverError, false, "x"), Error);
   CHECK_THROWS_AS(TETFSI_REQUIRE(MeshError, false, "x"), std::runtime_error);
 }
+
+}  // TEST_SUITE

@@ -36,6 +36,8 @@ bool is_direct(SolverKind k) { return k == SolverKind::Cholmod || k == SolverKin
 
 }  // namespace
 
+TEST_SUITE("unit") {
+
 TEST_CASE("solver names round-trip and unknown names are rejected") {
   const auto& names = solver_names();
   REQUIRE(names.size() == 6);
@@ -53,7 +55,7 @@ TEST_CASE("solver names round-trip and unknown names are rejected") {
   }
 }
 
-TEST_CASE("test problems: Poisson is SPD-shaped, convection-diffusion is nonsymmetric") {
+TEST_CASE("test problems - Poisson is a symmetric M-matrix and convection-diffusion is nonsymmetric") {
   const SparseMatrix P = poisson3d(4, 3, 5);
   CHECK(P.rows() == 60);
   CHECK(is_symmetric(P));
@@ -75,7 +77,7 @@ TEST_CASE("test problems: Poisson is SPD-shaped, convection-diffusion is nonsymm
   CHECK_THROWS_AS(convection_diffusion3d(3, 3, 3, -1.0), InputError);
 }
 
-TEST_CASE("every backend solves a 20^3 Poisson problem like the direct solver") {
+TEST_CASE("every backend solves a 20x20x20 Poisson problem like the direct solver") {
   const SparseMatrix A = poisson3d(20, 20, 20);
   const VecX b = test_rhs(A.rows());
   const VecX ref = direct_solution(A, b);
@@ -126,7 +128,7 @@ TEST_CASE("nonsymmetric backends solve a convection-diffusion problem like UMFPA
   }
 }
 
-TEST_CASE("CHOLMOD rejects nonsymmetric and indefinite matrices; UMFPACK takes them") {
+TEST_CASE("CHOLMOD rejects nonsymmetric and indefinite matrices and UMFPACK takes them") {
   auto chol = make_linear_solver(SolverKind::Cholmod);
   const SparseMatrix C = convection_diffusion3d(6, 6, 6, 2.0);
   CHECK_THROWS_AS(chol->setup(C), SolverError);
@@ -160,7 +162,7 @@ TEST_CASE("CHOLMOD rejects nonsymmetric and indefinite matrices; UMFPACK takes t
   CHECK_THROWS_AS(make_linear_solver(SolverKind::CgIc)->setup(C), SolverError);
 }
 
-TEST_CASE("an iterative solver out of iterations reports converged = false") {
+TEST_CASE("an iterative solver out of iterations reports not converged without throwing") {
   const SparseMatrix A = poisson3d(12, 12, 12);
   const VecX b = test_rhs(A.rows());
   SolverOptions opts;
@@ -182,7 +184,7 @@ TEST_CASE("an iterative solver out of iterations reports converged = false") {
   }
 }
 
-TEST_CASE("one setup serves repeated solves; a zero right-hand side gives x = 0") {
+TEST_CASE("one setup serves repeated solves and a zero right-hand side gives x zero") {
   const SparseMatrix A = poisson3d(10, 11, 12);
   const VecX b1 = test_rhs(A.rows());
   const VecX b2 = VecX::LinSpaced(A.rows(), -1.0, 2.0);
@@ -220,7 +222,7 @@ TEST_CASE("one setup serves repeated solves; a zero right-hand side gives x = 0"
   }
 }
 
-TEST_CASE("a 3n x 3n symmetric solid-like system: block structure, SPD and indefinite") {
+TEST_CASE("a 3n x 3n symmetric solid-like system in SPD and indefinite variants") {
   // Stiffness-like matrix: (Poisson ⊗ I₃ + coupling between the 3 components) — symmetric,
   // SPD for small coupling; a negative shift makes it indefinite like StVK under compression.
   const SparseMatrix P = poisson3d(7, 7, 7);
@@ -282,3 +284,5 @@ TEST_CASE("relative_residual and is_symmetric helpers") {
   CHECK_FALSE(is_symmetric(B));
   CHECK(is_symmetric(B, 1e-6));
 }
+
+}  // TEST_SUITE

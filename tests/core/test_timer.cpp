@@ -5,6 +5,8 @@
 
 using namespace tetfsi;
 
+TEST_SUITE("unit") {
+
 TEST_CASE("PhaseTimes accumulates per phase in first-use order") {
   PhaseTimes t;
   CHECK(t.entries().empty());
@@ -24,7 +26,7 @@ TEST_CASE("PhaseTimes accumulates per phase in first-use order") {
   CHECK(t.get("assemble") == 0.0);
 }
 
-TEST_CASE("ScopedTimer adds its elapsed time once, on stop or destruction") {
+TEST_CASE("ScopedTimer adds its elapsed time once on stop or destruction") {
   PhaseTimes t;
   double stopped = 0.0;
   {
@@ -44,3 +46,5 @@ TEST_CASE("ScopedTimer adds its elapsed time once, on stop or destruction") {
   const double before = now_seconds();
   CHECK(now_seconds() >= before);  // steady clock is monotonic
 }
+
+}  // TEST_SUITE
