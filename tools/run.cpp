@@ -44,7 +44,7 @@ class Progress {
     if (mode == ProgressMode::Auto)
       mode = isatty(fileno(stderr)) ? ProgressMode::Tty : ProgressMode::Plain;
     m_mode = mode;
-    m_last_print = m_start;
+    m_last_print = m_start - 1.0;  // the first step is shown at once
   }
 
   /// Call after step `step` (1-based) ended at time t.
