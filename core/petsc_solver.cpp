@@ -250,13 +250,19 @@ class PetscAmgSolver final : public LinearSolver {
       const int left = m_opts.max_iterations - rep.iterations;
       if (rep.residual <= m_opts.rel_tol || left <= 0) break;
       TETFSI_PETSC(KSPSetTolerances(m_ksp, m_opts.rel_tol, 0.0, PETSC_DEFAULT, left));
+      const VecX x_before = x;
       TETFSI_PETSC(KSPSolve(m_ksp, vb.v, vx.v));
       PetscInt its = 0;
       TETFSI_PETSC(KSPGetIterationNumber(m_ksp, &its));
       TETFSI_PETSC(KSPGetConvergedReason(m_ksp, &reason));
       rep.iterations += static_cast<int>(its);
       rep.residual = true_residual();
-      if (reason < 0 || its == 0 || !std::isfinite(rep.residual)) break;
+      if (!std::isfinite(rep.residual)) {  // breakdown (NaN/Inf): keep the last finite x
+        x = x_before;  // same size, so vx still wraps x's buffer
+        rep.residual = true_residual();
+        break;
+      }
+      if (reason < 0 || its == 0) break;
     }
     if (rep.residual > m_opts.rel_tol)
       logger().debug("{}: not converged after {} iterations (PETSc reason {}), residual {:.3g}",
