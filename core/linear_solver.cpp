@@ -21,9 +21,12 @@ struct NamedKind {
   const char* name;
 };
 constexpr NamedKind k_kinds[] = {
-    {SolverKind::Cholmod, "cholmod"},       {SolverKind::Umfpack, "umfpack"},
-    {SolverKind::BiCgStabIlut, "bicgstab_ilut"}, {SolverKind::CgIc, "cg_ic"},
-    {SolverKind::Amg, "amg"},               {SolverKind::AmgGamg, "amg_gamg"},
+    {SolverKind::Cholmod, "cholmod"},
+    {SolverKind::Umfpack, "umfpack"},
+    {SolverKind::BiCgStabIlut, "bicgstab_ilut"},
+    {SolverKind::CgIc, "cg_ic"},
+    {SolverKind::Amg, "amg"},
+    {SolverKind::AmgGamg, "amg_gamg"},
 };
 
 /// Restarted solves after the Krylov loop stopped with a true residual still above tol
@@ -46,10 +49,14 @@ class UmfPackLUWithStatus : public Eigen::UmfPackLU<LongSparseMatrix> {
 /// What UMFPACK's status code means, for error messages.
 std::string umfpack_status_text(int status) {
   switch (status) {
-    case UMFPACK_WARNING_singular_matrix: return "the matrix is singular";
-    case UMFPACK_ERROR_out_of_memory: return "out of memory";
-    case UMFPACK_ERROR_invalid_matrix: return "invalid matrix";
-    default: return fmt::format("UMFPACK status {}", status);
+    case UMFPACK_WARNING_singular_matrix:
+      return "the matrix is singular";
+    case UMFPACK_ERROR_out_of_memory:
+      return "out of memory";
+    case UMFPACK_ERROR_invalid_matrix:
+      return "invalid matrix";
+    default:
+      return fmt::format("UMFPACK status {}", status);
   }
 }
 
@@ -94,8 +101,8 @@ class CholmodSolver final : public LinearSolver {
     check_rhs(m_A, b, name());
     const double t0 = now_seconds();
     x = m_llt.solve(b);
-    SolveReport rep{name(), m_llt.info() == Eigen::Success, 1,
-                    relative_residual(*m_A, b, x), m_setup_s, 0.0};
+    SolveReport rep{
+        name(), m_llt.info() == Eigen::Success, 1, relative_residual(*m_A, b, x), m_setup_s, 0.0};
     rep.solve_s = now_seconds() - t0;
     return rep;
   }
@@ -119,8 +126,8 @@ class UmfpackSolver final : public LinearSolver {
     m_copy.makeCompressed();
     m_lu.compute(m_copy);  // Eigen refers to the matrix it factors: keep the copy
     TETFSI_REQUIRE(SolverError, m_lu.info() == Eigen::Success,
-                   "umfpack: LU factorization of the {} x {} matrix failed: {}", A.rows(),
-                   A.cols(), umfpack_status_text(m_lu.status()));
+                   "umfpack: LU factorization of the {} x {} matrix failed: {}", A.rows(), A.cols(),
+                   umfpack_status_text(m_lu.status()));
     m_A = &A;
     m_setup_s = now_seconds() - t0;
   }
@@ -129,8 +136,8 @@ class UmfpackSolver final : public LinearSolver {
     check_rhs(m_A, b, name());
     const double t0 = now_seconds();
     x = m_lu.solve(b);
-    SolveReport rep{name(), m_lu.info() == Eigen::Success, 1,
-                    relative_residual(*m_A, b, x), m_setup_s, 0.0};
+    SolveReport rep{
+        name(), m_lu.info() == Eigen::Success, 1, relative_residual(*m_A, b, x), m_setup_s, 0.0};
     rep.solve_s = now_seconds() - t0;
     return rep;
   }
@@ -164,8 +171,8 @@ class EigenIterativeSolver final : public LinearSolver {
     m_A = nullptr;
     check_square(A, m_name);
     TETFSI_REQUIRE(SolverError, !m_needs_symmetric || is_symmetric(A),
-                   "{}: the {} x {} matrix is not symmetric; use bicgstab_ilut or umfpack",
-                   m_name, A.rows(), A.cols());
+                   "{}: the {} x {} matrix is not symmetric; use bicgstab_ilut or umfpack", m_name,
+                   A.rows(), A.cols());
     m_krylov.compute(A);
     TETFSI_REQUIRE(SolverError, m_krylov.info() == Eigen::Success,
                    "{}: building the incomplete factorization of the {} x {} matrix failed; "
@@ -218,9 +225,9 @@ class EigenIterativeSolver final : public LinearSolver {
 };
 
 using BiCgStabIlut = Eigen::BiCGSTAB<SparseMatrix, Eigen::IncompleteLUT<double, Index>>;
-using CgIc = Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper,
-                                      Eigen::IncompleteCholesky<double, Eigen::Lower,
-                                                                Eigen::AMDOrdering<Index>>>;
+using CgIc = Eigen::ConjugateGradient<
+    SparseMatrix, Eigen::Lower | Eigen::Upper,
+    Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<Index>>>;
 
 }  // namespace
 
@@ -273,8 +280,8 @@ std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOp
 
 double relative_residual(const SparseMatrix& A, const VecX& b, const VecX& x) {
   TETFSI_CHECK(A.rows() == b.size() && A.cols() == x.size(),
-               "relative_residual: A is {} x {}, b has {} entries, x has {}", A.rows(),
-               A.cols(), b.size(), x.size());
+               "relative_residual: A is {} x {}, b has {} entries, x has {}", A.rows(), A.cols(),
+               b.size(), x.size());
   const double bnorm = b.norm();
   const double rnorm = (b - A * x).norm();
   return bnorm > 0.0 ? rnorm / bnorm : rnorm;
@@ -287,8 +294,10 @@ bool is_symmetric(const SparseMatrix& A, double rel_tol) {
   const SparseMatrix D = A - At;
   double amax = 0.0, dmax = 0.0;
   for (Index k = 0; k < A.outerSize(); ++k) {
-    for (SparseMatrix::InnerIterator it(A, k); it; ++it) amax = std::max(amax, std::abs(it.value()));
-    for (SparseMatrix::InnerIterator it(D, k); it; ++it) dmax = std::max(dmax, std::abs(it.value()));
+    for (SparseMatrix::InnerIterator it(A, k); it; ++it)
+      amax = std::max(amax, std::abs(it.value()));
+    for (SparseMatrix::InnerIterator it(D, k); it; ++it)
+      dmax = std::max(dmax, std::abs(it.value()));
   }
   return dmax <= rel_tol * amax;
 }

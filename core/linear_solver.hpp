@@ -46,11 +46,11 @@ SolverKind parse_solver_kind(const std::string& name);
 std::string to_string(SolverKind kind);
 
 struct SolverOptions {
-  double rel_tol = 1e-8;       ///< iterative: stop when ||b − A x|| ≤ rel_tol ||b||
-  int max_iterations = 1000;   ///< iterative: give up (converged = false) after this many
-  bool symmetric = true;       ///< matrix is symmetric (amg: CG if true, GMRES otherwise)
-  double ilut_drop_tol = 1e-4; ///< bicgstab_ilut: IncompleteLUT drop tolerance
-  int ilut_fill = 20;          ///< bicgstab_ilut: IncompleteLUT fill factor
+  double rel_tol = 1e-8;        ///< iterative: stop when ||b − A x|| ≤ rel_tol ||b||
+  int max_iterations = 1000;    ///< iterative: give up (converged = false) after this many
+  bool symmetric = true;        ///< matrix is symmetric (amg: CG if true, GMRES otherwise)
+  double ilut_drop_tol = 1e-4;  ///< bicgstab_ilut: IncompleteLUT drop tolerance
+  int ilut_fill = 20;           ///< bicgstab_ilut: IncompleteLUT fill factor
 };
 
 struct SolveReport {

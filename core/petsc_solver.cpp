@@ -42,7 +42,7 @@ bool petsc_finalized() {
 
 // ---- one-time initialisation ----------------------------------------------------------------
 
-bool g_petsc_ours = false;   ///< we called PetscInitialize, so we finalise
+bool g_petsc_ours = false;  ///< we called PetscInitialize, so we finalise
 std::string g_petsc_init_error;
 
 void finalize_petsc() {
@@ -188,8 +188,8 @@ class PetscAmgSolver final : public LinearSolver {
     }
     // Stop on ||b − A x|| ≤ rel_tol ||b|| (PETSc uses ||b|| for a nonzero initial guess).
     TETFSI_PETSC(KSPSetNormType(m_ksp, KSP_NORM_UNPRECONDITIONED));
-    TETFSI_PETSC(KSPSetTolerances(m_ksp, m_opts.rel_tol, 0.0, PETSC_DEFAULT,
-                                  m_opts.max_iterations));
+    TETFSI_PETSC(
+        KSPSetTolerances(m_ksp, m_opts.rel_tol, 0.0, PETSC_DEFAULT, m_opts.max_iterations));
     TETFSI_PETSC(KSPSetInitialGuessNonzero(m_ksp, PETSC_TRUE));
 
     PC pc = nullptr;
@@ -258,7 +258,7 @@ class PetscAmgSolver final : public LinearSolver {
       rep.iterations += static_cast<int>(its);
       rep.residual = true_residual();
       if (!std::isfinite(rep.residual)) {  // breakdown (NaN/Inf): keep the last finite x
-        x = x_before;  // same size, so vx still wraps x's buffer
+        x = x_before;                      // same size, so vx still wraps x's buffer
         rep.residual = true_residual();
         break;
       }

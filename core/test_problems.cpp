@@ -38,7 +38,9 @@ SparseMatrix grid_operator(int nx, int ny, int nz, const Vec3& beta) {
 
 }  // namespace
 
-SparseMatrix poisson3d(int nx, int ny, int nz) { return grid_operator(nx, ny, nz, Vec3::Zero()); }
+SparseMatrix poisson3d(int nx, int ny, int nz) {
+  return grid_operator(nx, ny, nz, Vec3::Zero());
+}
 
 SparseMatrix convection_diffusion3d(int nx, int ny, int nz, double peclet) {
   TETFSI_REQUIRE(InputError, peclet >= 0.0, "convection_diffusion3d: need peclet ≥ 0, got {}",

@@ -53,9 +53,10 @@ int bench_solvers(int n, const std::string& json_path, const std::vector<std::st
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   for (auto& v : b) v = uniform(rng);
-  out << fmt::format("3D Poisson, {0} x {0} x {0} grid: {1} unknowns, {2} nonzeros (built in "
-                     "{3:.2f} s); rhs uniform in [-1, 1], x0 = 0, rel_tol 1e-8\n",
-                     m, N, A.nonZeros(), now_seconds() - t_build);
+  out << fmt::format(
+      "3D Poisson, {0} x {0} x {0} grid: {1} unknowns, {2} nonzeros (built in "
+      "{3:.2f} s); rhs uniform in [-1, 1], x0 = 0, rel_tol 1e-8\n",
+      m, N, A.nonZeros(), now_seconds() - t_build);
 
   SolverOptions opts;
   opts.rel_tol = 1e-8;
@@ -97,17 +98,16 @@ int bench_solvers(int n, const std::string& json_path, const std::vector<std::st
   double fastest = std::numeric_limits<double>::infinity();
   for (const auto& r : rows)
     if (r.rep.converged) fastest = std::min(fastest, r.rep.setup_s + r.rep.solve_s);
-  out << fmt::format("{:<14} {:>9} {:>9} {:>9} {:>6} {:>10} {:>9} {:>9}\n", "backend",
-                     "setup s", "solve s", "total s", "iters", "residual", "converged",
-                     "x fastest");
+  out << fmt::format("{:<14} {:>9} {:>9} {:>9} {:>6} {:>10} {:>9} {:>9}\n", "backend", "setup s",
+                     "solve s", "total s", "iters", "residual", "converged", "x fastest");
   bool all_converged = failed.empty();
   nlohmann::json jrows = nlohmann::json::array();
   for (const auto& r : rows) {
     const double total = r.rep.setup_s + r.rep.solve_s;
     all_converged = all_converged && r.rep.converged;
-    out << fmt::format("{:<14} {:>9.3f} {:>9.3f} {:>9.3f} {:>6} {:>10.2e} {:>9} {:>9}\n",
-                       r.name, r.rep.setup_s, r.rep.solve_s, total, r.rep.iterations,
-                       r.rep.residual, r.rep.converged ? "yes" : "NO",
+    out << fmt::format("{:<14} {:>9.3f} {:>9.3f} {:>9.3f} {:>6} {:>10.2e} {:>9} {:>9}\n", r.name,
+                       r.rep.setup_s, r.rep.solve_s, total, r.rep.iterations, r.rep.residual,
+                       r.rep.converged ? "yes" : "NO",
                        std::isfinite(fastest) ? fmt::format("{:.1f}", total / fastest) : "-");
     jrows.push_back({{"name", r.name},
                      {"setup_s", r.rep.setup_s},
@@ -118,8 +118,12 @@ int bench_solvers(int n, const std::string& json_path, const std::vector<std::st
                                                                 : nlohmann::json()}});
   }
   if (json_file.is_open()) {
-    const nlohmann::json j = {{"n", N},           {"grid", m},          {"rel_tol", opts.rel_tol},
-                              {"backends", jrows}, {"skipped", skipped}, {"failed", failed}};
+    const nlohmann::json j = {{"n", N},
+                              {"grid", m},
+                              {"rel_tol", opts.rel_tol},
+                              {"backends", jrows},
+                              {"skipped", skipped},
+                              {"failed", failed}};
     json_file << j.dump(2) << '\n';
     TETFSI_REQUIRE(InputError, json_file.good(), "bench solvers: writing '{}' failed", json_path);
   }
