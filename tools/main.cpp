@@ -10,7 +10,6 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
-#include <limits>
 #include <string>
 #include <vector>
 
@@ -19,6 +18,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "tools/bench_solvers.hpp"
+#include "tools/output.hpp"
 #include "tools/run.hpp"
 #include "tools/scene.hpp"
 
@@ -49,11 +49,31 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("tetfsi ") + TETFSI_VERSION);
   app.require_subcommand(1);
   app.fallthrough();  // --log-level is accepted after the subcommand too
+  app.footer(
+      "Examples:\n"
+      "  tetfsi validate data/scenes/sheet_sag.json\n"
+      "  tetfsi run data/scenes/sheet_sag.json --steps 50 --set output.every=5\n"
+      "  tetfsi bench solvers --n 250000 --backends cholmod,amg --json bench.json\n"
+      "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
+      "OUT/summary.json, OUT/scene.resolved.json. Errors: one line 'error: ...', exit code 1.\n");
+
+  /// An integer option that must be at least 1.
+  const CLI::Validator at_least_one(
+      [](std::string& v) -> std::string {
+        try {
+          std::size_t used = 0;
+          if (std::stoll(v, &used) >= 1 && used == v.size()) return {};
+        } catch (const std::exception&) {
+        }
+        return "must be an integer >= 1, got '" + v + "'";
+      },
+      ">= 1");
 
   std::string log_level = "info";
-  app.add_option(
-         "--log-level", log_level,
-         "log messages on stderr at least this severe: trace, debug, info, warn, error, off")
+  app.add_option("--log-level", log_level,
+                 "log messages on stderr at least this severe: trace, debug, info, warn, error, "
+                 "off (also accepted after the subcommand)")
+      ->type_name("LEVEL")
       ->capture_default_str();
 
   // ---- run ----
@@ -64,19 +84,24 @@ int main(int argc, char** argv) {
   int run_steps = 0;
   double run_end_time = 0.0;
   std::string run_progress = "auto";
-  run->add_option("SCENE", run_scene_file, "scene file (JSON)")->required();
-  run->add_option("--out,-o", run_out, "output folder (default: out/<scene name>)");
+  run->add_option("SCENE", run_scene_file, "scene file (JSON)")->required()->type_name("FILE");
+  run->add_option("--out,-o", run_out, "output folder (default: out/<scene name>)")
+      ->type_name("DIR");
   run->add_option("--set", run_sets,
                   "override a scene value, e.g. --set time.dt=0.002 --set "
                   "bodies.0.material.density=500 (repeatable)")
-      ->allow_extra_args(false);
+      ->allow_extra_args(false)
+      ->type_name("KEY=VALUE");
   auto* steps_opt = run->add_option("--steps", run_steps, "number of steps (overrides the scene)")
-                        ->check(CLI::Range(1, std::numeric_limits<int>::max()));
-  auto* end_opt =
-      run->add_option("--end-time", run_end_time, "end time in s (overrides the scene)");
+                        ->type_name("N")
+                        ->check(at_least_one);
+  auto* end_opt = run->add_option("--end-time", run_end_time,
+                                  "end time in s: ceil(T / dt) steps (overrides the scene)")
+                      ->type_name("T");
   steps_opt->excludes(end_opt);
   run->add_option("--progress", run_progress,
                   "progress on stderr: auto (live line on a terminal, else plain), tty, plain, off")
+      ->type_name("MODE")
       ->check(CLI::IsMember({"auto", "tty", "plain", "off"}))
       ->capture_default_str();
 
@@ -85,9 +110,10 @@ int main(int argc, char** argv) {
       app.add_subcommand("validate", "check a scene: parse it, build its bodies, print a summary");
   std::string val_scene_file;
   std::vector<std::string> val_sets;
-  validate->add_option("SCENE", val_scene_file, "scene file (JSON)")->required();
+  validate->add_option("SCENE", val_scene_file, "scene file (JSON)")->required()->type_name("FILE");
   validate->add_option("--set", val_sets, "override a scene value (repeatable)")
-      ->allow_extra_args(false);
+      ->allow_extra_args(false)
+      ->type_name("KEY=VALUE");
 
   // ---- bench ----
   CLI::App* bench = app.add_subcommand("bench", "benchmarks");
@@ -97,10 +123,12 @@ int main(int argc, char** argv) {
   int bench_n = 100000;
   std::string bench_json;
   std::vector<std::string> bench_backends;
-  bench_solvers_cmd->add_option("--n", bench_n, "number of unknowns")
-      ->check(CLI::Range(1, std::numeric_limits<int>::max()))
+  bench_solvers_cmd->add_option("--n", bench_n, "approximate number of unknowns")
+      ->type_name("N")
+      ->check(at_least_one)
       ->capture_default_str();
-  bench_solvers_cmd->add_option("--json", bench_json, "also write the results to this JSON file");
+  bench_solvers_cmd->add_option("--json", bench_json, "also write the results to this JSON file")
+      ->type_name("FILE");
   bench_solvers_cmd
       ->add_option(
           "--backends", bench_backends,
@@ -110,7 +138,8 @@ int main(int argc, char** argv) {
                 for (const auto& n : solver_names()) s += (s.empty() ? "" : ",") + n;
                 return s;
               }())
-      ->delimiter(',');
+      ->delimiter(',')
+      ->type_name("A,B");
 
   try {
     app.parse(argc, argv);
@@ -124,8 +153,9 @@ int main(int argc, char** argv) {
     if (*run) {
       const tools::Scene scene = tools::load_scene(run_scene_file, run_sets);
       tools::RunOptions opt;
-      opt.out_dir = run_out.empty() ? std::filesystem::path("out") / scene.name
-                                    : std::filesystem::path(run_out);
+      opt.out_dir = run_out.empty()
+                        ? std::filesystem::path("out") / tools::file_safe_name(scene.name)
+                        : std::filesystem::path(run_out);
       if (*steps_opt) opt.steps = run_steps;
       if (*end_opt) opt.end_time = run_end_time;
       opt.progress = tools::parse_progress_mode(run_progress);
