@@ -6,7 +6,11 @@
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
-/// command-line usage errors are reported by CLI11 with its exit code.
+/// command-line usage errors are reported by CLI11 with its exit code. Ctrl-C (or SIGTERM)
+/// during `run` stops after the current step with a complete output folder, one line
+/// `error: interrupted ...` and exit code 130; a second Ctrl-C ends the program at once.
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -27,6 +31,18 @@
 #endif
 
 namespace {
+
+/// Set by the first Ctrl-C / SIGTERM: the run loop stops after the current step and writes its
+/// summary. A second signal ends the program at once (default action).
+std::atomic<bool> g_stop{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "g_stop must be async-signal-safe");
+
+extern "C" void on_stop_signal(int sig) {
+  if (g_stop.exchange(true)) {
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+  }
+}
 
 /// Print `error: <message>` as exactly one line on stderr.
 int report_error(std::string message) {
@@ -159,9 +175,18 @@ int main(int argc, char** argv) {
       if (*steps_opt) opt.steps = run_steps;
       if (*end_opt) opt.end_time = run_end_time;
       opt.progress = tools::parse_progress_mode(run_progress);
+      opt.stop = &g_stop;
+      std::signal(SIGINT, on_stop_signal);
+      std::signal(SIGTERM, on_stop_signal);
       const tools::RunResult r = tools::run_scene(scene, opt);
+      std::signal(SIGINT, SIG_DFL);
+      std::signal(SIGTERM, SIG_DFL);
       tools::print_summary(r, std::cout);
       std::cout.flush();
+      if (r.interrupted) {
+        report_error(r.error);
+        return 130;  // the shell convention for "ended by SIGINT"
+      }
       if (!r.completed) return report_error(r.error);
       return 0;
     }

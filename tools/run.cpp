@@ -196,6 +196,15 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out
   StepStats row;
   StateSnapshot last_good;
   for (int step = 1; step <= n; ++step) {
+    if (opt.stop && opt.stop->load()) {
+      progress.finish();
+      r.interrupted = true;
+      r.error = fmt::format(
+          "interrupted after step {}/{} (t = {:.6g} s); the output is complete "
+          "up to there",
+          step - 1, n, (step - 1) * dt);
+      return;
+    }
     const double t = step * dt;
     row.phases.reset();
     const double t0 = now_seconds();
@@ -319,6 +328,7 @@ std::string summary_json(const RunResult& r) {
   j["scene"] = r.scene_name;
   j["mode"] = r.mode;
   j["completed"] = r.completed;
+  j["interrupted"] = r.interrupted;
   j["error"] = r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error);
   j["steps"] = r.steps_done;
   j["steps_planned"] = r.steps_planned;
@@ -355,8 +365,9 @@ void print_summary(const RunResult& r, std::ostream& out) {
     out << fmt::format(
         "scene '{}' (dynamic): {}{}/{} steps of {:.6g} s to t = {:.6g} s in {:.3g} s wall "
         "({:.3g} ms/step), {} frame{}\n",
-        r.scene_name, r.completed ? "" : "FAILED after ", r.steps_done, r.steps_planned, r.dt,
-        r.end_time, r.wall_s, r.ms_per_step(), r.frames_written, r.frames_written == 1 ? "" : "s");
+        r.scene_name, r.completed ? "" : (r.interrupted ? "INTERRUPTED after " : "FAILED after "),
+        r.steps_done, r.steps_planned, r.dt, r.end_time, r.wall_s, r.ms_per_step(),
+        r.frames_written, r.frames_written == 1 ? "" : "s");
   }
   out << fmt::format("output: {}\n", r.out_dir.string());
   out << fmt::format("energy (J): kinetic {:.6g}, elastic {:.6g}, gravity {:.6g}, total {:.6g}\n",

@@ -2,6 +2,7 @@
 /// @file run.hpp
 /// The run loop behind `tetfsi run`: build the world of a scene, step it, write frames,
 /// stats and a summary (layout in tools/output.hpp), report progress.
+#include <atomic>
 #include <filesystem>
 #include <iosfwd>
 #include <optional>
@@ -29,6 +30,9 @@ struct RunOptions {
   std::optional<int> steps;        ///< overrides the scene's step count (dynamic mode)
   std::optional<double> end_time;  ///< overrides it by end time: ceil(T / dt) steps
   ProgressMode progress = ProgressMode::Auto;
+  /// If set, checked before every step: once true the run stops cleanly (output complete up to
+  /// the last step, summary written, `interrupted` set). The CLI sets it on Ctrl-C / SIGTERM.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 /// Final state of one body.
@@ -40,8 +44,9 @@ struct BodySummary {
 };
 
 struct RunResult {
-  bool completed = false;  ///< every step ran; false if a step failed (see `error`)
-  std::string error;       ///< one line: where and why the run stopped (empty if completed)
+  bool completed = false;    ///< every step ran; false if a step failed (see `error`)
+  bool interrupted = false;  ///< stopped on request (RunOptions::stop); `error` says where
+  std::string error;         ///< one line: where and why the run stopped (empty if completed)
   std::string scene_name;
   std::string mode;           ///< "dynamic" or "static"
   int steps_planned = 0;      ///< steps requested (1 for static)

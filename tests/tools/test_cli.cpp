@@ -306,6 +306,32 @@ TEST_CASE("tetfsi run: a failing step leaves a readable collection and a non-zer
         1 + summary["steps"].get<size_t>());
 }
 
+TEST_CASE("tetfsi run: Ctrl-C stops after the current step with a complete output folder") {
+  TempDir dir("interrupt");
+  nlohmann::json s = tiny_scene(1000000);  // far longer than the test waits
+  s["output"]["every"] = 1000;
+  write_scene(dir.path, s);
+  const std::string cmd = fmt::format(
+      "cd '{}' && ('{}' run tiny.json --out o --progress off >out.txt 2>err.txt & p=$!; "
+      "sleep 1; kill -INT $p; wait $p; echo $? >code.txt)",
+      dir.path.string(), TETFSI_EXE);
+  REQUIRE(std::system(cmd.c_str()) == 0);
+  CHECK(std::stoi(read_text(dir.path / "code.txt")) == 130);
+  const auto err = lines_of(read_text(dir.path / "err.txt"));
+  REQUIRE(!err.empty());
+  CHECK(err.back().rfind("error: interrupted after step ", 0) == 0);
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  CHECK(summary["interrupted"] == true);
+  CHECK(summary["completed"] == false);
+  const size_t steps = summary["steps"].get<size_t>();
+  CHECK(steps >= 1);
+  CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == steps + 1);
+  bool ok = false;
+  const Pvd pvd = parse_pvd(dir.path / "o" / "block.pvd", ok);
+  REQUIRE(ok);
+  for (const auto& f : pvd.files) CHECK(vtu_points(dir.path / "o" / f) == 27);
+}
+
 TEST_CASE("tetfsi --help, --version and usage errors") {
   TempDir dir("help");
   const Result help = tetfsi(dir.path, "--help");
