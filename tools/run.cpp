@@ -195,9 +195,21 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out
   Progress progress(opt.progress, n);
   StepStats row;
   StateSnapshot last_good;
+  int last_frame = 0;  // step of the last frame written (frame 0 is written by the caller)
+  // When the run stops early, also write the last completed step as a frame if it is not one
+  // yet, so that the collection ends where the run did (best effort: the stop is reported).
+  auto write_last_good_frame = [&](int done) {
+    if (done <= last_frame) return;
+    try {
+      out.write_frame(world, done, done * dt);
+    } catch (const Error& e) {
+      logger().warn("could not write the frame of step {}: {}", done, e.what());
+    }
+  };
   for (int step = 1; step <= n; ++step) {
     if (opt.stop && opt.stop->load()) {
       progress.finish();
+      write_last_good_frame(step - 1);
       r.interrupted = true;
       r.error = fmt::format(
           "interrupted after step {}/{} (t = {:.6g} s); the output is complete "
@@ -219,11 +231,13 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out
       if (step % every == 0 || step == n) {
         ScopedTimer timer(row.phases, "output");
         out.write_frame(world, step, t);
+        last_frame = step;
       }
       fill_energies(world, row);
     } catch (const Error& e) {
       progress.finish();
       last_good.restore(world);  // the summary reports the state after the last good step
+      write_last_good_frame(step - 1);
       r.error = one_line(fmt::format("step {}/{} (t = {:.6g} s) failed: {}", step, n, t, e.what()));
       return;
     }

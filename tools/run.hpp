@@ -74,8 +74,10 @@ struct RunResult {
 ///    scene's static options, then frame 1 at pseudo-time 1.0 and one stats row.
 /// Ends by writing summary.json. A step that throws a tetfsi::Error (e.g. SolverError:
 /// diverged) does not throw out of here: the run stops, the frames, the `.pvd` files and the
-/// stats rows written so far stay valid, and the result says `completed = false` with a
-/// one-line `error` (also recorded in summary.json).
+/// stats rows written so far stay valid, the state after the last good step is written as a
+/// frame if it is not one yet, and the result says `completed = false` with a one-line
+/// `error` (also recorded in summary.json). A stop request (RunOptions::stop) ends the run
+/// the same way between two steps, with `interrupted = true`.
 /// @throws InputError / MeshError for a scene that cannot be built or an output folder that
 ///   cannot be written.
 RunResult run_scene(const Scene& scene, const RunOptions& options);
