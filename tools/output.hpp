@@ -34,9 +34,10 @@ namespace tetfsi::tools {
 
 struct Scene;
 
-/// Compression of the appended binary data of a `.vtu`.
-/// LZ4 is the default: 1M tets in ~0.07 s (23 MiB); ZLib level 1 is ~40% smaller but ~10×
-/// slower to write (DESIGN.md §6).
+/// Compression of the appended binary data of a `.vtu`. Measured here for one frame of a
+/// 1M-tet body (176k nodes, every array below, Float64; the strain/stress fields take 0.06 s
+/// of each): LZ4 0.15 s, 51 MiB (the default); ZLib level 1 0.77 s, 38 MiB; none 0.13 s,
+/// 63 MiB.
 enum class Compression { None, LZ4, ZLib };
 
 /// "none" | "lz4" | "zlib" → Compression. @throws InputError naming the value and the valid ones.
