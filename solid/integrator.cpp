@@ -6,7 +6,10 @@
 
 namespace tetfsi::solid {
 
-TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e) {
+const char* to_string(Trapezoid t) { return t == Trapezoid::Paper ? "paper" : "midpoint"; }
+
+TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e,
+                                       Trapezoid variant) {
   TETFSI_REQUIRE(InputError, h > 0.0 && std::isfinite(h), "body '{}': time step h = {} must be > 0",
                  body.name(), h);
   const Index ndof = body.num_dofs();
@@ -19,13 +22,17 @@ TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const Ve
   body.elasticity().forces_and_jacobian(body.positions(), K, sys.A);  // sys.A holds K' for now
   const VecX u = flat(body.velocity);
 
-  // b = M uⁿ/h − (h/2) K' uⁿ − K(dⁿ) + f_e   [Chentanez06, Eq. (4)]
+  // Weight w of K' uⁿ and K' uⁿ⁺¹: h/2 for K(dⁿ⁺¹) [Chentanez06, Eq. (16)], h/4 for the
+  // midpoint K((dⁿ + dⁿ⁺¹)/2), since dⁿ⁺¹ − dⁿ = h/2 (uⁿ + uⁿ⁺¹) by Eq. (5).
+  const double w = variant == Trapezoid::Paper ? 0.5 * h : 0.25 * h;
+
+  // b = M uⁿ/h − w K' uⁿ − K(dⁿ) + f_e   [Chentanez06, Eq. (4)]
   VecX Mu(ndof);
   for (Index i = 0; i < ndof; ++i) Mu[i] = mass[i / 3] * u[i];
-  sys.b = Mu / h - (0.5 * h) * (sys.A * u) - K + f_e;
+  sys.b = Mu / h - w * (sys.A * u) - K + f_e;
 
-  // A = M/h + C + (h/2) K',  C = αM + βK'   [Chentanez06, Eq. (4), §3.2]
-  const double k_coef = mat.rayleigh_beta + 0.5 * h;
+  // A = M/h + C + w K',  C = αM + βK'   [Chentanez06, Eq. (4), §3.2]
+  const double k_coef = mat.rayleigh_beta + w;
   const double m_coef = 1.0 / h + mat.rayleigh_alpha;
   sys.A *= k_coef;
   const auto& fixed = body.fixed_dofs();

@@ -22,6 +22,20 @@ namespace tetfsi::solid {
 /// unconditionally stable, never gains energy, but dissipates at first order in h — a
 /// numerical damping ratio ≈ ωh/4 per mode (|λ| = (1 + (ωh)²/2)^(−1/2) per step), added to
 /// the Rayleigh ζ = α/(2ω) + βω/2. Unresolved modes (ωh ≫ 1) are damped out within a step.
+///
+/// `Trapezoid::Midpoint` is the opt-in alternative: K evaluated at the midpoint
+/// (dⁿ + dⁿ⁺¹)/2 instead of at dⁿ⁺¹, i.e. K' weighted h/4 instead of h/2 in A and b
+/// (Newmark γ = 1/2, β = 1/4, "average acceleration"). On a linear undamped system it
+/// conserves E exactly (VALIDATION.md "Solid": no amplitude decay); it does not damp
+/// unresolved modes. Both keep the form A uⁿ⁺¹ − J pⁿ⁺¹ = b the coupling needs.
+enum class Trapezoid {
+  Paper,     ///< [Chentanez06, Eqs. (4), (15)–(18)]: K(dⁿ⁺¹) linearised, weight h/2
+  Midpoint,  ///< K((dⁿ + dⁿ⁺¹)/2) linearised, weight h/4: energy-conserving on linear systems
+};
+
+/// "paper" / "midpoint" (scene key solid.trapezoid).
+const char* to_string(Trapezoid t);
+
 struct TrapezoidalSystem {
   SparseMatrix A;  ///< 3#V × 3#V, symmetric
   VecX b;          ///< 3#V
@@ -29,7 +43,8 @@ struct TrapezoidalSystem {
 
 /// Assemble A and b at the body's current state.
 /// @param f_e external forces (3#V, N), e.g. body.external_forces(gravity)
-TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e);
+TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e,
+                                       Trapezoid variant = Trapezoid::Paper);
 
 /// dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹), then u ← uⁿ⁺¹ [Chentanez06, Eq. (5)].
 /// @param u_new 3#V velocities (fixed DOFs must be 0)

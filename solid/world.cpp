@@ -14,7 +14,7 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
     {
       ScopedTimer timer(times, "assemble");
       // A u = b  [Chentanez06, Eq. (4)] with f_p = 0 (no fluid here).
-      sys = assemble_trapezoidal(body, h, body.external_forces(gravity));
+      sys = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
     }
     VecX u = flat(body.velocity);  // initial guess for iterative backends
     SolveReport rep;

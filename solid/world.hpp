@@ -27,6 +27,7 @@ class SolidWorld {
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< m/s²
   SolverKind linear_solver = SolverKind::Cholmod;
   SolverOptions solver_options;
+  Trapezoid trapezoid = Trapezoid::Paper;  ///< see integrator.hpp
 
   /// Advance every body by h: assemble [Chentanez06, Eq. (4)], solve, apply Eq. (5),
   /// resolve collisions. Phases "assemble", "solve", "update" are timed into `times`.

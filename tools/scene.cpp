@@ -423,6 +423,7 @@ json resolve(const Scene& s) {
   j["output"] = {{"every", s.output.every}, {"compression", s.output.compression}};
   j["gravity"] = to_json(s.gravity);
   j["solver"] = {{"linear", s.solver.linear}, {"rel_tol", s.solver.rel_tol}, {"max_iterations", s.solver.max_iterations}};
+  j["solid"] = {{"trapezoid", s.solid.trapezoid}};
   j["static"] = {{"load_steps", s.statics.load_steps},
                  {"rel_tol", s.statics.rel_tol},
                  {"max_iterations", s.statics.max_iterations}};
@@ -489,7 +490,7 @@ Scene parse_scene(const json& j, const fs::path& file) {
   const Parser p(file);
   using Node = Parser::Node;
   const Node root{j, ""};
-  p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver", "static", "bodies",
+  p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver", "solid", "static", "bodies",
                          "obstacles"});
 
   Scene s;
@@ -547,6 +548,14 @@ Scene parse_scene(const json& j, const fs::path& file) {
     s.solver.max_iterations = p.integer(o, "max_iterations", s.solver.max_iterations);
     if (s.solver.max_iterations < 1) {
       p.fail("solver.max_iterations", fmt::format("must be >= 1, got {}", s.solver.max_iterations));
+    }
+  }
+
+  if (Parser::has(root, "solid")) {
+    const Node o = Parser::child(root, "solid");
+    p.expect_object(o, {"trapezoid"});
+    if (Parser::has(o, "trapezoid")) {
+      s.solid.trapezoid = p.choice(Parser::child(o, "trapezoid"), {"paper", "midpoint"}, "trapezoid variant");
     }
   }
 
@@ -787,6 +796,7 @@ solid::SolidWorld build_world(const Scene& scene) {
   world.linear_solver = parse_solver_kind(scene.solver.linear);
   world.solver_options.rel_tol = scene.solver.rel_tol;
   world.solver_options.max_iterations = scene.solver.max_iterations;
+  world.trapezoid = scene.solid.trapezoid == "midpoint" ? solid::Trapezoid::Midpoint : solid::Trapezoid::Paper;
   world.bodies.reserve(scene.bodies.size());
 
   for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {

@@ -15,6 +15,7 @@
 ///   "output": { "every": 4, "compression": "lz4" | "zlib" | "none" },
 ///   "gravity": [0, 0, -9.81],
 ///   "solver": { "linear": "cholmod", "rel_tol": 1e-8, "max_iterations": 1000 },
+///   "solid":  { "trapezoid": "paper" | "midpoint" },
 ///   "static": { "load_steps": 1, "rel_tol": 1e-9, "max_iterations": 60 },
 ///   "bodies": [ {                                          // required, at least one
 ///       "name": "sheet",                                   // required, unique
@@ -129,6 +130,10 @@ struct SolverSpec {
   int max_iterations = 1000;
 };
 
+struct SolidSpec {
+  std::string trapezoid = "paper";  ///< "paper" [Chentanez06, Eq. (4)] or "midpoint"
+};
+
 struct StaticSpec {
   int load_steps = 1;
   double rel_tol = 1e-9;
@@ -146,6 +151,7 @@ struct Scene {
   OutputSpec output;
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);
   SolverSpec solver;
+  SolidSpec solid;
   StaticSpec statics;
   std::vector<BodySpec> bodies;
   std::vector<solid::Obstacle> obstacles;

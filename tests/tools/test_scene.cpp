@@ -155,6 +155,11 @@ TEST_CASE("defaults are filled in, in the scene and in the resolved JSON") {
   CHECK(s.gravity == Vec3(0, 0, -9.81));
   CHECK(s.solver.linear == "cholmod");
   CHECK(s.statics.load_steps == 1);
+  CHECK(s.solid.trapezoid == "paper");
+  CHECK(build_world(s).trapezoid == solid::Trapezoid::Paper);
+  json mid = minimal_json();
+  mid["solid"]["trapezoid"] = "midpoint";
+  CHECK(build_world(parse_scene(mid, "m.json")).trapezoid == solid::Trapezoid::Midpoint);
   const solid::Material defaults;
   CHECK(s.bodies[0].material.youngs_modulus == defaults.youngs_modulus);
   CHECK(s.bodies[0].mesh.cells == Vec3i::Ones());
@@ -168,6 +173,7 @@ TEST_CASE("defaults are filled in, in the scene and in the resolved JSON") {
   CHECK(r["output"]["compression"] == "lz4");
   CHECK(r["solver"]["linear"] == "cholmod");
   CHECK(r["static"]["max_iterations"] == 60);
+  CHECK(r["solid"]["trapezoid"] == "paper");
   CHECK(r["bodies"][0]["material"]["density"] == defaults.density);
   CHECK(r["bodies"][0]["material"]["poisson_ratio"] == defaults.poisson_ratio);
   CHECK(r["bodies"][0]["mesh"]["box"]["cells"] == json::array({1, 1, 1}));
@@ -281,6 +287,8 @@ TEST_CASE("out-of-range values say what the range is") {
                       {"output.compression: unknown compression 'lz5' (did you mean 'lz4'?)"});
   check_edit_rejected([](json& j) { j["mode"] = "quasi-static"; }, {"mode: unknown mode 'quasi-static'"});
   check_edit_rejected([](json& j) { j["solver"]["linear"] = "superlu"; }, {"solver.linear: unknown linear solver"});
+  check_edit_rejected([](json& j) { j["solid"]["trapezoid"] = "midpiont"; },
+                      {"solid.trapezoid: unknown trapezoid variant 'midpiont' (did you mean 'midpoint'?)"});
   check_edit_rejected([](json& j) { j["bodies"][0]["material"]["density"] = 0; }, {"material.density: must be > 0"});
   check_edit_rejected([](json& j) { j["bodies"][0]["material"]["youngs_modulus"] = -1; },
                       {"material.youngs_modulus: must be > 0"});
