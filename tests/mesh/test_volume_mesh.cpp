@@ -218,7 +218,7 @@ TEST_CASE("validate_closed_surface: open, inconsistent, inward, degenerate") {
   CHECK(msg.find("degenerate") != std::string::npos);
 }
 
-TEST_CASE("boundary_triangles is linear-time: 750k tets") {
+TEST_CASE("boundary_triangles of a 750k-tet box: face count and enclosed volume") {
   const VolumeMesh m = make_box(Vec3(0, 0, 0), Vec3(1, 1, 1), Vec3i(50, 50, 50));
   const MatX3i b = boundary_triangles(m);
   CHECK(b.rows() == 2 * 2 * 3 * 50 * 50);
