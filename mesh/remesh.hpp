@@ -1,0 +1,96 @@
+#pragma once
+/// @file remesh.hpp
+/// The fluid remesher: every time step a new Delaunay tet mesh of the fluid domain around
+/// the current solid boundary triangles (DESIGN.md §2 step 2, §6). CGAL stays in remesh.cpp.
+///
+/// Steps:
+///  1. vertex placement: a graded BCC lattice (60° minimum dihedral in the uniform regions)
+///     whose spacing follows the sizing field; lattice points closer to a solid surface than
+///     the protection distance, or inside a solid triangle's diametral sphere, are dropped;
+///  2. surface vertices: every solid boundary vertex, plus Steiner points on the solid
+///     triangles where the surface size asks for them;
+///  3. Delaunay tetrahedralisation with CGAL (range insertion, spatially sorted);
+///  4. conformity recovery: every solid boundary triangle must be exactly a union of mesh
+///     faces. A triangle that is not is split by Steiner points inserted on the solid surface
+///     (recording triangle and barycentric position), and the check repeats;
+///  5. cells inside any solid are removed (a fluid region enclosed by a solid stays fluid);
+///  6. faces are tagged: walls / inflow / open patches of the box, solid interface faces with
+///     body, triangle and barycentric weights of the centroid (normal from fluid into solid).
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/types.hpp"
+#include "mesh/tet_mesh.hpp"
+
+namespace tetfsi::mesh {
+
+/// A rectangle on one side of the domain box with its own boundary kind.
+struct DomainPatch {
+  std::string name;
+  FaceKind kind = FaceKind::Open;  ///< Wall, Inflow or Open
+  int side = 0;                    ///< 0..5 = −x, +x, −y, +y, −z, +z
+  /// Rectangle in the side's two other coordinates, in increasing axis order (for side ±y:
+  /// (x, z)). A face belongs to the patch if its centroid is inside (1e-9 m tolerance).
+  Vec2 lo = Vec2::Zero(), hi = Vec2::Zero();
+};
+
+/// The fluid domain: an axis-aligned box; faces not on a patch get `default_kind`.
+struct FluidDomain {
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Ones();
+  FaceKind default_kind = FaceKind::Wall;
+  std::vector<DomainPatch> patches;  ///< later patches win where they overlap
+};
+
+/// A solid body's boundary at its current position: a closed, outward-oriented triangle
+/// surface (e.g. mesh::boundary_triangles of the body's tets with the deformed positions).
+struct SolidSurface {
+  int body = 0;        ///< body index, copied to TetMesh::face_body / vertex_body
+  MatX3 vertices;      ///< #Vs × 3 (m)
+  MatX3i triangles;    ///< #Ts × 3, outward normals
+};
+
+/// Target edge length of the fluid mesh.
+struct Sizing {
+  double surface_size = 0.05;  ///< m, at solid surfaces
+  double far_size = 0.2;       ///< m, the largest spacing
+  /// Size grows away from solids as surface_size + grading × distance (capped at far_size).
+  double grading = 0.5;
+  /// Optional refinement field from the fluid (smoke, vorticity): the desired size at x (m),
+  /// or ≤ 0 / +inf for "no request". The size used is the minimum of all requests.
+  std::function<double(const Vec3&)> refine;
+  /// Cell budget: if > 0 and the placement would exceed it, all sizes are scaled up so the
+  /// mesh stays within the budget (logged).
+  Index max_cells = 0;
+};
+
+struct RemeshOptions {
+  int max_recovery_rounds = 30;  ///< rounds of Steiner insertion before giving up
+};
+
+struct RemeshReport {
+  Index lattice_points = 0;   ///< fluid samples kept
+  Index surface_points = 0;   ///< solid boundary vertices inserted
+  Index steiner_points = 0;   ///< points added on solid triangles (placement + recovery)
+  Index cells_delaunay = 0;   ///< finite Delaunay cells before removal
+  Index cells_removed = 0;    ///< cells inside solids
+  int recovery_rounds = 0;
+  double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0,
+         seconds_classify = 0, seconds_build = 0, seconds_total = 0;
+};
+
+/// Build the fluid mesh. The result satisfies: every solid triangle is a union of Solid
+/// faces; Σ V_t = box volume − solid volumes (+ enclosed fluid regions) to round-off;
+/// interior faces have d_f ≥ 0 (Delaunay); face_bary in [0, 1] and summing to 1.
+/// @throws InputError for bad sizing (≤ 0, non-finite) or a solid not inside the box.
+/// @throws MeshError naming body and triangle if conformity is not reached in
+///   `max_recovery_rounds`, or if surfaces intersect.
+TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+               const Sizing& sizing, RemeshReport* report = nullptr,
+               const RemeshOptions& options = {});
+
+/// The bare CGAL Delaunay tetrahedralisation of a point set (finite cells, positively
+/// oriented): the floor `tetfsi bench remesh` compares the remesher against.
+MatX4i delaunay_tets(const MatX3& points);
+
+}  // namespace tetfsi::mesh
