@@ -23,6 +23,7 @@
 #include "core/log.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/output.hpp"
+#include "tools/process_env.hpp"
 #include "tools/run.hpp"
 #include "tools/scene.hpp"
 
@@ -57,6 +58,7 @@ int report_error(std::string message) {
 
 int main(int argc, char** argv) {
   using namespace tetfsi;
+  tools::cap_openmp_threads(argv);  // before any library starts threads
 
   CLI::App app{
       "tetfsi: incompressible fluids coupled with deformable linear-tet FEM solids "

@@ -1,0 +1,16 @@
+#include "tools/process_env.hpp"
+
+#include <unistd.h>
+
+#include <cstdlib>
+
+namespace tetfsi::tools {
+
+void cap_openmp_threads(char** argv) {
+  if (std::getenv("OMP_THREAD_LIMIT") != nullptr)
+    return;  // the user's choice, or already re-executed
+  if (setenv("OMP_THREAD_LIMIT", "1", 1) != 0) return;
+  execv("/proc/self/exe", argv);  // returns only on failure: carry on as we are
+}
+
+}  // namespace tetfsi::tools
