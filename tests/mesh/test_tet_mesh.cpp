@@ -12,7 +12,9 @@
 
 #include "core/error.hpp"
 #include "mesh/generate.hpp"
+#include "mesh/io.hpp"
 #include "mesh/tet_mesh.hpp"
+#include "mesh/tetrahedralize.hpp"
 
 using namespace tetfsi;
 using namespace tetfsi::mesh;
@@ -251,6 +253,54 @@ TEST_SUITE("unit") {
     }
     CHECK(zero == 6 * 4 * 3 * 5);  // 6 faces inside each cube (Kuhn split)
     CHECK(positive > 0);
+  }
+
+  TEST_CASE("build_tet_mesh: a Delaunay mesh of a sphere has d_f >= 0 on every interior face") {
+    // CGAL Mesh_3 without exudation (which would add weights) and without Lloyd keeps a plain
+    // Delaunay triangulation, of which the mesh is a subset of cells: every interior face has
+    // an empty circumsphere on both sides, so c_t2 is not behind c_t1 along n_f.
+    const SurfaceMesh ico =
+        read_surface_mesh(std::string(TETFSI_SOURCE_DIR) + "/data/meshes/icosphere.off");
+    TetrahedralizeParams params;
+    params.cell_size = 0.1;
+    params.facet_distance = 0.01;
+    params.exude = false;
+    const VolumeMesh v = tetrahedralize_surface(ico, params, "icosphere.off");
+    const TetMesh m = build_tet_mesh(v.vertices, v.tets);
+    REQUIRE(m.num_tets() > 500);
+    CHECK(total_volume(m) == doctest::Approx(total_volume(v)).epsilon(1e-13));
+    double h = 0.0;  // mean edge length, for the rounding tolerance
+    for (Index f = 0; f < m.num_faces(); ++f) {
+      h += (Vec3(m.vertices.row(m.faces(f, 0))) - Vec3(m.vertices.row(m.faces(f, 1)))).norm();
+    }
+    h /= m.num_faces();
+    Index interior = 0, positive = 0;
+    for (Index f = 0; f < m.num_faces(); ++f) {
+      if (m.is_boundary(f)) continue;
+      ++interior;
+      CHECK(m.dual_lengths(f) >= -1e-12 * h);
+      positive += m.dual_lengths(f) > 1e-9 * h;
+    }
+    INFO(m.num_tets(), " tets, ", interior, " interior faces, ", positive, " with d_f > 0");
+    // Unstructured: co-spherical ties are rare, nearly every face has a positive dual length.
+    CHECK(positive >= interior * 9 / 10);
+    for (Index t = 0; t < m.num_tets(); ++t) {
+      Vec3 sum = Vec3::Zero();
+      for (int k = 0; k < 4; ++k) {
+        const Index f = m.tet_faces(t, k);
+        sum += m.tet_face_signs(t, k) * m.face_areas(f) * Vec3(m.face_normals.row(f));
+      }
+      CHECK(sum.norm() <= 1e-12 * h * h);
+    }
+    std::set<std::pair<int, int>> edges;
+    for (Index t = 0; t < m.num_tets(); ++t) {
+      for (int i = 0; i < 4; ++i) {
+        for (int j = i + 1; j < 4; ++j) edges.insert(std::minmax(m.tets(t, i), m.tets(t, j)));
+      }
+    }
+    CHECK(static_cast<long long>(m.num_vertices()) - static_cast<long long>(edges.size()) +
+              m.num_faces() - m.num_tets() ==
+          1);
   }
 
   TEST_CASE("build_tet_mesh: discrete divergence of constant and linear fields is exact") {
