@@ -418,7 +418,7 @@ TEST_SUITE("unit") {
       MatX4i t(3, 4);
       t << 0, 1, 2, 3, 0, 2, 1, 4, 0, 1, 2, 5;  // above, below, above again
       const std::string msg = message_of<MeshError>([&] { build_tet_mesh(x, t); });
-      CHECK(msg.find("face (vertices 0 1 2) is shared by tets 0, 1 and 2") != std::string::npos);
+      CHECK(msg.find("face (vertices 0 1 2) is shared by tets 0, 1, 2") != std::string::npos);
     }
     SUBCASE("two tets on the same side of a face") {
       MatX4i t(2, 4);
