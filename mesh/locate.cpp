@@ -220,7 +220,7 @@ Location PointLocator::Impl::walk(const Vec3& p, Index t, bool& ok) const {
     int exit = -1;
     for (int i = 0; i < 4; ++i) {
       const int k = (k0 + i) & 3;
-      if (l(k) < -kInsideTol && m.neighbours(t, k) != prev) {
+      if (l(k) < -kInsideTol && (step == 0 || m.neighbours(t, k) != prev)) {
         exit = k;
         break;
       }

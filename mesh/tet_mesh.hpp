@@ -91,7 +91,9 @@ struct TetMesh {
 TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets);
 
 /// Recompute volumes, circumcentres, face areas, normals, centroids and dual lengths from
-/// `vertices` (connectivity unchanged).
+/// `vertices` (connectivity unchanged). Checks nothing: a tet the move inverted gets a
+/// negative volume (summarize_quality counts them), a flat one non-finite circumcentre and
+/// dual lengths.
 void update_geometry(TetMesh& m);
 
 /// Circumcentre of a tet (m). For a degenerate tet the result is not finite.
