@@ -83,7 +83,7 @@ struct TetMesh {
 /// Linear time (hash of sorted vertex triples).
 /// Faces are numbered in order of first appearance (tet 0's faces first), which keeps them
 /// as spatially coherent as the tets. Measured (one core): 0.29 s for a 1M-tet make_box mesh
-/// (about half of it allocating and filling the geometry arrays), 0.5 s with its vertex and
+/// (about 40 % of it allocating and filling the geometry arrays), 0.5 s with its vertex and
 /// tet numbering shuffled.
 /// @throws MeshError naming the tet or face if a vertex index is out of range, a tet is not
 ///   positively oriented (signed volume ≤ 0), a face has more than two tets, or two tets lie
