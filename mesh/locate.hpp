@@ -12,8 +12,10 @@
 namespace tetfsi::mesh {
 
 struct Location {
-  Index tet = -1;   ///< containing tet, or (outside the mesh) the nearest tet; −1 only for an empty mesh
-  Vec4 bary = Vec4::Zero();  ///< barycentric coordinates in `tet` (clamped to [0, 1], summing to 1 when outside)
+  Index tet =
+      -1;  ///< containing tet, or (outside the mesh) the nearest tet; −1 only for an empty mesh
+  Vec4 bary = Vec4::Zero();  ///< barycentric coordinates in `tet` (clamped to [0, 1], summing to 1
+                             ///< when outside)
   bool inside = false;       ///< the point is in the mesh (within 1e-10 relative tolerance)
   double distance = 0.0;     ///< 0 inside; else the distance to the nearest point of `tet` (m)
 };
@@ -31,9 +33,16 @@ class PointLocator {
   /// with a step limit); if the walk leaves the mesh, cycles or has no hint, fall back to a
   /// spatial grid of tet bounding boxes. Points outside the mesh (in a solid, outside the box)
   /// get the nearest tet and the clamped barycentric coordinates of the nearest point.
+  /// "Inside" means every barycentric coordinate ≥ −1e-10. Without a (valid) hint the walk
+  /// starts from a tet of p's grid bucket. Measured on a 1M-tet jittered box, one thread:
+  /// ~20 M queries/s for perturbed face centroids hinted by their tet, ~1.2 M/s for random
+  /// points without a hint, ~0.4 M/s for points outside; construction 0.09 s.
   Location locate(const Vec3& p, Index hint = -1) const;
 
-  /// Statistics since construction, for benchmarks: walks that succeeded, fallbacks taken.
+  /// Statistics since construction, for benchmarks: `walks` that arrived and their total
+  /// `walk_steps` (tets crossed), `fallbacks` = scans of the grid bucket after a walk that
+  /// left the mesh, hit the step limit or had no seed, `outside` = queries answered by the
+  /// nearest-tet search (inside = false).
   struct Stats {
     long long walks = 0, walk_steps = 0, fallbacks = 0, outside = 0;
   };

@@ -1,0 +1,297 @@
+/// @file tet_mesh.cpp
+/// TetMesh construction: unique oriented faces, incidence, neighbours and the geometry the
+/// fluid reads (volumes, circumcentres, face areas/normals/centroids, dual lengths)
+/// [KFCO06, §3], [Chentanez06, §3.3]. No CGAL here.
+#include "mesh/tet_mesh.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <Eigen/Geometry>  // cross()
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+
+namespace tetfsi::mesh {
+
+namespace {
+
+/// Local faces of a positively oriented tet (0,1,2,3), each listed so that its right-hand
+/// normal points out of the tet; face k is opposite vertex k (as in volume_mesh.cpp).
+constexpr int kOutwardFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+/// One slot of the face table: the sorted vertex triple and the first incidence 4 t + k that
+/// brought the face (−1: empty slot; after the second incidence, −2 − (4 t + k)).
+struct Slot {
+  int a, b, c, inc;
+};
+
+inline std::uint64_t hash_triple(int a, int b, int c) {
+  std::uint64_t h = static_cast<std::uint32_t>(a) * 0x9E3779B97F4A7C15ULL;
+  h ^= static_cast<std::uint32_t>(b) * 0xC2B2AE3D27D4EB4FULL;
+  h ^= static_cast<std::uint32_t>(c) * 0x165667B19E3779F9ULL;
+  return h ^ (h >> 29);
+}
+
+inline void sort3(int& a, int& b, int& c) {
+  if (a > b) std::swap(a, b);
+  if (b > c) std::swap(b, c);
+  if (a > b) std::swap(a, b);
+}
+
+/// Open-addressing (linear probing) table of faces keyed by sorted vertex triples (a < b < c),
+/// power-of-two capacity, load kept at most 1/2. (A home slot grouped by the smallest vertex
+/// was tried for cache locality: no faster on make_box, and pathological when the vertex
+/// numbering is shuffled, since low indices are the smallest vertex of far more faces.)
+class FaceTable {
+ public:
+  explicit FaceTable(std::size_t expected_faces) {
+    std::size_t cap = 1024;
+    while (cap < 2 * expected_faces) cap *= 2;
+    m_slots.assign(cap, Slot{0, 0, 0, -1});
+    m_mask = cap - 1;
+  }
+  /// The slot for (a, b, c) (sorted): the existing face or the empty slot to fill.
+  Slot& find(int a, int b, int c) {
+    std::size_t s = hash_triple(a, b, c) & m_mask;
+    for (;;) {
+      Slot& x = m_slots[s];
+      if (x.inc == -1 || (x.a == a && x.b == b && x.c == c)) return x;
+      s = (s + 1) & m_mask;
+    }
+  }
+  /// Hint that (a, b, c) (sorted) will be looked up soon: the lookups are cache misses into
+  /// a table of tens of MB, so build_tet_mesh prefetches a few tets ahead.
+  void prefetch(int a, int b, int c) const {
+    __builtin_prefetch(&m_slots[hash_triple(a, b, c) & m_mask]);
+  }
+  /// Call after filling an empty slot (grows the table when the load passes 1/2).
+  void inserted() {
+    if (2 * ++m_size > m_slots.size()) grow();
+  }
+
+ private:
+  void grow() {
+    std::vector<Slot> old(2 * m_slots.size(), Slot{0, 0, 0, -1});
+    old.swap(m_slots);
+    m_mask = m_slots.size() - 1;
+    for (const Slot& x : old) {
+      if (x.inc != -1) find(x.a, x.b, x.c) = x;
+    }
+  }
+  std::vector<Slot> m_slots;
+  std::size_t m_mask = 0;
+  std::size_t m_size = 0;
+};
+
+/// Error path of build_tet_mesh: face (a, b, c) (sorted) met a third time at tet t.
+[[noreturn]] void throw_shared_by_three(const TetMesh& m, int a, int b, int c, Index t) {
+  std::vector<Index> sharing;
+  for (Index u = 0; u <= t; ++u) {
+    int in = 0;
+    for (int k = 0; k < 4; ++k) in += m.tets(u, k) == a || m.tets(u, k) == b || m.tets(u, k) == c;
+    if (in == 3) sharing.push_back(u);
+  }
+  throw MeshError(fmt::format(
+      "build_tet_mesh: face (vertices {} {} {}) is shared by tets {}; a face may belong to at "
+      "most two tets (non-manifold or overlapping mesh): remove the overlapping tets or remesh",
+      a, b, c, fmt::join(sharing, ", ")));
+}
+
+}  // namespace
+
+const char* to_string(FaceKind k) {
+  switch (k) {
+    case FaceKind::Interior:
+      return "interior";
+    case FaceKind::Wall:
+      return "wall";
+    case FaceKind::Inflow:
+      return "inflow";
+    case FaceKind::Open:
+      return "open";
+    case FaceKind::Solid:
+      return "solid";
+  }
+  return "unknown";
+}
+
+Vec3 circumcentre(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  // Relative to a: x = [|u|² (v × w) + |v|² (w × u) + |w|² (u × v)] / (2 u · (v × w)), the
+  // solution of 2 [u v w]ᵀ x = (|u|², |v|², |w|²) by Cramer's rule (e.g. J. R. Shewchuk,
+  // "Lecture notes on geometric robustness", 2013, §6).
+  const Vec3 u = b - a, v = c - a, w = d - a;
+  const Vec3 vw = v.cross(w), wu = w.cross(u), uv = u.cross(v);
+  const double det2 = 2.0 * u.dot(vw);
+  return a + (u.squaredNorm() * vw + v.squaredNorm() * wu + w.squaredNorm() * uv) / det2;
+}
+
+TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets) {
+  TetMesh m;
+  m.vertices = std::move(vertices);
+  m.tets = std::move(tets);
+  const Index nv = m.num_vertices();
+  const Index nt = m.num_tets();
+
+  TETFSI_REQUIRE(MeshError, nt < (1 << 29),
+                 "build_tet_mesh: {} tets is more than the 2^29 the face table can index; use a "
+                 "coarser mesh",
+                 nt);
+  // Indices in range and positive orientation first: everything below relies on both.
+  for (Index t = 0; t < nt; ++t) {
+    const auto r = m.tets.row(t);
+    for (int k = 0; k < 4; ++k) {
+      TETFSI_REQUIRE(MeshError, r(k) >= 0 && r(k) < nv,
+                     "build_tet_mesh: tet {} (vertices {} {} {} {}) refers to vertex {} but the "
+                     "mesh has {} vertices; fix the tet's vertex indices",
+                     t, r(0), r(1), r(2), r(3), r(k), nv);
+    }
+    const Vec3 a = m.vertices.row(r(0));
+    const double vol6 =
+        (Vec3(m.vertices.row(r(1))) - a)
+            .dot((Vec3(m.vertices.row(r(2))) - a).cross(Vec3(m.vertices.row(r(3))) - a));
+    TETFSI_REQUIRE(MeshError, vol6 > 0.0,
+                   "build_tet_mesh: tet {} (vertices {} {} {} {}) is not positively oriented "
+                   "(signed volume {:.3g} m^3); swap two of its vertices or remesh",
+                   t, r(0), r(1), r(2), r(3), vol6 / 6.0);
+  }
+
+  // Unique faces in order of first appearance (tets in increasing index), so t1 < t2 and the
+  // stored order is t1's outward order: n_f points out of t1 into t2, and outward on the
+  // boundary. Pass 1 numbers the faces and links neighbours; pass 2 writes the face arrays.
+  m.tet_faces.resize(nt, 4);
+  m.tet_face_signs.resize(nt, 4);
+  m.neighbours.resize(nt, 4);
+  FaceTable table(2 * static_cast<std::size_t>(nt) + 64);
+  int nf = 0;
+  constexpr Index kAhead = 8;  // prefetch distance in tets: 0.37 -> 0.29 s at 1M tets
+  for (Index t = 0; t < nt; ++t) {
+    const int* r = m.tets.data() + 4 * static_cast<std::ptrdiff_t>(t);
+    if (t + kAhead < nt) {
+      const int* ra = r + 4 * kAhead;
+      for (int k = 0; k < 4; ++k) {
+        int a = ra[kOutwardFace[k][0]], b = ra[kOutwardFace[k][1]], c = ra[kOutwardFace[k][2]];
+        sort3(a, b, c);
+        table.prefetch(a, b, c);
+      }
+    }
+    for (int k = 0; k < 4; ++k) {
+      const int p = r[kOutwardFace[k][0]], q = r[kOutwardFace[k][1]], s = r[kOutwardFace[k][2]];
+      int a = p, b = q, c = s;
+      sort3(a, b, c);
+      Slot& slot = table.find(a, b, c);
+      if (slot.inc == -1) {
+        slot = Slot{a, b, c, 4 * t + k};
+        m.tet_faces(t, k) = nf++;
+        m.tet_face_signs(t, k) = 1;
+        m.neighbours(t, k) = -1;
+        table.inserted();
+        continue;
+      }
+      if (slot.inc <= -2) throw_shared_by_three(m, a, b, c, t);
+      const Index t1 = slot.inc / 4;
+      const int k1 = slot.inc % 4;
+      // The second tet must see the face in the opposite order (it lies on the other side);
+      // the same order means the two tets overlap on one side of the face.
+      const int* r1 = m.tets.data() + 4 * static_cast<std::ptrdiff_t>(t1);
+      const int g0 = r1[kOutwardFace[k1][0]], g1 = r1[kOutwardFace[k1][1]],
+                g2 = r1[kOutwardFace[k1][2]];
+      const int after_p = g0 == p ? g2 : (g1 == p ? g0 : g1);  // predecessor of p in (g0 g1 g2)
+      TETFSI_REQUIRE(MeshError, after_p == q,
+                     "build_tet_mesh: tets {} and {} lie on the same side of their common face "
+                     "(vertices {} {} {}), so they overlap; remesh",
+                     t1, t, a, b, c);
+      slot.inc = -2 - slot.inc;
+      m.tet_faces(t, k) = m.tet_faces(t1, k1);
+      m.tet_face_signs(t, k) = -1;
+      m.neighbours(t, k) = t1;
+      m.neighbours(t1, k1) = t;
+    }
+  }
+  m.faces.resize(nf, 3);
+  m.face_tets.resize(nf, 2);
+  for (Index t = 0; t < nt; ++t) {
+    for (int k = 0; k < 4; ++k) {
+      const Index f = m.tet_faces(t, k);
+      if (m.tet_face_signs(t, k) > 0) {
+        m.faces.row(f) << m.tets(t, kOutwardFace[k][0]), m.tets(t, kOutwardFace[k][1]),
+            m.tets(t, kOutwardFace[k][2]);
+        m.face_tets.row(f) << t, m.neighbours(t, k);
+      }
+    }
+  }
+
+  // Tags and provenance: everything on the boundary is a wall until the remesher says more.
+  m.face_kind.resize(static_cast<std::size_t>(nf));
+  for (Index f = 0; f < nf; ++f) {
+    m.face_kind[static_cast<std::size_t>(f)] =
+        m.face_tets(f, 1) < 0 ? FaceKind::Wall : FaceKind::Interior;
+  }
+  m.face_patch.setConstant(nf, -1);
+  m.face_body.setConstant(nf, -1);
+  m.face_triangle.setConstant(nf, -1);
+  m.face_bary.setZero(nf, 3);
+  m.vertex_body.setConstant(nv, -1);
+  m.vertex_triangle.setConstant(nv, -1);
+  m.vertex_bary.setZero(nv, 3);
+
+  update_geometry(m);
+  logger().debug("build_tet_mesh: {} vertices, {} tets, {} faces", nv, nt, nf);
+  return m;
+}
+
+void update_geometry(TetMesh& m) {
+  const Index nt = m.num_tets();
+  const Index nf = m.num_faces();
+  m.volumes.resize(nt);
+  m.circumcentres.resize(nt, 3);
+  for (Index t = 0; t < nt; ++t) {
+    const auto r = m.tets.row(t);
+    const Vec3 a = m.vertices.row(r(0)), b = m.vertices.row(r(1)), c = m.vertices.row(r(2)),
+               d = m.vertices.row(r(3));
+    const Vec3 u = b - a, v = c - a, w = d - a;
+    const Vec3 vw = v.cross(w), wu = w.cross(u), uv = u.cross(v);
+    const double vol6 = u.dot(vw);
+    m.volumes(t) = vol6 / 6.0;
+    m.circumcentres.row(t) =
+        a + (u.squaredNorm() * vw + v.squaredNorm() * wu + w.squaredNorm() * uv) / (2.0 * vol6);
+  }
+  m.face_areas.resize(nf);
+  m.face_normals.resize(nf, 3);
+  m.face_centroids.resize(nf, 3);
+  m.dual_lengths.resize(nf);
+  for (Index f = 0; f < nf; ++f) {
+    const auto r = m.faces.row(f);
+    const Vec3 a = m.vertices.row(r(0)), b = m.vertices.row(r(1)), c = m.vertices.row(r(2));
+    const Vec3 cr = (b - a).cross(c - a);
+    const double twice_area = cr.norm();
+    const Vec3 n = cr / twice_area;
+    const Vec3 x = (a + b + c) / 3.0;
+    m.face_areas(f) = 0.5 * twice_area;
+    m.face_normals.row(f) = n;
+    m.face_centroids.row(f) = x;
+    const Vec3 c1 = m.circumcentres.row(m.face_tets(f, 0));
+    const Index t2 = m.face_tets(f, 1);
+    // d_f = (c_t2 − c_t1)·n_f inside, (x_f − c_t1)·n_f on the boundary [KFCO06, §3].
+    m.dual_lengths(f) = t2 >= 0 ? (Vec3(m.circumcentres.row(t2)) - c1).dot(n) : (x - c1).dot(n);
+  }
+}
+
+double total_volume(const TetMesh& m) {
+  return m.volumes.sum();
+}
+
+Vec3 boundary_area_vector(const TetMesh& m) {
+  Vec3 s = Vec3::Zero();
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    if (m.is_boundary(f)) s += m.face_areas(f) * Vec3(m.face_normals.row(f));
+  }
+  return s;
+}
+
+}  // namespace tetfsi::mesh
