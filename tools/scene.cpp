@@ -8,8 +8,8 @@
 #include <set>
 #include <sstream>
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include "core/error.hpp"
 #include "core/linear_solver.hpp"
@@ -55,7 +55,8 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
 }
 
 /// The closest of `candidates` to `word`, if close enough to be a likely typo.
-std::optional<std::string> closest(const std::string& word, const std::vector<std::string>& candidates) {
+std::optional<std::string> closest(const std::string& word,
+                                   const std::vector<std::string>& candidates) {
   std::optional<std::string> best;
   std::size_t best_d = std::max<std::size_t>(1, word.size() / 3) + 1;
   for (const auto& c : candidates) {
@@ -79,21 +80,31 @@ std::string describe(const json& j) {
   std::string text = j.dump();
   if (text.size() > 40) text = text.substr(0, 37) + "...";
   switch (j.type()) {
-    case json::value_t::null: return "null";
-    case json::value_t::boolean: return "boolean " + text;
-    case json::value_t::string: return "string " + text;
-    case json::value_t::array: return "array " + text;
-    case json::value_t::object: return "object " + text;
+    case json::value_t::null:
+      return "null";
+    case json::value_t::boolean:
+      return "boolean " + text;
+    case json::value_t::string:
+      return "string " + text;
+    case json::value_t::array:
+      return "array " + text;
+    case json::value_t::object:
+      return "object " + text;
     case json::value_t::number_float:
       if (!std::isfinite(j.get<double>())) return fmt::format("number {}", j.get<double>());
       return "number " + text;
-    default: return "number " + text;
+    default:
+      return "number " + text;
   }
 }
 
-std::string fmt_vec(const Vec3& v) { return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z()); }
+std::string fmt_vec(const Vec3& v) {
+  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
+}
 
-json to_json(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
+json to_json(const Vec3& v) {
+  return json::array({v.x(), v.y(), v.z()});
+}
 
 // ---------------------------------------------------------------------------------------------
 // The parser: a JSON value plus its path, and typed getters that throw InputError naming both.
@@ -110,7 +121,8 @@ class Parser {
   };
 
   [[noreturn]] void fail(const std::string& path, const std::string& problem) const {
-    throw InputError(fmt::format("{}: {}: {}", m_file, path.empty() ? "(top level)" : path, problem));
+    throw InputError(
+        fmt::format("{}: {}: {}", m_file, path.empty() ? "(top level)" : path, problem));
   }
 
   static std::string child_path(const std::string& path, const std::string& key) {
@@ -128,12 +140,15 @@ class Parser {
       if (auto guess = closest(key, allowed)) {
         fail(child_path(n.path, key), fmt::format("unknown key (did you mean '{}'?)", *guess));
       }
-      fail(child_path(n.path, key), fmt::format("unknown key (valid keys here: {})", join(allowed)));
+      fail(child_path(n.path, key),
+           fmt::format("unknown key (valid keys here: {})", join(allowed)));
     }
   }
 
   static bool has(const Node& n, const std::string& key) { return n.j.contains(key); }
-  static Node child(const Node& n, const std::string& key) { return {n.j.at(key), child_path(n.path, key)}; }
+  static Node child(const Node& n, const std::string& key) {
+    return {n.j.at(key), child_path(n.path, key)};
+  }
 
   double number(const Node& n) const {
     if (!n.j.is_number()) fail(n.path, "expected a number, got " + describe(n.j));
@@ -149,8 +164,10 @@ class Parser {
   int integer(const Node& n) const {
     if (!n.j.is_number()) fail(n.path, "expected an integer, got " + describe(n.j));
     const double v = n.j.get<double>();
-    if (!std::isfinite(v) || v != std::floor(v)) fail(n.path, "expected an integer, got " + describe(n.j));
-    if (std::abs(v) > std::numeric_limits<int>::max()) fail(n.path, "integer out of range: " + n.j.dump());
+    if (!std::isfinite(v) || v != std::floor(v))
+      fail(n.path, "expected an integer, got " + describe(n.j));
+    if (std::abs(v) > std::numeric_limits<int>::max())
+      fail(n.path, "integer out of range: " + n.j.dump());
     return static_cast<int>(v);
   }
   int integer(const Node& n, const std::string& key, int fallback) const {
@@ -166,17 +183,21 @@ class Parser {
   }
 
   /// A string that must be one of `choices`.
-  std::string choice(const Node& n, const std::vector<std::string>& choices, const std::string& what) const {
+  std::string choice(const Node& n, const std::vector<std::string>& choices,
+                     const std::string& what) const {
     const std::string s = string(n);
     if (std::find(choices.begin(), choices.end(), s) != choices.end()) return s;
     std::string problem = fmt::format("unknown {} '{}'", what, s);
-    if (auto guess = closest(s, choices)) problem += fmt::format(" (did you mean '{}'?)", *guess);
-    else problem += fmt::format(" (valid: {})", join(choices));
+    if (auto guess = closest(s, choices))
+      problem += fmt::format(" (did you mean '{}'?)", *guess);
+    else
+      problem += fmt::format(" (valid: {})", join(choices));
     fail(n.path, problem);
   }
 
   Vec3 vec3(const Node& n) const {
-    if (!n.j.is_array() || n.j.size() != 3) fail(n.path, "expected an array of 3 numbers, got " + describe(n.j));
+    if (!n.j.is_array() || n.j.size() != 3)
+      fail(n.path, "expected an array of 3 numbers, got " + describe(n.j));
     Vec3 v;
     for (int a = 0; a < 3; ++a) v[a] = number({n.j[a], index_path(n.path, a)});
     return v;
@@ -199,7 +220,8 @@ class Parser {
     p = p.lexically_normal();
     std::error_code ec;
     if (!fs::exists(p, ec)) fail(n.path, fmt::format("no such file '{}'", p.string()));
-    if (fs::is_directory(p, ec)) fail(n.path, fmt::format("'{}' is a folder, not a file", p.string()));
+    if (fs::is_directory(p, ec))
+      fail(n.path, fmt::format("'{}' is a folder, not a file", p.string()));
     return p;
   }
 
@@ -235,7 +257,8 @@ class Parser {
     }
     if (given.size() != 1) {
       fail(n.path, given.empty() ? std::string("give exactly one of 'box', 'file' or 'surface'")
-                                 : "give exactly one of 'box', 'file' or 'surface', got " + join(given, " and "));
+                                 : "give exactly one of 'box', 'file' or 'surface', got " +
+                                       join(given, " and "));
     }
     MeshSpec m;
     if (has(n, "box")) {
@@ -245,11 +268,13 @@ class Parser {
       m.box = bounds(b, true);
       if (has(b, "cells")) {
         const Node c = child(b, "cells");
-        if (!c.j.is_array() || c.j.size() != 3) fail(c.path, "expected an array of 3 positive integers, got " + describe(c.j));
+        if (!c.j.is_array() || c.j.size() != 3)
+          fail(c.path, "expected an array of 3 positive integers, got " + describe(c.j));
         for (int a = 0; a < 3; ++a) {
           const Node e{c.j[a], index_path(c.path, a)};
           m.cells[a] = integer(e);
-          if (m.cells[a] < 1) fail(e.path, fmt::format("cell counts must be positive integers, got {}", m.cells[a]));
+          if (m.cells[a] < 1)
+            fail(e.path, fmt::format("cell counts must be positive integers, got {}", m.cells[a]));
         }
       }
     } else if (has(n, "file")) {
@@ -258,11 +283,13 @@ class Parser {
     } else {
       m.kind = MeshSpec::Kind::Surface;
       m.file = existing_file(child(n, "surface"));
-      if (!has(n, "cell_size")) fail(n.path, "a 'surface' mesh needs 'cell_size' (> 0, m): the target tet size");
+      if (!has(n, "cell_size"))
+        fail(n.path, "a 'surface' mesh needs 'cell_size' (> 0, m): the target tet size");
     }
     if (has(n, "cell_size")) {
       const Node c = child(n, "cell_size");
-      if (m.kind != MeshSpec::Kind::Surface) fail(c.path, "cell_size applies only to a 'surface' mesh");
+      if (m.kind != MeshSpec::Kind::Surface)
+        fail(c.path, "cell_size applies only to a 'surface' mesh");
       m.cell_size = number(c);
       if (m.cell_size <= 0) fail(c.path, fmt::format("must be > 0 (m), got {}", m.cell_size));
     }
@@ -273,14 +300,16 @@ class Parser {
     expect_object(n, {"scale", "rotate_deg", "translate"});
     TransformSpec t;
     t.scale = number(n, "scale", t.scale);
-    if (t.scale <= 0) fail(child_path(n.path, "scale"), fmt::format("must be > 0, got {}", t.scale));
+    if (t.scale <= 0)
+      fail(child_path(n.path, "scale"), fmt::format("must be > 0, got {}", t.scale));
     t.rotate_deg = vec3(n, "rotate_deg", t.rotate_deg);
     t.translate = vec3(n, "translate", t.translate);
     return t;
   }
 
   solid::Material material(const Node& n) const {
-    expect_object(n, {"density", "youngs_modulus", "poisson_ratio", "rayleigh_alpha", "rayleigh_beta"});
+    expect_object(
+        n, {"density", "youngs_modulus", "poisson_ratio", "rayleigh_alpha", "rayleigh_beta"});
     solid::Material m;
     auto positive = [&](const char* key, double& v, const char* unit) {
       v = number(n, key, v);
@@ -291,16 +320,21 @@ class Parser {
     m.poisson_ratio = number(n, "poisson_ratio", m.poisson_ratio);
     const std::string nu_path = child_path(n.path, "poisson_ratio");
     if (m.poisson_ratio >= 0.5) {
-      fail(nu_path, fmt::format("must be < 0.5, got {} (0.5 is incompressible and locks linear tets; "
-                                "use at most 0.49)", m.poisson_ratio));
+      fail(nu_path,
+           fmt::format("must be < 0.5, got {} (0.5 is incompressible and locks linear tets; "
+                       "use at most 0.49)",
+                       m.poisson_ratio));
     }
     if (m.poisson_ratio <= -1.0) {
-      fail(nu_path, fmt::format("must be > -1, got {} (-1 or less makes the material unstable)", m.poisson_ratio));
+      fail(nu_path, fmt::format("must be > -1, got {} (-1 or less makes the material unstable)",
+                                m.poisson_ratio));
     }
     for (const char* key : {"rayleigh_alpha", "rayleigh_beta"}) {
       double& v = std::string(key) == "rayleigh_alpha" ? m.rayleigh_alpha : m.rayleigh_beta;
       v = number(n, key, v);
-      if (v < 0) fail(child_path(n.path, key), fmt::format("must be >= 0 (negative damping adds energy), got {}", v));
+      if (v < 0)
+        fail(child_path(n.path, key),
+             fmt::format("must be >= 0 (negative damping adds energy), got {}", v));
     }
     return m;
   }
@@ -308,7 +342,9 @@ class Parser {
   /// Either "box" or "nodes" (exactly one) from an object that may hold other keys too.
   NodeSelection selection(const Node& n) const {
     const bool b = has(n, "box"), l = has(n, "nodes");
-    if (b == l) fail(n.path, b ? "give either 'box' or 'nodes', not both" : "give 'box' or 'nodes' to select nodes");
+    if (b == l)
+      fail(n.path,
+           b ? "give either 'box' or 'nodes', not both" : "give 'box' or 'nodes' to select nodes");
     NodeSelection s;
     if (b) {
       s.box = box(child(n, "box"), false);
@@ -335,7 +371,9 @@ class Parser {
     bool ok = !p.axes.empty();
     std::set<char> seen;
     for (char c : p.axes) ok = ok && (c == 'x' || c == 'y' || c == 'z') && seen.insert(c).second;
-    if (!ok) fail(child_path(n.path, "axes"), fmt::format("must be a non-empty subset of \"xyz\" (e.g. \"xz\"), got \"{}\"", p.axes));
+    if (!ok)
+      fail(child_path(n.path, "axes"),
+           fmt::format("must be a non-empty subset of \"xyz\" (e.g. \"xz\"), got \"{}\"", p.axes));
     return p;
   }
 
@@ -348,7 +386,8 @@ class Parser {
   }
 
   BodySpec body(const Node& n) const {
-    expect_object(n, {"name", "mesh", "transform", "material", "pins", "loads", "initial_velocity"});
+    expect_object(n,
+                  {"name", "mesh", "transform", "material", "pins", "loads", "initial_velocity"});
     BodySpec b;
     b.name = string(require(n, "name"));
     if (b.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
@@ -361,8 +400,10 @@ class Parser {
       if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
       for (std::size_t i = 0; i < list.j.size(); ++i) {
         const Node e{list.j[i], index_path(list.path, i)};
-        if (std::string(key) == "pins") b.pins.push_back(pin(e));
-        else b.loads.push_back(load(e));
+        if (std::string(key) == "pins")
+          b.pins.push_back(pin(e));
+        else
+          b.loads.push_back(load(e));
       }
     }
     b.initial_velocity = vec3(n, "initial_velocity", b.initial_velocity);
@@ -389,13 +430,14 @@ class Parser {
     o.name = string(n, "name", fmt::format("{}{}", type, index));
     o.restitution = number(n, "restitution", o.restitution);
     if (o.restitution < 0 || o.restitution > 1) {
-      fail(child_path(n.path, "restitution"), fmt::format("must be in [0, 1], got {}", o.restitution));
+      fail(child_path(n.path, "restitution"),
+           fmt::format("must be in [0, 1], got {}", o.restitution));
     }
     o.friction = number(n, "friction", o.friction);
-    if (o.friction < 0) fail(child_path(n.path, "friction"), fmt::format("must be >= 0, got {}", o.friction));
+    if (o.friction < 0)
+      fail(child_path(n.path, "friction"), fmt::format("must be >= 0, got {}", o.friction));
     return o;
   }
-
 
  private:
   std::string m_file;
@@ -407,8 +449,10 @@ class Parser {
 
 json selection_json(const NodeSelection& s) {
   json j = json::object();
-  if (s.box) j["box"] = {{"lo", to_json(s.box->lo)}, {"hi", to_json(s.box->hi)}};
-  else j["nodes"] = s.nodes;
+  if (s.box)
+    j["box"] = {{"lo", to_json(s.box->lo)}, {"hi", to_json(s.box->hi)}};
+  else
+    j["nodes"] = s.nodes;
   return j;
 }
 
@@ -418,11 +462,15 @@ json resolve(const Scene& s) {
   if (!s.description.empty()) j["description"] = s.description;
   j["mode"] = s.mode == Mode::Static ? "static" : "dynamic";
   j["time"] = {{"dt", s.time.dt}};
-  if (s.time.steps) j["time"]["steps"] = *s.time.steps;
-  else j["time"]["end_time"] = s.time.end_time.value_or(1.0);
+  if (s.time.steps)
+    j["time"]["steps"] = *s.time.steps;
+  else
+    j["time"]["end_time"] = s.time.end_time.value_or(1.0);
   j["output"] = {{"every", s.output.every}, {"compression", s.output.compression}};
   j["gravity"] = to_json(s.gravity);
-  j["solver"] = {{"linear", s.solver.linear}, {"rel_tol", s.solver.rel_tol}, {"max_iterations", s.solver.max_iterations}};
+  j["solver"] = {{"linear", s.solver.linear},
+                 {"rel_tol", s.solver.rel_tol},
+                 {"max_iterations", s.solver.max_iterations}};
   j["solid"] = {{"trapezoid", s.solid.trapezoid}};
   j["static"] = {{"load_steps", s.statics.load_steps},
                  {"rel_tol", s.statics.rel_tol},
@@ -438,7 +486,9 @@ json resolve(const Scene& s) {
                         {"hi", to_json(b.mesh.box.hi)},
                         {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
         break;
-      case MeshSpec::Kind::File: jb["mesh"] = {{"file", b.mesh.file.string()}}; break;
+      case MeshSpec::Kind::File:
+        jb["mesh"] = {{"file", b.mesh.file.string()}};
+        break;
       case MeshSpec::Kind::Surface:
         jb["mesh"] = {{"surface", b.mesh.file.string()}, {"cell_size", b.mesh.cell_size}};
         break;
@@ -490,8 +540,8 @@ Scene parse_scene(const json& j, const fs::path& file) {
   const Parser p(file);
   using Node = Parser::Node;
   const Node root{j, ""};
-  p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver", "solid", "static", "bodies",
-                         "obstacles"});
+  p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver",
+                         "solid", "static", "bodies", "obstacles"});
 
   Scene s;
   s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
@@ -499,8 +549,9 @@ Scene parse_scene(const json& j, const fs::path& file) {
   if (s.name.empty()) p.fail("name", "must not be empty");
   s.description = p.string(root, "description", "");
   if (Parser::has(root, "mode")) {
-    s.mode = p.choice(Parser::child(root, "mode"), {"dynamic", "static"}, "mode") == "static" ? Mode::Static
-                                                                                                : Mode::Dynamic;
+    s.mode = p.choice(Parser::child(root, "mode"), {"dynamic", "static"}, "mode") == "static"
+                 ? Mode::Static
+                 : Mode::Dynamic;
   }
 
   if (Parser::has(root, "time")) {
@@ -513,25 +564,30 @@ Scene parse_scene(const json& j, const fs::path& file) {
     }
     if (Parser::has(t, "end_time")) {
       s.time.end_time = p.number(Parser::child(t, "end_time"));
-      if (*s.time.end_time <= 0) p.fail("time.end_time", fmt::format("must be > 0 (s), got {}", *s.time.end_time));
+      if (*s.time.end_time <= 0)
+        p.fail("time.end_time", fmt::format("must be > 0 (s), got {}", *s.time.end_time));
     }
     if (Parser::has(t, "steps")) {
       s.time.steps = p.integer(Parser::child(t, "steps"));
-      if (*s.time.steps < 1) p.fail("time.steps", fmt::format("must be >= 1, got {}", *s.time.steps));
+      if (*s.time.steps < 1)
+        p.fail("time.steps", fmt::format("must be >= 1, got {}", *s.time.steps));
     }
   }
   if (!s.time.steps && !s.time.end_time) s.time.end_time = 1.0;
   if (!s.time.steps && *s.time.end_time / s.time.dt > 1e9) {
-    p.fail("time", fmt::format("end_time / dt = {:.3g} steps is more than 1e9: check the units", *s.time.end_time / s.time.dt));
+    p.fail("time", fmt::format("end_time / dt = {:.3g} steps is more than 1e9: check the units",
+                               *s.time.end_time / s.time.dt));
   }
 
   if (Parser::has(root, "output")) {
     const Node o = Parser::child(root, "output");
     p.expect_object(o, {"every", "compression"});
     s.output.every = p.integer(o, "every", s.output.every);
-    if (s.output.every < 1) p.fail("output.every", fmt::format("must be >= 1, got {}", s.output.every));
+    if (s.output.every < 1)
+      p.fail("output.every", fmt::format("must be >= 1, got {}", s.output.every));
     if (Parser::has(o, "compression")) {
-      s.output.compression = p.choice(Parser::child(o, "compression"), {"lz4", "zlib", "none"}, "compression");
+      s.output.compression =
+          p.choice(Parser::child(o, "compression"), {"lz4", "zlib", "none"}, "compression");
     }
   }
 
@@ -544,7 +600,8 @@ Scene parse_scene(const json& j, const fs::path& file) {
       s.solver.linear = p.choice(Parser::child(o, "linear"), solver_names(), "linear solver");
     }
     s.solver.rel_tol = p.number(o, "rel_tol", s.solver.rel_tol);
-    if (s.solver.rel_tol <= 0) p.fail("solver.rel_tol", fmt::format("must be > 0, got {}", s.solver.rel_tol));
+    if (s.solver.rel_tol <= 0)
+      p.fail("solver.rel_tol", fmt::format("must be > 0, got {}", s.solver.rel_tol));
     s.solver.max_iterations = p.integer(o, "max_iterations", s.solver.max_iterations);
     if (s.solver.max_iterations < 1) {
       p.fail("solver.max_iterations", fmt::format("must be >= 1, got {}", s.solver.max_iterations));
@@ -555,7 +612,8 @@ Scene parse_scene(const json& j, const fs::path& file) {
     const Node o = Parser::child(root, "solid");
     p.expect_object(o, {"trapezoid"});
     if (Parser::has(o, "trapezoid")) {
-      s.solid.trapezoid = p.choice(Parser::child(o, "trapezoid"), {"paper", "midpoint"}, "trapezoid variant");
+      s.solid.trapezoid =
+          p.choice(Parser::child(o, "trapezoid"), {"paper", "midpoint"}, "trapezoid variant");
     }
   }
 
@@ -563,17 +621,21 @@ Scene parse_scene(const json& j, const fs::path& file) {
     const Node o = Parser::child(root, "static");
     p.expect_object(o, {"load_steps", "rel_tol", "max_iterations"});
     s.statics.load_steps = p.integer(o, "load_steps", s.statics.load_steps);
-    if (s.statics.load_steps < 1) p.fail("static.load_steps", fmt::format("must be >= 1, got {}", s.statics.load_steps));
+    if (s.statics.load_steps < 1)
+      p.fail("static.load_steps", fmt::format("must be >= 1, got {}", s.statics.load_steps));
     s.statics.rel_tol = p.number(o, "rel_tol", s.statics.rel_tol);
-    if (s.statics.rel_tol <= 0) p.fail("static.rel_tol", fmt::format("must be > 0, got {}", s.statics.rel_tol));
+    if (s.statics.rel_tol <= 0)
+      p.fail("static.rel_tol", fmt::format("must be > 0, got {}", s.statics.rel_tol));
     s.statics.max_iterations = p.integer(o, "max_iterations", s.statics.max_iterations);
     if (s.statics.max_iterations < 1) {
-      p.fail("static.max_iterations", fmt::format("must be >= 1, got {}", s.statics.max_iterations));
+      p.fail("static.max_iterations",
+             fmt::format("must be >= 1, got {}", s.statics.max_iterations));
     }
   }
 
   const Node bodies = p.require(root, "bodies");
-  if (!bodies.j.is_array()) p.fail("bodies", "expected an array of bodies, got " + describe(bodies.j));
+  if (!bodies.j.is_array())
+    p.fail("bodies", "expected an array of bodies, got " + describe(bodies.j));
   if (bodies.j.empty()) p.fail("bodies", "a scene needs at least one body");
   for (std::size_t i = 0; i < bodies.j.size(); ++i) {
     BodySpec b = p.body({bodies.j[i], Parser::index_path("bodies", i)});
@@ -623,13 +685,15 @@ void apply_override(json& root, const std::string& text, const std::string& scen
   for (std::size_t i = 0; i < parts.size(); ++i) {
     const std::string& part = parts[i];
     if (part.empty()) bad("empty component in the key path");
-    const bool numeric = std::all_of(part.begin(), part.end(), [](unsigned char c) { return std::isdigit(c); });
+    const bool numeric =
+        std::all_of(part.begin(), part.end(), [](unsigned char c) { return std::isdigit(c); });
     if (cur->is_array()) {
-      if (!numeric) bad(fmt::format("'{}' is an array: index it with a number, not '{}'", walked, part));
+      if (!numeric)
+        bad(fmt::format("'{}' is an array: index it with a number, not '{}'", walked, part));
       const std::size_t idx = std::stoul(part);
       if (idx >= cur->size()) {
-        bad(fmt::format("index {} is out of range ('{}' has {} element{})", idx, walked, cur->size(),
-                        cur->size() == 1 ? "" : "s"));
+        bad(fmt::format("index {} is out of range ('{}' has {} element{})", idx, walked,
+                        cur->size(), cur->size() == 1 ? "" : "s"));
       }
       cur = &(*cur)[idx];
     } else if (cur->is_object() || cur->is_null()) {
@@ -672,8 +736,9 @@ json::parser_callback_t duplicate_key_check(const std::string& scene_name) {
         Frame& f = stack->back();
         f.last_key = parsed.get<std::string>();
         if (!f.keys.insert(f.last_key).second) {
-          throw InputError(fmt::format("{}: {}: duplicate key (JSON keeps only the last value; remove one)",
-                                       scene_name, Parser::child_path(f.path, f.last_key)));
+          throw InputError(
+              fmt::format("{}: {}: duplicate key (JSON keeps only the last value; remove one)",
+                          scene_name, Parser::child_path(f.path, f.last_key)));
         }
         break;
       }
@@ -695,9 +760,11 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
   const std::string name = display_name(file);
   std::error_code ec;
   if (!fs::exists(file, ec)) {
-    throw InputError(fmt::format("{}: no such scene file ('{}')", name, fs::absolute(file).lexically_normal().string()));
+    throw InputError(fmt::format("{}: no such scene file ('{}')", name,
+                                 fs::absolute(file).lexically_normal().string()));
   }
-  if (fs::is_directory(file, ec)) throw InputError(fmt::format("{}: is a folder, not a scene file", name));
+  if (fs::is_directory(file, ec))
+    throw InputError(fmt::format("{}: is a folder, not a scene file", name));
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open the scene file for reading", name));
   std::stringstream buffer;
@@ -721,7 +788,8 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
     std::string reason = e.what();
     const auto colon = reason.find(": ", reason.find("parse error"));
     if (colon != std::string::npos) reason = reason.substr(colon + 2);
-    throw InputError(fmt::format("{}: line {}, column {}: invalid JSON: {}", name, line, column, reason));
+    throw InputError(
+        fmt::format("{}: line {}, column {}: invalid JSON: {}", name, line, column, reason));
   }
   for (const std::string& o : overrides) apply_override(j, o, name);
   return parse_scene(j, file);
@@ -745,8 +813,10 @@ void apply_transform(const TransformSpec& t, MatX3& x) {
 
 mesh::VolumeMesh make_mesh(const MeshSpec& m) {
   switch (m.kind) {
-    case MeshSpec::Kind::Box: return mesh::make_box(m.box.lo, m.box.hi, m.cells);
-    case MeshSpec::Kind::File: return mesh::read_volume_mesh(m.file);
+    case MeshSpec::Kind::Box:
+      return mesh::make_box(m.box.lo, m.box.hi, m.cells);
+    case MeshSpec::Kind::File:
+      return mesh::read_volume_mesh(m.file);
     case MeshSpec::Kind::Surface: {
       const mesh::SurfaceMesh surface = mesh::read_surface_mesh(m.file);
       mesh::TetrahedralizeParams params;
@@ -758,7 +828,8 @@ mesh::VolumeMesh make_mesh(const MeshSpec& m) {
 }
 
 /// The nodes a selection picks, checked against the body; `where` is "<file>: bodies[0].pins[1]".
-std::vector<Index> select_nodes(const NodeSelection& sel, const MatX3& rest, const std::string& where) {
+std::vector<Index> select_nodes(const NodeSelection& sel, const MatX3& rest,
+                                const std::string& where) {
   const Index n = static_cast<Index>(rest.rows());
   std::vector<Index> out;
   if (sel.box) {
@@ -766,8 +837,8 @@ std::vector<Index> select_nodes(const NodeSelection& sel, const MatX3& rest, con
       if (sel.box->contains(rest.row(i).transpose())) out.push_back(i);
     }
     if (out.empty()) {
-      throw InputError(fmt::format("{}: the box {}..{} selects no node; the body spans {}..{}", where,
-                                   fmt_vec(sel.box->lo), fmt_vec(sel.box->hi),
+      throw InputError(fmt::format("{}: the box {}..{} selects no node; the body spans {}..{}",
+                                   where, fmt_vec(sel.box->lo), fmt_vec(sel.box->hi),
                                    fmt_vec(rest.colwise().minCoeff().transpose()),
                                    fmt_vec(rest.colwise().maxCoeff().transpose())));
     }
@@ -775,8 +846,9 @@ std::vector<Index> select_nodes(const NodeSelection& sel, const MatX3& rest, con
     for (std::size_t k = 0; k < sel.nodes.size(); ++k) {
       const Index v = sel.nodes[k];
       if (v < 0 || v >= n) {
-        throw InputError(fmt::format("{}.nodes[{}]: node {} is out of range (the body has {} nodes, 0..{})", where, k,
-                                     v, n, n - 1));
+        throw InputError(
+            fmt::format("{}.nodes[{}]: node {} is out of range (the body has {} nodes, 0..{})",
+                        where, k, v, n, n - 1));
       }
       out.push_back(v);
     }
@@ -796,7 +868,8 @@ solid::SolidWorld build_world(const Scene& scene) {
   world.linear_solver = parse_solver_kind(scene.solver.linear);
   world.solver_options.rel_tol = scene.solver.rel_tol;
   world.solver_options.max_iterations = scene.solver.max_iterations;
-  world.trapezoid = scene.solid.trapezoid == "midpoint" ? solid::Trapezoid::Midpoint : solid::Trapezoid::Paper;
+  world.trapezoid =
+      scene.solid.trapezoid == "midpoint" ? solid::Trapezoid::Midpoint : solid::Trapezoid::Paper;
   world.bodies.reserve(scene.bodies.size());
 
   for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
@@ -818,14 +891,16 @@ solid::SolidWorld build_world(const Scene& scene) {
 
     for (std::size_t k = 0; k < spec.pins.size(); ++k) {
       const PinSpec& pin = spec.pins[k];
-      const auto nodes = select_nodes(pin.select, rest, fmt::format("{}: bodies[{}].pins[{}]", file, bi, k));
+      const auto nodes =
+          select_nodes(pin.select, rest, fmt::format("{}: bodies[{}].pins[{}]", file, bi, k));
       for (Index v : nodes) {
         for (char c : pin.axes) body.fix_dof(v, c - 'x');
       }
     }
     for (std::size_t k = 0; k < spec.loads.size(); ++k) {
       const LoadSpec& load = spec.loads[k];
-      const auto nodes = select_nodes(load.select, rest, fmt::format("{}: bodies[{}].loads[{}]", file, bi, k));
+      const auto nodes =
+          select_nodes(load.select, rest, fmt::format("{}: bodies[{}].loads[{}]", file, bi, k));
       const Vec3 per_node = load.total_force / static_cast<double>(nodes.size());
       for (Index v : nodes) body.applied_force.row(v) += per_node.transpose();
     }
@@ -834,8 +909,8 @@ solid::SolidWorld build_world(const Scene& scene) {
         if (!body.is_fixed(3 * v + a)) body.velocity(v, a) = spec.initial_velocity[a];
       }
     }
-    logger().info("{}: body '{}': {} nodes, {} tets, {} fixed DOFs, mass {:.4g} kg", file, spec.name, n,
-                  body.num_tets(), body.num_fixed_dofs(), body.total_mass());
+    logger().info("{}: body '{}': {} nodes, {} tets, {} fixed DOFs, mass {:.4g} kg", file,
+                  spec.name, n, body.num_tets(), body.num_fixed_dofs(), body.total_mass());
   }
 
   for (solid::Obstacle o : scene.obstacles) {

@@ -25,14 +25,16 @@
 ///       "transform": { "scale": 1.0, "rotate_deg": [0, 0, 0], "translate": [0, 0, 0] },
 ///       "material": { "density": 1000, "youngs_modulus": 1e5, "poisson_ratio": 0.3,
 ///                     "rayleigh_alpha": 0, "rayleigh_beta": 0 },
-///       "pins":  [ { "box": { "lo": [..], "hi": [..] }, "axes": "xyz" } | { "nodes": [0, 5], "axes": "z" } ],
-///       "loads": [ { "box": { "lo": [..], "hi": [..] }, "total_force": [0, 0, -1] } | { "nodes": [..], ... } ],
+///       "pins":  [ { "box": { "lo": [..], "hi": [..] }, "axes": "xyz" }
+///                | { "nodes": [0, 5], "axes": "z" } ],
+///       "loads": [ { "box": { "lo": [..], "hi": [..] }, "total_force": [0, 0, -1] }
+///                | { "nodes": [..], ... } ],
 ///       "initial_velocity": [0, 0, 0]
 ///   } ],
 ///   "obstacles": [ { "type": "plane", "point": [0,0,0], "normal": [0,0,1],
 ///                    "restitution": 0.3, "friction": 0.5 }
 ///                | { "type": "box", "lo": [..], "hi": [..], "restitution": .., "friction": .. } ]
-///                                                // each may have a "name" (default "plane0", "box1", ...)
+///                  // each may have a "name" (default "plane0", "box1", ...)
 /// }
 /// ```
 /// Rules beyond the types: a pin or load gives exactly one of "box" / "nodes"; a load needs
@@ -72,10 +74,10 @@ struct BoxSpec {
 struct MeshSpec {
   enum class Kind { Box, File, Surface };
   Kind kind = Kind::Box;
-  std::filesystem::path file;  ///< File / Surface: absolute (resolved against the scene folder)
-  BoxSpec box;                 ///< Box: extent
-  Vec3i cells = Vec3i::Ones(); ///< Box: hexahedra per axis (6 tets each)
-  double cell_size = 0.0;      ///< Surface: Mesh_3 cell size (m)
+  std::filesystem::path file;   ///< File / Surface: absolute (resolved against the scene folder)
+  BoxSpec box;                  ///< Box: extent
+  Vec3i cells = Vec3i::Ones();  ///< Box: hexahedra per axis (6 tets each)
+  double cell_size = 0.0;       ///< Surface: Mesh_3 cell size (m)
 };
 
 /// x ↦ translate + R (scale · x), R = Rz · Ry · Rx from rotate_deg (degrees about x, y, z).
@@ -112,8 +114,8 @@ struct BodySpec {
 };
 
 struct TimeSpec {
-  double dt = 0.01;                   ///< s, > 0
-  std::optional<double> end_time;     ///< s; default 1.0 if neither end_time nor steps given
+  double dt = 0.01;                ///< s, > 0
+  std::optional<double> end_time;  ///< s; default 1.0 if neither end_time nor steps given
   std::optional<int> steps;
   /// Number of steps the run takes: steps, or ceil(end_time / dt − 1e-9).
   int num_steps() const;

@@ -71,7 +71,8 @@ json sheet_json() {
 }
 
 json minimal_json() {
-  return json::parse(R"({ "bodies": [ { "name": "b", "mesh": { "box": { "lo": [0, 0, 0], "hi": [1, 1, 1] } } } ] })");
+  return json::parse(
+      R"({ "bodies": [ { "name": "b", "mesh": { "box": { "lo": [0, 0, 0], "hi": [1, 1, 1] } } } ] })");
 }
 
 /// Run `f`, expect an InputError whose message contains every one of `parts`.
@@ -92,7 +93,8 @@ void check_input_error(const std::function<void()>& f, std::initializer_list<std
 }
 
 /// Parse `j` with one change made by `edit`, expect an InputError containing `parts`.
-void check_edit_rejected(const std::function<void(json&)>& edit, std::initializer_list<std::string> parts) {
+void check_edit_rejected(const std::function<void(json&)>& edit,
+                         std::initializer_list<std::string> parts) {
   json j = sheet_json();
   edit(j);
   check_input_error([&] { parse_scene(j, "scene.json"); }, parts);
@@ -239,11 +241,14 @@ TEST_CASE("unknown keys name the JSON path and suggest the nearest valid key") {
         m.erase("poisson_ratio");
       },
       {"scene.json: bodies[0].material.poison_ratio: unknown key (did you mean 'poisson_ratio'?)"});
-  check_edit_rejected([](json& j) { j["time"]["dtt"] = 0.1; }, {"scene.json: time.dtt: unknown key", "'dt'"});
+  check_edit_rejected([](json& j) { j["time"]["dtt"] = 0.1; },
+                      {"scene.json: time.dtt: unknown key", "'dt'"});
   // Nothing close: list the valid keys of that level.
   check_edit_rejected([](json& j) { j["bodies"][0]["colour"] = "red"; },
-                      {"scene.json: bodies[0].colour: unknown key", "valid keys here:", "material", "initial_velocity"});
-  check_edit_rejected([](json& j) { j["gravty"] = 1; }, {"scene.json: gravty: unknown key (did you mean 'gravity'?)"});
+                      {"scene.json: bodies[0].colour: unknown key", "valid keys here:", "material",
+                       "initial_velocity"});
+  check_edit_rejected([](json& j) { j["gravty"] = 1; },
+                      {"scene.json: gravty: unknown key (did you mean 'gravity'?)"});
   check_input_error([] { parse_scene(json::array(), "scene.json"); },
                     {"scene.json: (top level): expected an object, got array []"});
 }
@@ -251,15 +256,26 @@ TEST_CASE("unknown keys name the JSON path and suggest the nearest valid key") {
 TEST_CASE("wrong types are reported with what was found") {
   check_edit_rejected([](json& j) { j["time"]["dt"] = "abc"; },
                       {"scene.json: time.dt: expected a number, got string \"abc\""});
-  check_edit_rejected([](json& j) { j["gravity"] = json::array({0, -9.81}); },
-                      {"scene.json: gravity: expected an array of 3 numbers, got array [0,-9.81]"});
-  check_edit_rejected([](json& j) { j["gravity"][1] = true; }, {"gravity[1]: expected a number, got boolean true"});
-  check_edit_rejected([](json& j) { j["bodies"][0]["mesh"]["box"]["cells"] = json::array({4, 2.5, 1}); },
-                      {"bodies[0].mesh.box.cells[1]: expected an integer, got number 2.5"});
-  check_edit_rejected([](json& j) { j["bodies"][0]["mesh"]["box"]["cells"] = json::array({4, 0, 1}); },
-                      {"bodies[0].mesh.box.cells[1]:", "positive"});
+  check_edit_rejected(
+      [](json& j) {
+        j["gravity"] = json::array({0, -9.81});
+      },
+      {"scene.json: gravity: expected an array of 3 numbers, got array [0,-9.81]"});
+  check_edit_rejected([](json& j) { j["gravity"][1] = true; },
+                      {"gravity[1]: expected a number, got boolean true"});
+  check_edit_rejected(
+      [](json& j) {
+        j["bodies"][0]["mesh"]["box"]["cells"] = json::array({4, 2.5, 1});
+      },
+      {"bodies[0].mesh.box.cells[1]: expected an integer, got number 2.5"});
+  check_edit_rejected(
+      [](json& j) {
+        j["bodies"][0]["mesh"]["box"]["cells"] = json::array({4, 0, 1});
+      },
+      {"bodies[0].mesh.box.cells[1]:", "positive"});
   check_edit_rejected([](json& j) { j["bodies"] = json::object(); }, {"bodies: expected an array"});
-  check_edit_rejected([](json& j) { j["bodies"][0]["name"] = 3; }, {"bodies[0].name: expected a string, got number 3"});
+  check_edit_rejected([](json& j) { j["bodies"][0]["name"] = 3; },
+                      {"bodies[0].name: expected a string, got number 3"});
   // JSON has no NaN, but an in-memory scene can: rejected like any non-finite value.
   check_edit_rejected([](json& j) { j["bodies"][0]["material"]["density"] = std::nan(""); },
                       {"bodies[0].material.density: expected a finite number"});
@@ -285,37 +301,50 @@ TEST_CASE("out-of-range values say what the range is") {
   check_edit_rejected([](json& j) { j["output"]["every"] = 0; }, {"output.every: must be >= 1"});
   check_edit_rejected([](json& j) { j["output"]["compression"] = "lz5"; },
                       {"output.compression: unknown compression 'lz5' (did you mean 'lz4'?)"});
-  check_edit_rejected([](json& j) { j["mode"] = "quasi-static"; }, {"mode: unknown mode 'quasi-static'"});
-  check_edit_rejected([](json& j) { j["solver"]["linear"] = "superlu"; }, {"solver.linear: unknown linear solver"});
-  check_edit_rejected([](json& j) { j["solid"]["trapezoid"] = "midpiont"; },
-                      {"solid.trapezoid: unknown trapezoid variant 'midpiont' (did you mean 'midpoint'?)"});
-  check_edit_rejected([](json& j) { j["bodies"][0]["material"]["density"] = 0; }, {"material.density: must be > 0"});
+  check_edit_rejected([](json& j) { j["mode"] = "quasi-static"; },
+                      {"mode: unknown mode 'quasi-static'"});
+  check_edit_rejected([](json& j) { j["solver"]["linear"] = "superlu"; },
+                      {"solver.linear: unknown linear solver"});
+  check_edit_rejected(
+      [](json& j) { j["solid"]["trapezoid"] = "midpiont"; },
+      {"solid.trapezoid: unknown trapezoid variant 'midpiont' (did you mean 'midpoint'?)"});
+  check_edit_rejected([](json& j) { j["bodies"][0]["material"]["density"] = 0; },
+                      {"material.density: must be > 0"});
   check_edit_rejected([](json& j) { j["bodies"][0]["material"]["youngs_modulus"] = -1; },
                       {"material.youngs_modulus: must be > 0"});
   check_edit_rejected([](json& j) { j["bodies"][0]["material"]["rayleigh_beta"] = -1e-3; },
                       {"material.rayleigh_beta: must be >= 0"});
   check_edit_rejected([](json& j) { j["obstacles"][0]["restitution"] = 1.5; },
                       {"obstacles[0].restitution: must be in [0, 1]"});
-  check_edit_rejected([](json& j) { j["obstacles"][0]["friction"] = -0.1; }, {"obstacles[0].friction: must be >= 0"});
-  check_edit_rejected([](json& j) { j["obstacles"][0]["normal"] = json::array({0, 0, 0}); },
-                      {"obstacles[0].normal: must not be zero"});
-  check_edit_rejected([](json& j) { j["obstacles"][0]["type"] = "sphere"; }, {"obstacles[0].type: unknown obstacle type"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["friction"] = -0.1; },
+                      {"obstacles[0].friction: must be >= 0"});
+  check_edit_rejected(
+      [](json& j) {
+        j["obstacles"][0]["normal"] = json::array({0, 0, 0});
+      },
+      {"obstacles[0].normal: must not be zero"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["type"] = "sphere"; },
+                      {"obstacles[0].type: unknown obstacle type"});
   check_edit_rejected([](json& j) { j["bodies"][0]["mesh"]["box"]["hi"][0] = 0; },
                       {"bodies[0].mesh.box: lo must be < hi", "axis x"});
   check_edit_rejected([](json& j) { j["bodies"][0]["pins"][0]["axes"] = "xw"; },
                       {"bodies[0].pins[0].axes: must be a non-empty subset of \"xyz\""});
-  check_edit_rejected([](json& j) { j["bodies"][0]["pins"][0]["axes"] = ""; }, {"pins[0].axes: must be a non-empty"});
+  check_edit_rejected([](json& j) { j["bodies"][0]["pins"][0]["axes"] = ""; },
+                      {"pins[0].axes: must be a non-empty"});
   check_edit_rejected([](json& j) { j["bodies"][0]["pins"][0]["nodes"] = json::array({1}); },
                       {"bodies[0].pins[0]: give either 'box' or 'nodes', not both"});
   check_edit_rejected([](json& j) { j["bodies"].push_back(j["bodies"][0]); },
                       {"bodies[1].name: duplicate body name 'sheet'"});
-  check_edit_rejected([](json& j) { j["bodies"] = json::array(); }, {"scene.json: bodies: a scene needs at least one body"});
+  check_edit_rejected([](json& j) { j["bodies"] = json::array(); },
+                      {"scene.json: bodies: a scene needs at least one body"});
   check_edit_rejected([](json& j) { j.erase("bodies"); }, {"missing required key 'bodies'"});
-  check_edit_rejected([](json& j) { j["bodies"][0]["mesh"]["file"] = "x.msh"; },
-                      {"bodies[0].mesh: give exactly one of 'box', 'file' or 'surface', got 'box' and 'file'"});
+  check_edit_rejected(
+      [](json& j) { j["bodies"][0]["mesh"]["file"] = "x.msh"; },
+      {"bodies[0].mesh: give exactly one of 'box', 'file' or 'surface', got 'box' and 'file'"});
   check_edit_rejected([](json& j) { j["bodies"][0]["mesh"] = json::object(); },
                       {"bodies[0].mesh: give exactly one of"});
-  check_edit_rejected([](json& j) { j["bodies"][0]["transform"]["scale"] = 0; }, {"transform.scale: must be > 0"});
+  check_edit_rejected([](json& j) { j["bodies"][0]["transform"]["scale"] = 0; },
+                      {"transform.scale: must be > 0"});
 }
 
 TEST_CASE("mesh files resolve against the scene's folder and must exist") {
@@ -331,7 +360,8 @@ TEST_CASE("mesh files resolve against the scene's folder and must exist") {
   check_input_error([&] { parse_scene(j, dir.path / "scene.json"); },
                     {"bodies[0].mesh: a 'surface' mesh needs 'cell_size'"});
   j["bodies"][0]["mesh"]["cell_size"] = 0;
-  check_input_error([&] { parse_scene(j, dir.path / "scene.json"); }, {"bodies[0].mesh.cell_size: must be > 0"});
+  check_input_error([&] { parse_scene(j, dir.path / "scene.json"); },
+                    {"bodies[0].mesh.cell_size: must be > 0"});
   j["bodies"][0]["mesh"]["cell_size"] = 0.05;
   const Scene s = parse_scene(j, dir.path / "scene.json");
   CHECK(s.bodies[0].mesh.kind == MeshSpec::Kind::Surface);
@@ -356,21 +386,24 @@ TEST_CASE("load_scene: missing file, JSON syntax errors with line and column") {
   const fs::path q = dir.write("truncated.json", "{ \"bodies\": [");
   check_input_error([&] { load_scene(q); }, {"truncated.json: line 1, column", "invalid JSON"});
   // A key given twice would silently keep the last value: rejected, with its path.
-  const fs::path d = dir.write("dup.json", R"({ "bodies": [ { "name": "a", "mesh": { "box": { "lo": [0, 0, 0],
+  const fs::path d =
+      dir.write("dup.json", R"({ "bodies": [ { "name": "a", "mesh": { "box": { "lo": [0, 0, 0],
       "hi": [1, 1, 1] } } }, { "name": "b", "mesh": {}, "name": "c" } ] })");
   check_input_error([&] { load_scene(d); }, {"dup.json: bodies[1].name: duplicate key"});
-  const fs::path d2 = dir.write("dup2.json", R"({ "time": { "dt": 0.1 }, "gravity": [0, 0, -1], "time": {} })");
+  const fs::path d2 =
+      dir.write("dup2.json", R"({ "time": { "dt": 0.1 }, "gravity": [0, 0, -1], "time": {} })");
   check_input_error([&] { load_scene(d2); }, {"dup2.json: time: duplicate key"});
-  const fs::path d3 = dir.write("dup3.json", R"({ "bodies": [ [1, 2, {}], { "mesh": { "file": "a", "file": "b" } } ] })");
+  const fs::path d3 = dir.write(
+      "dup3.json", R"({ "bodies": [ [1, 2, {}], { "mesh": { "file": "a", "file": "b" } } ] })");
   check_input_error([&] { load_scene(d3); }, {"dup3.json: bodies[1].mesh.file: duplicate key"});
 }
 
 TEST_CASE("--set overrides change values, create allowed keys and reject malformed ones") {
   const TempDir dir;
   const fs::path file = dir.write("scene.json", sheet_json().dump(2));
-  const Scene s = load_scene(file, {"time.dt=0.001", "bodies.0.material.density=500", "name=renamed",
-                                    "gravity=[0, -1, 0]", "static.load_steps=4", "bodies.0.pins.0.axes=z",
-                                    "solver.linear=cholmod"});
+  const Scene s = load_scene(
+      file, {"time.dt=0.001", "bodies.0.material.density=500", "name=renamed", "gravity=[0, -1, 0]",
+             "static.load_steps=4", "bodies.0.pins.0.axes=z", "solver.linear=cholmod"});
   CHECK(s.time.dt == 0.001);
   CHECK(s.bodies[0].material.density == 500);
   CHECK(s.name == "renamed");  // not valid JSON: taken as a string
@@ -381,19 +414,25 @@ TEST_CASE("--set overrides change values, create allowed keys and reject malform
   CHECK(s.resolved["bodies"][0]["material"]["density"] == 500);
 
   // Replacing end_time by steps needs both changes; steps alone collides with end_time.
-  check_input_error([&] { load_scene(file, {"time.steps=10"}); }, {"time: give either 'end_time' or 'steps'"});
+  check_input_error([&] { load_scene(file, {"time.steps=10"}); },
+                    {"time: give either 'end_time' or 'steps'"});
   // A new key the schema lacks is reported by the parser as usual.
-  check_input_error([&] { load_scene(file, {"time.dtt=0.1"}); }, {"time.dtt: unknown key (did you mean 'dt'?)"});
+  check_input_error([&] { load_scene(file, {"time.dtt=0.1"}); },
+                    {"time.dtt: unknown key (did you mean 'dt'?)"});
   // A non-number string (e.g. nan) where a number belongs.
-  check_input_error([&] { load_scene(file, {"time.dt=nan"}); }, {"time.dt: expected a number, got string \"nan\""});
-  check_input_error([&] { load_scene(file, {"time.dt=abc"}); }, {"time.dt: expected a number, got string \"abc\""});
+  check_input_error([&] { load_scene(file, {"time.dt=nan"}); },
+                    {"time.dt: expected a number, got string \"nan\""});
+  check_input_error([&] { load_scene(file, {"time.dt=abc"}); },
+                    {"time.dt: expected a number, got string \"abc\""});
   // Malformed overrides name themselves.
-  check_input_error([&] { load_scene(file, {"time.dt"}); }, {"scene.json: --set 'time.dt':", "key.path=value"});
+  check_input_error([&] { load_scene(file, {"time.dt"}); },
+                    {"scene.json: --set 'time.dt':", "key.path=value"});
   check_input_error([&] { load_scene(file, {"=3"}); }, {"--set '=3':", "empty key"});
   check_input_error([&] { load_scene(file, {"bodies.3.name=x"}); },
                     {"--set 'bodies.3.name=x': index 3 is out of range ('bodies' has 1 element)"});
   check_input_error([&] { load_scene(file, {"bodies.first.name=x"}); }, {"'bodies' is an array"});
-  check_input_error([&] { load_scene(file, {"time.dt.x=1"}); }, {"'time.dt' is number 0.005, not an object"});
+  check_input_error([&] { load_scene(file, {"time.dt.x=1"}); },
+                    {"'time.dt' is number 0.005, not an object"});
   check_input_error([&] { load_scene(file, {"time..dt=1"}); }, {"empty component"});
 }
 
@@ -457,7 +496,8 @@ TEST_CASE("build_world: box body with transform, pins, loads, velocity and obsta
 
 TEST_CASE("build_world: scale, then rotate Rz·Ry·Rx, then translate") {
   json j = minimal_json();
-  j["bodies"][0]["transform"] = {{"scale", 2.0}, {"rotate_deg", {0, 0, 90}}, {"translate", {10, 0, 0}}};
+  j["bodies"][0]["transform"] = {
+      {"scale", 2.0}, {"rotate_deg", {0, 0, 90}}, {"translate", {10, 0, 0}}};
   const solid::SolidWorld w = build_world(parse_scene(j, "scene.json"));
   const MatX3& x = w.bodies[0].rest_positions();
   // [0,1]³ scaled to [0,2]³, rotated 90° about z to x ∈ [−2,0], y ∈ [0,2], then x += 10.
@@ -472,11 +512,13 @@ TEST_CASE("build_world: selections that pick nothing or out-of-range nodes are i
   json j = sheet_json();
   j["bodies"][0]["pins"].push_back({{"box", {{"lo", {5, 5, 5}}, {"hi", {6, 6, 6}}}}});
   check_input_error([&] { build_world(parse_scene(j, "scene.json")); },
-                    {"scene.json: bodies[0].pins[1]: the box", "selects no node; the body spans [0, 0, 1]..[1, 0.5, 1.02]"});
+                    {"scene.json: bodies[0].pins[1]: the box",
+                     "selects no node; the body spans [0, 0, 1]..[1, 0.5, 1.02]"});
   j = sheet_json();
   j["bodies"][0]["loads"][0] = {{"nodes", {0, 30}}, {"total_force", {1, 0, 0}}};
-  check_input_error([&] { build_world(parse_scene(j, "scene.json")); },
-                    {"scene.json: bodies[0].loads[0].nodes[1]: node 30 is out of range (the body has 30 nodes"});
+  check_input_error(
+      [&] { build_world(parse_scene(j, "scene.json")); },
+      {"scene.json: bodies[0].loads[0].nodes[1]: node 30 is out of range (the body has 30 nodes"});
 }
 
 TEST_CASE("build_world: a mesh file with an inverted tet names the scene, the body and the tet") {
