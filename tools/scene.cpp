@@ -102,8 +102,40 @@ std::string fmt_vec(const Vec3& v) {
   return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
 }
 
+std::string fmt_vec2(const Vec2& v) {
+  return fmt::format("[{:.6g}, {:.6g}]", v.x(), v.y());
+}
+
 json to_json(const Vec3& v) {
   return json::array({v.x(), v.y(), v.z()});
+}
+
+json to_json(const Vec2& v) {
+  return json::array({v.x(), v.y()});
+}
+
+/// Names of the box sides in the order of DomainPatch::side (0..5).
+const std::vector<std::string>& side_names() {
+  static const std::vector<std::string> names = {"-x", "+x", "-y", "+y", "-z", "+z"};
+  return names;
+}
+
+/// The boundary kinds a box face or patch may have.
+const std::vector<std::string>& boundary_kind_names() {
+  static const std::vector<std::string> names = {"wall", "inflow", "open"};
+  return names;
+}
+
+mesh::FaceKind boundary_kind(const std::string& name) {
+  if (name == "inflow") return mesh::FaceKind::Inflow;
+  if (name == "open") return mesh::FaceKind::Open;
+  return mesh::FaceKind::Wall;
+}
+
+/// The two axes of a box side's plane, in increasing order (side ±y: x, z).
+std::pair<int, int> side_axes(int side) {
+  const int a = side / 2;
+  return {a == 0 ? 1 : 0, a == 2 ? 1 : 2};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -204,6 +236,14 @@ class Parser {
   }
   Vec3 vec3(const Node& n, const std::string& key, const Vec3& fallback) const {
     return has(n, key) ? vec3(child(n, key)) : fallback;
+  }
+
+  Vec2 vec2(const Node& n) const {
+    if (!n.j.is_array() || n.j.size() != 2)
+      fail(n.path, "expected an array of 2 numbers, got " + describe(n.j));
+    Vec2 v;
+    for (int a = 0; a < 2; ++a) v[a] = number({n.j[a], index_path(n.path, a)});
+    return v;
   }
 
   Node require(const Node& n, const std::string& key) const {
@@ -439,6 +479,86 @@ class Parser {
     return o;
   }
 
+  /// A patch of the fluid box; `box` is the domain, for the overlap check.
+  mesh::DomainPatch patch(const Node& n, std::size_t index, const BoxSpec& box) const {
+    expect_object(n, {"name", "kind", "side", "lo", "hi"});
+    mesh::DomainPatch pa;
+    pa.name = string(n, "name", fmt::format("patch{}", index));
+    if (pa.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
+    pa.kind = boundary_kind(choice(require(n, "kind"), boundary_kind_names(), "boundary kind"));
+    const std::string side = choice(require(n, "side"), side_names(), "side");
+    pa.side = static_cast<int>(std::find(side_names().begin(), side_names().end(), side) -
+                               side_names().begin());
+    pa.lo = vec2(require(n, "lo"));
+    pa.hi = vec2(require(n, "hi"));
+    const auto [b, c] = side_axes(pa.side);
+    const std::string axes = fmt::format("({}, {})", "xyz"[b], "xyz"[c]);
+    for (int k = 0; k < 2; ++k) {
+      if (pa.lo[k] >= pa.hi[k]) {
+        fail(n.path, fmt::format("lo must be < hi in both coordinates {} of side {}, got lo = {}, "
+                                 "hi = {}",
+                                 axes, side, fmt_vec2(pa.lo), fmt_vec2(pa.hi)));
+      }
+    }
+    const Vec2 face_lo(box.lo[b], box.lo[c]), face_hi(box.hi[b], box.hi[c]);
+    const bool overlaps =
+        (pa.lo.array() < face_hi.array()).all() && (pa.hi.array() > face_lo.array()).all();
+    if (!overlaps) {
+      fail(n.path, fmt::format("the rectangle {}..{} misses side {} of the fluid box, which spans "
+                               "{} {}..{}",
+                               fmt_vec2(pa.lo), fmt_vec2(pa.hi), side, axes, fmt_vec2(face_lo),
+                               fmt_vec2(face_hi)));
+    }
+    return pa;
+  }
+
+  FluidSpec fluid(const Node& n) const {
+    expect_object(n, {"domain", "mesh"});
+    FluidSpec f;
+    const Node d = require(n, "domain");
+    expect_object(d, {"lo", "hi", "default", "patches"});
+    const BoxSpec box = bounds(d, true);
+    f.domain.lo = box.lo;
+    f.domain.hi = box.hi;
+    if (has(d, "default"))
+      f.domain.default_kind =
+          boundary_kind(choice(child(d, "default"), boundary_kind_names(), "boundary kind"));
+    if (has(d, "patches")) {
+      const Node list = child(d, "patches");
+      if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
+      for (std::size_t i = 0; i < list.j.size(); ++i) {
+        const std::string where = index_path(list.path, i);
+        mesh::DomainPatch pa = patch({list.j[i], where}, i, box);
+        for (std::size_t k = 0; k < f.domain.patches.size(); ++k) {
+          if (f.domain.patches[k].name == pa.name)
+            fail(where + ".name",
+                 fmt::format("duplicate patch name '{}' (also {}[{}])", pa.name, list.path, k));
+        }
+        f.domain.patches.push_back(std::move(pa));
+      }
+    }
+    if (has(n, "mesh")) {
+      const Node m = child(n, "mesh");
+      expect_object(m, {"surface_size", "far_size", "grading", "max_cells"});
+      mesh::Sizing& z = f.sizing;
+      auto positive = [&](const char* key, double& v, const char* unit) {
+        v = number(m, key, v);
+        if (v <= 0) fail(child_path(m.path, key), fmt::format("must be > 0{}, got {}", unit, v));
+      };
+      positive("surface_size", z.surface_size, " (m)");
+      positive("far_size", z.far_size, " (m)");
+      positive("grading", z.grading, " (m of cell size per m of distance)");
+      if (z.surface_size > z.far_size)
+        fail(child_path(m.path, "surface_size"),
+             fmt::format("must be <= far_size ({} m), got {} m", z.far_size, z.surface_size));
+      z.max_cells = integer(m, "max_cells", z.max_cells);
+      if (z.max_cells < 0)
+        fail(child_path(m.path, "max_cells"),
+             fmt::format("must be >= 0 (0: no budget), got {}", z.max_cells));
+    }
+    return f;
+  }
+
  private:
   std::string m_file;
   fs::path m_folder;
@@ -529,6 +649,28 @@ json resolve(const Scene& s) {
     jo["friction"] = o.friction;
     j["obstacles"].push_back(jo);
   }
+  if (s.fluid) {
+    const mesh::FluidDomain& d = s.fluid->domain;
+    json patches = json::array();
+    for (const mesh::DomainPatch& pa : d.patches) {
+      patches.push_back({{"name", pa.name},
+                         {"kind", mesh::to_string(pa.kind)},
+                         {"side", side_names().at(static_cast<std::size_t>(pa.side))},
+                         {"lo", to_json(pa.lo)},
+                         {"hi", to_json(pa.hi)}});
+    }
+    const mesh::Sizing& z = s.fluid->sizing;
+    j["fluid"] = {{"domain",
+                   {{"lo", to_json(d.lo)},
+                    {"hi", to_json(d.hi)},
+                    {"default", mesh::to_string(d.default_kind)},
+                    {"patches", patches}}},
+                  {"mesh",
+                   {{"surface_size", z.surface_size},
+                    {"far_size", z.far_size},
+                    {"grading", z.grading},
+                    {"max_cells", z.max_cells}}}};
+  }
   return j;
 }
 
@@ -541,7 +683,7 @@ Scene parse_scene(const json& j, const fs::path& file) {
   using Node = Parser::Node;
   const Node root{j, ""};
   p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver",
-                         "solid", "static", "bodies", "obstacles"});
+                         "solid", "static", "bodies", "obstacles", "fluid"});
 
   Scene s;
   s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
@@ -655,6 +797,8 @@ Scene parse_scene(const json& j, const fs::path& file) {
       s.obstacles.push_back(p.obstacle({obs.j[i], Parser::index_path("obstacles", i)}, i));
     }
   }
+
+  if (Parser::has(root, "fluid")) s.fluid = p.fluid(Parser::child(root, "fluid"));
 
   s.resolved = resolve(s);
   return s;

@@ -35,12 +35,24 @@
 ///                    "restitution": 0.3, "friction": 0.5 }
 ///                | { "type": "box", "lo": [..], "hi": [..], "restitution": .., "friction": .. } ]
 ///                  // each may have a "name" (default "plane0", "box1", ...)
+///   "fluid": {                      // optional: a fluid mesh rebuilt around the bodies each step
+///     "domain": { "lo": [..], "hi": [..],                   // required, lo < hi (m)
+///                 "default": "wall" | "inflow" | "open",    // kind of box faces not on a patch
+///                 "patches": [ { "name": "jet", "kind": "inflow", "side": "-x",
+///                                "lo": [a, b], "hi": [c, d] } ] },
+///     "mesh":   { "surface_size": 0.05, "far_size": 0.2, "grading": 0.5, "max_cells": 0 }
+///   }
 /// }
 /// ```
 /// Rules beyond the types: a pin or load gives exactly one of "box" / "nodes"; a load needs
 /// "total_force"; selection boxes may be flat (lo ≤ hi, e.g. one face of a box body; they
 /// include nodes within 1e-9 m), mesh and obstacle boxes need lo < hi; a key given twice in
 /// one object is an error (load_scene only: nlohmann would keep the last silently).
+/// Fluid: a patch's "side" is one of "-x", "+x", "-y", "+y", "-z", "+z"; its rectangle
+/// lo < hi is in the side's two other coordinates in increasing axis order (side ±y: (x, z))
+/// and must overlap that face of the box; patch names are unique (default "patch<i>");
+/// 0 < surface_size <= far_size (m), grading > 0, max_cells >= 0 (0: no budget). Whether the
+/// bodies lie inside the box is checked by the run (their positions change every step).
 ///
 /// Every error is one line, "<scene file as given>: <json.path>: <problem>", e.g.
 ///   "scene.json: time.dt: expected a number, got string \"abc\""
@@ -57,6 +69,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/types.hpp"
+#include "mesh/remesh.hpp"
 #include "solid/material.hpp"
 #include "solid/obstacles.hpp"
 #include "solid/world.hpp"
@@ -142,6 +155,13 @@ struct StaticSpec {
   int max_iterations = 60;
 };
 
+/// The optional fluid of a scene: the box it fills and the size of its mesh, as the remesher
+/// takes them (mesh/remesh.hpp). `sizing.refine` is never set from a scene.
+struct FluidSpec {
+  mesh::FluidDomain domain;
+  mesh::Sizing sizing;
+};
+
 enum class Mode { Dynamic, Static };
 
 struct Scene {
@@ -157,6 +177,7 @@ struct Scene {
   StaticSpec statics;
   std::vector<BodySpec> bodies;
   std::vector<solid::Obstacle> obstacles;
+  std::optional<FluidSpec> fluid;  ///< set if the scene has a "fluid" section
   nlohmann::json resolved;  ///< the scene with every default filled in (written to the output)
 };
 

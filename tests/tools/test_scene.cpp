@@ -436,8 +436,182 @@ TEST_CASE("--set overrides change values, create allowed keys and reject malform
   check_input_error([&] { load_scene(file, {"time..dt=1"}); }, {"empty component"});
 }
 
+namespace {
+
+/// sheet_json() with a fluid box around the sheet, one inflow patch and every mesh key.
+json fluid_json() {
+  json j = sheet_json();
+  j["fluid"] = json::parse(R"({
+    "domain": { "lo": [-0.5, -0.5, 0], "hi": [1.5, 1, 2], "default": "open",
+                "patches": [ { "name": "jet", "kind": "inflow", "side": "-y",
+                               "lo": [0.2, 0.5], "hi": [0.4, 0.7] },
+                             { "kind": "wall", "side": "+z", "lo": [-1, -1], "hi": [3, 3] } ] },
+    "mesh": { "surface_size": 0.04, "far_size": 0.3, "grading": 0.7, "max_cells": 20000 }
+  })");
+  return j;
+}
+
+void check_fluid_rejected(const std::function<void(json&)>& edit,
+                          std::initializer_list<std::string> parts) {
+  json j = fluid_json();
+  edit(j);
+  check_input_error([&] { parse_scene(j, "scene.json"); }, parts);
+}
+
+}  // namespace
+
+TEST_CASE("the fluid section parses into the remesher's structs and resolves back") {
+  const Scene s = parse_scene(fluid_json(), "scene.json");
+  REQUIRE(s.fluid);
+  const mesh::FluidDomain& d = s.fluid->domain;
+  CHECK(d.lo == Vec3(-0.5, -0.5, 0));
+  CHECK(d.hi == Vec3(1.5, 1, 2));
+  CHECK(d.default_kind == mesh::FaceKind::Open);
+  REQUIRE(d.patches.size() == 2);
+  CHECK(d.patches[0].name == "jet");
+  CHECK(d.patches[0].kind == mesh::FaceKind::Inflow);
+  CHECK(d.patches[0].side == 2);  // -y
+  CHECK(d.patches[0].lo == Vec2(0.2, 0.5));
+  CHECK(d.patches[0].hi == Vec2(0.4, 0.7));
+  CHECK(d.patches[1].name == "patch1");  // default name: its index
+  CHECK(d.patches[1].kind == mesh::FaceKind::Wall);
+  CHECK(d.patches[1].side == 5);  // +z
+  const mesh::Sizing& z = s.fluid->sizing;
+  CHECK(z.surface_size == 0.04);
+  CHECK(z.far_size == 0.3);
+  CHECK(z.grading == 0.7);
+  CHECK(z.max_cells == 20000);
+  CHECK_FALSE(z.refine);
+
+  // Every side string maps to its index 0..5.
+  const char* sides[] = {"-x", "+x", "-y", "+y", "-z", "+z"};
+  for (int k = 0; k < 6; ++k) {
+    CAPTURE(sides[k]);
+    json j = fluid_json();
+    j["fluid"]["domain"]["patches"][1]["side"] = sides[k];
+    CHECK(parse_scene(j, "scene.json").fluid->domain.patches[1].side == k);
+  }
+
+  // The resolved scene holds the section with its defaults and parses back to the same.
+  const json& r = s.resolved;
+  CHECK(r["fluid"]["domain"]["default"] == "open");
+  CHECK(r["fluid"]["domain"]["patches"][0]["side"] == "-y");
+  CHECK(r["fluid"]["domain"]["patches"][0]["kind"] == "inflow");
+  CHECK(r["fluid"]["domain"]["patches"][1]["name"] == "patch1");
+  CHECK(r["fluid"]["mesh"]["max_cells"] == 20000);
+  const Scene b = parse_scene(json::parse(r.dump(2)), "back.json");
+  CHECK(b.resolved == r);
+  REQUIRE(b.fluid);
+  CHECK(b.fluid->domain.patches[0].lo == d.patches[0].lo);
+
+  // Only "domain" with lo / hi is required; the rest has the remesher's defaults.
+  json minimal = sheet_json();
+  minimal["fluid"] = {{"domain", {{"lo", {-1, -1, -1}}, {"hi", {2, 2, 2}}}}};
+  const Scene m = parse_scene(minimal, "scene.json");
+  REQUIRE(m.fluid);
+  const mesh::Sizing defaults;
+  CHECK(m.fluid->domain.default_kind == mesh::FaceKind::Wall);
+  CHECK(m.fluid->domain.patches.empty());
+  CHECK(m.fluid->sizing.surface_size == defaults.surface_size);
+  CHECK(m.fluid->sizing.far_size == defaults.far_size);
+  CHECK(m.fluid->sizing.grading == defaults.grading);
+  CHECK(m.fluid->sizing.max_cells == 0);
+  CHECK(m.resolved["fluid"]["domain"]["default"] == "wall");
+  CHECK(m.resolved["fluid"]["domain"]["patches"] == json::array());
+  CHECK(m.resolved["fluid"]["mesh"]["far_size"] == defaults.far_size);
+
+  // Without a fluid section there is none, in the scene or in the resolved JSON.
+  const Scene none = parse_scene(sheet_json(), "scene.json");
+  CHECK_FALSE(none.fluid);
+  CHECK_FALSE(none.resolved.contains("fluid"));
+}
+
+TEST_CASE("fluid section errors name the JSON path and the problem") {
+  // Unknown keys, at every level, with the nearest valid key.
+  check_fluid_rejected([](json& j) { j["fluid"]["meshes"] = json::object(); },
+                       {"scene.json: fluid.meshes: unknown key (did you mean 'mesh'?)"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["defualt"] = "wall"; },
+                       {"fluid.domain.defualt: unknown key (did you mean 'default'?)"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["sides"] = "-x"; },
+                       {"fluid.domain.patches[0].sides: unknown key (did you mean 'side'?)"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["surface"] = 0.1; },
+                       {"fluid.mesh.surface: unknown key", "surface_size"});
+  // Missing pieces.
+  check_fluid_rejected([](json& j) { j["fluid"].erase("domain"); },
+                       {"scene.json: fluid: missing required key 'domain'"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"].erase("hi"); },
+                       {"fluid.domain: missing required key 'hi'"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0].erase("side"); },
+                       {"fluid.domain.patches[0]: missing required key 'side'"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0].erase("kind"); },
+                       {"fluid.domain.patches[0]: missing required key 'kind'"});
+  // Choices.
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["side"] = "x"; },
+                       {"fluid.domain.patches[0].side: unknown side 'x'", "'-x'"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["side"] = "+w"; },
+                       {"fluid.domain.patches[0].side: unknown side '+w'"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["side"] = 2; },
+                       {"fluid.domain.patches[0].side: expected a string, got number 2"});
+  check_fluid_rejected(
+      [](json& j) { j["fluid"]["domain"]["patches"][0]["kind"] = "solid"; },
+      {"fluid.domain.patches[0].kind: unknown boundary kind 'solid'", "wall", "inflow", "open"});
+  check_fluid_rejected(
+      [](json& j) { j["fluid"]["domain"]["default"] = "wal"; },
+      {"fluid.domain.default: unknown boundary kind 'wal' (did you mean 'wall'?)"});
+  // Boxes and rectangles.
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["hi"][2] = 0; },
+                       {"scene.json: fluid.domain: lo must be < hi", "axis z"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["lo"][0] = 3; },
+                       {"fluid.domain: lo must be < hi", "axis x"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["hi"][1] = 0.5; },
+                       {"fluid.domain.patches[0]: lo must be < hi", "(x, z) of side -y"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["fluid"]["domain"]["patches"][0]["lo"] = json::array({0.2, 0.5, 0});
+      },
+      {"fluid.domain.patches[0].lo: expected an array of 2 numbers, got array [0.2,0.5,0]"});
+  check_fluid_rejected(
+      [](json& j) {
+        auto& p = j["fluid"]["domain"]["patches"][0];
+        p["lo"] = json::array({5, 0});
+        p["hi"] = json::array({6, 1});
+      },
+      {"fluid.domain.patches[0]: the rectangle [5, 0]..[6, 1] misses side -y of the fluid box",
+       "(x, z) [-0.5, 0]..[1.5, 2]"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"][1]["name"] = "jet"; },
+                       {"fluid.domain.patches[1].name: duplicate patch name 'jet'"});
+  check_fluid_rejected([](json& j) { j["fluid"]["domain"]["patches"] = json::object(); },
+                       {"fluid.domain.patches: expected an array"});
+  // Sizes.
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["surface_size"] = 0; },
+                       {"fluid.mesh.surface_size: must be > 0 (m), got 0"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["far_size"] = -0.2; },
+                       {"fluid.mesh.far_size: must be > 0 (m)"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["surface_size"] = 0.5; },
+                       {"fluid.mesh.surface_size: must be <= far_size (0.3 m), got 0.5 m"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["grading"] = 0; },
+                       {"fluid.mesh.grading: must be > 0"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["max_cells"] = -1; },
+                       {"fluid.mesh.max_cells: must be >= 0"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["max_cells"] = 2.5; },
+                       {"fluid.mesh.max_cells: expected an integer, got number 2.5"});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["surface_size"] = "nan"; },
+                       {"fluid.mesh.surface_size: expected a number, got string \"nan\""});
+  check_fluid_rejected([](json& j) { j["fluid"]["mesh"]["far_size"] = std::nan(""); },
+                       {"fluid.mesh.far_size: expected a finite number"});
+  check_fluid_rejected([](json& j) { j["fluid"] = 1; },
+                       {"scene.json: fluid: expected an object, got number 1"});
+
+  // Through --set, as a user types it: "nan" is not JSON, so it arrives as a string.
+  const TempDir dir;
+  const fs::path file = dir.write("scene.json", fluid_json().dump());
+  check_input_error([&] { load_scene(file, {"fluid.mesh.surface_size=nan"}); },
+                    {"fluid.mesh.surface_size: expected a number, got string \"nan\""});
+  CHECK(load_scene(file, {"fluid.mesh.far_size=0.5"}).fluid->sizing.far_size == 0.5);
+}
+
 TEST_CASE("the shipped scenes parse") {
-  for (const char* name : {"sheet_sag.json", "csm1.json"}) {
+  for (const char* name : {"sheet_sag.json", "csm1.json", "remesh_sheet.json"}) {
     INFO(name);
     const Scene s = load_scene(source_dir / "data" / "scenes" / name);
     CHECK_FALSE(s.bodies.empty());
@@ -451,6 +625,18 @@ TEST_CASE("the shipped scenes parse") {
   CHECK(csm.gravity == Vec3(0, -2, 0));
   CHECK(csm.bodies[0].material.youngs_modulus == 1.4e6);
   CHECK(csm.bodies[0].material.poisson_ratio == 0.4);
+  // remesh_sheet: sheet_sag's sheet, inside a fluid box with >= 0.2 m clearance around it.
+  const Scene rs = load_scene(source_dir / "data" / "scenes" / "remesh_sheet.json");
+  CHECK(rs.time.num_steps() == 240);
+  CHECK(rs.output.every == 4);
+  CHECK(rs.resolved["bodies"] == sag.resolved["bodies"]);
+  REQUIRE(rs.fluid);
+  const MatX3& X = build_world(rs).bodies[0].rest_positions();
+  const Vec3 lo = X.colwise().minCoeff().transpose(), hi = X.colwise().maxCoeff().transpose();
+  CHECK(((lo - rs.fluid->domain.lo).array() >= 0.2 - 1e-12).all());
+  CHECK(((rs.fluid->domain.hi - hi).array() >= 0.2 - 1e-12).all());
+  CHECK(rs.fluid->sizing.surface_size == 0.05);
+  CHECK(rs.fluid->sizing.far_size == 0.2);
 }
 
 // ---- build_world (needs mesh/ and solid/) ----
