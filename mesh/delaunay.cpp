@@ -1,0 +1,164 @@
+/// @file delaunay.cpp
+/// CGAL Delaunay_triangulation_3 with vertex ids, and the triangle intersection search
+/// (box_intersection_d + exact do_intersect). The remesher's only CGAL translation unit.
+#include "mesh/delaunay.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+#include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_cell_base_with_info_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+#include <CGAL/box_intersection_d.h>
+#include <CGAL/intersections.h>
+
+#include "core/error.hpp"
+
+namespace tetfsi::mesh {
+
+namespace {
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Vb = CGAL::Triangulation_vertex_base_with_info_3<int, K>;
+using Cb = CGAL::Triangulation_cell_base_with_info_3<int, K>;
+using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
+// Sequential: CGAL's parallel insertion measured slower on this machine (DESIGN.md §6).
+using DT = CGAL::Delaunay_triangulation_3<K, Tds>;
+using Point = K::Point_3;
+
+inline Point to_point(const Vec3& p) {
+  return Point(p.x(), p.y(), p.z());
+}
+
+[[noreturn]] void throw_duplicate(const std::vector<Vec3>& pts) {
+  std::vector<int> order(pts.size());
+  std::iota(order.begin(), order.end(), 0);
+  auto less = [&](int a, int b) {
+    return std::lexicographical_compare(pts[a].data(), pts[a].data() + 3, pts[b].data(),
+                                        pts[b].data() + 3);
+  };
+  std::sort(order.begin(), order.end(), less);
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    if (pts[order[i]] == pts[order[i - 1]]) {
+      const Vec3& p = pts[order[i]];
+      throw MeshError(fmt::format(
+          "delaunay: points {} and {} coincide at ({:.9g}, {:.9g}, {:.9g}); two vertices at one "
+          "position (touching or duplicated solid vertices): separate them",
+          std::min(order[i], order[i - 1]), std::max(order[i], order[i - 1]), p.x(), p.y(), p.z()));
+    }
+  }
+  throw InternalError("delaunay: fewer vertices than points but no duplicate found");
+}
+}  // namespace
+
+struct Delaunay::Impl {
+  DT dt;
+  std::vector<DT::Vertex_handle> handles;  ///< by id (null if absent)
+  DT::Cell_handle hint;
+};
+
+Delaunay::Delaunay() : m_impl(std::make_unique<Impl>()) {}
+Delaunay::~Delaunay() = default;
+
+void Delaunay::build(const std::vector<Vec3>& points) {
+  Impl& d = *m_impl;
+  d.dt.clear();
+  std::vector<std::pair<Point, int>> in;
+  in.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    in.emplace_back(to_point(points[i]), static_cast<int>(i));
+  d.dt.insert(in.begin(), in.end());  // spatial sort + hinted insertion
+  if (d.dt.number_of_vertices() != points.size()) throw_duplicate(points);
+  d.handles.assign(points.size(), DT::Vertex_handle());
+  for (auto v = d.dt.finite_vertices_begin(); v != d.dt.finite_vertices_end(); ++v)
+    d.handles[v->info()] = v;
+  d.hint = DT::Cell_handle();
+}
+
+void Delaunay::insert(const Vec3& p, int id) {
+  Impl& d = *m_impl;
+  const std::size_t before = d.dt.number_of_vertices();
+  DT::Vertex_handle v = d.dt.insert(to_point(p), d.hint);
+  if (d.dt.number_of_vertices() == before) {
+    throw MeshError(fmt::format(
+        "delaunay: point {} at ({:.9g}, {:.9g}, {:.9g}) coincides with vertex {}; separate them",
+        id, p.x(), p.y(), p.z(), v->info()));
+  }
+  v->info() = id;
+  if (static_cast<std::size_t>(id) >= d.handles.size()) d.handles.resize(id + 1);
+  d.handles[id] = v;
+  d.hint = v->cell();
+}
+
+void Delaunay::remove(int id) {
+  Impl& d = *m_impl;
+  if (id < 0 || static_cast<std::size_t>(id) >= d.handles.size() || d.handles[id] == nullptr)
+    return;
+  d.dt.remove(d.handles[id]);
+  d.handles[id] = DT::Vertex_handle();
+  d.hint = DT::Cell_handle();
+}
+
+Index Delaunay::num_vertices() const {
+  return static_cast<Index>(m_impl->dt.number_of_vertices());
+}
+Index Delaunay::num_finite_cells() const {
+  return static_cast<Index>(m_impl->dt.number_of_finite_cells());
+}
+
+void Delaunay::extract(MatX4i& tets, MatX4i& neighbours) const {
+  DT& dt = m_impl->dt;
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) c->info() = -1;
+  int n = 0;
+  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) c->info() = n++;
+  tets.resize(n, 4);
+  neighbours.resize(n, 4);
+  int t = 0;
+  // Cells of Triangulation_3 are positively oriented; neighbor(k) is opposite vertex(k).
+  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c, ++t) {
+    for (int k = 0; k < 4; ++k) {
+      tets(t, k) = c->vertex(k)->info();
+      neighbours(t, k) = c->neighbor(k)->info();
+    }
+  }
+}
+
+MatX4i delaunay_of(const std::vector<Vec3>& points) {
+  Delaunay d;
+  d.build(points);
+  MatX4i tets, nb;
+  d.extract(tets, nb);
+  return tets;
+}
+
+std::optional<std::pair<int, int>> find_intersecting_triangles(
+    const std::vector<TriangleRef>& triangles) {
+  using Box = CGAL::Box_intersection_d::Box_with_handle_d<double, 3, const TriangleRef*>;
+  std::vector<Box> boxes;
+  boxes.reserve(triangles.size());
+  for (const TriangleRef& t : triangles) {
+    CGAL::Bbox_3 b = to_point(t.p[0]).bbox() + to_point(t.p[1]).bbox() + to_point(t.p[2]).bbox();
+    boxes.emplace_back(b, &t);
+  }
+  std::optional<std::pair<int, int>> found;
+  const TriangleRef* base = triangles.data();
+  auto callback = [&](const Box& a, const Box& b) {
+    const TriangleRef& s = *a.handle();
+    const TriangleRef& t = *b.handle();
+    if (s.group == t.group) {
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          if (s.v[i] == t.v[j]) return;  // neighbours on one surface
+    }
+    const K::Triangle_3 ts(to_point(s.p[0]), to_point(s.p[1]), to_point(s.p[2]));
+    const K::Triangle_3 tt(to_point(t.p[0]), to_point(t.p[1]), to_point(t.p[2]));
+    if (!CGAL::do_intersect(ts, tt)) return;
+    int i = static_cast<int>(&s - base), j = static_cast<int>(&t - base);
+    if (i > j) std::swap(i, j);
+    if (!found || std::make_pair(i, j) < *found) found = std::make_pair(i, j);
+  };
+  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), callback);
+  return found;
+}
+
+}  // namespace tetfsi::mesh

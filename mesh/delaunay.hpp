@@ -1,0 +1,63 @@
+#pragma once
+/// @file delaunay.hpp
+/// The CGAL pieces of the remesher behind plain types (CGAL stays in delaunay.cpp): an
+/// incremental 3D Delaunay tetrahedralisation whose vertices carry caller ids, and the
+/// triangle–triangle intersection search used to reject bad solid geometry. Internal to
+/// tetfsi::mesh (remesh.cpp, the benchmark); the public entry point is remesh.hpp.
+#include <memory>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "core/types.hpp"
+
+namespace tetfsi::mesh {
+
+/// Delaunay_triangulation_3 (Epick: exact predicates, so the combinatorics are exactly
+/// Delaunay) with an integer id per vertex.
+class Delaunay {
+ public:
+  Delaunay();
+  ~Delaunay();
+  Delaunay(const Delaunay&) = delete;
+  Delaunay& operator=(const Delaunay&) = delete;
+
+  /// Insert points with ids 0..n−1 by range insertion (spatially sorted). Replaces any
+  /// previous content.
+  /// @throws MeshError naming both ids if two points coincide.
+  void build(const std::vector<Vec3>& points);
+  /// Insert one point with the given id (incremental, hinted by the last insertion).
+  /// @throws MeshError if it coincides with an existing vertex.
+  void insert(const Vec3& p, int id);
+  /// Remove the vertex with this id (no-op if absent).
+  void remove(int id);
+  Index num_vertices() const;
+  Index num_finite_cells() const;
+
+  /// Finite cells as ids (#T × 4, positively oriented) and, for local vertex k, the cell
+  /// index across the opposite face (−1 for the convex hull).
+  void extract(MatX4i& tets, MatX4i& neighbours) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m_impl;
+};
+
+/// Plain Delaunay tets of a point set with ids = row indices (the benchmark floor).
+MatX4i delaunay_of(const std::vector<Vec3>& points);
+
+/// A triangle for the intersection search: corner positions, the group it belongs to
+/// (body) and the corner vertex ids within the group.
+struct TriangleRef {
+  Vec3 p[3];
+  int group = 0;
+  int v[3] = {0, 0, 0};
+};
+
+/// The first pair (i, j), i < j, of triangles that intersect, skipping pairs of the same
+/// group that share a vertex id (neighbours on one surface). Exact predicates. Boxes of the
+/// triangles are intersected first (CGAL box_intersection_d).
+std::optional<std::pair<int, int>> find_intersecting_triangles(
+    const std::vector<TriangleRef>& triangles);
+
+}  // namespace tetfsi::mesh
