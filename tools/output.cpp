@@ -16,13 +16,16 @@
 #include <vtkOutputWindow.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
+#include <vtkPolyData.h>
 #include <vtkTypeInt32Array.h>
 #include <vtkUnsignedCharArray.h>
 #include <vtkUnstructuredGrid.h>
+#include <vtkXMLPolyDataWriter.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "mesh/quality.hpp"
 #include "solid/world.hpp"
 #include "tools/scene.hpp"
 
@@ -104,7 +107,7 @@ vtkNew<vtkDoubleArray> vector_array(const char* name, const double* data, Index 
   a->SetName(name);
   a->SetNumberOfComponents(3);
   a->SetNumberOfTuples(n);
-  std::memcpy(a->GetPointer(0), data, sizeof(double) * 3 * static_cast<size_t>(n));
+  if (n > 0) std::memcpy(a->GetPointer(0), data, sizeof(double) * 3 * static_cast<size_t>(n));
   return a;
 }
 
@@ -113,8 +116,39 @@ vtkNew<vtkDoubleArray> scalar_array(const char* name, const VecX& v) {
   a->SetName(name);
   a->SetNumberOfComponents(1);
   a->SetNumberOfTuples(v.size());
-  std::memcpy(a->GetPointer(0), v.data(), sizeof(double) * static_cast<size_t>(v.size()));
+  if (v.size() > 0)
+    std::memcpy(a->GetPointer(0), v.data(), sizeof(double) * static_cast<size_t>(v.size()));
   return a;
+}
+
+/// An Int32 array copied from a vector of Index.
+vtkNew<vtkTypeInt32Array> int_array(const char* name, const VecXi& v) {
+  static_assert(sizeof(Index) == sizeof(vtkTypeInt32), "Index must be 32-bit");
+  vtkNew<vtkTypeInt32Array> a;
+  a->SetName(name);
+  a->SetNumberOfComponents(1);
+  a->SetNumberOfTuples(v.size());
+  if (v.size() > 0)
+    std::memcpy(a->GetPointer(0), v.data(), sizeof(Index) * static_cast<size_t>(v.size()));
+  return a;
+}
+
+/// Cells of `per_cell` points each from n × per_cell row-major indices, as offsets +
+/// connectivity stored (and written) as Int32, which is what Index is: the indices are
+/// copied in one block and the files are ~20% smaller than with VTK's default 64-bit ids.
+vtkNew<vtkCellArray> int32_cells(const Index* indices, Index n, int per_cell) {
+  static_assert(sizeof(Index) == sizeof(vtkTypeInt32), "Index must be 32-bit");
+  vtkNew<vtkTypeInt32Array> offsets;
+  offsets->SetNumberOfValues(n + 1);
+  for (Index c = 0; c <= n; ++c) offsets->SetValue(c, per_cell * c);
+  vtkNew<vtkTypeInt32Array> connectivity;
+  connectivity->SetNumberOfValues(per_cell * static_cast<vtkIdType>(n));
+  if (n > 0)
+    std::memcpy(connectivity->GetPointer(0), indices,
+                sizeof(Index) * static_cast<size_t>(per_cell) * static_cast<size_t>(n));
+  vtkNew<vtkCellArray> cells;
+  cells->SetData(offsets, connectivity);
+  return cells;
 }
 
 fs::path tmp_path(const fs::path& p) {
@@ -131,6 +165,43 @@ void rename_into_place(const fs::path& from, const fs::path& to) {
     throw InputError(
         fmt::format("cannot write '{}': rename failed: {}", to.string(), ec.message()));
   }
+}
+
+/// Write `data` with `writer` as appended raw binary (UInt64 headers, `compression`) to
+/// `<path>.tmp`, then rename it to `path`.
+/// @throws InputError naming `path` with VTK's reason on one line.
+void write_xml_atomic(vtkXMLWriter* writer, vtkDataObject* data, const fs::path& path,
+                      Compression compression) {
+  const fs::path tmp = tmp_path(path);
+  vtkNew<ErrorCollector> errors;
+  writer->AddObserver(vtkCommand::ErrorEvent, errors);
+  writer->SetInputData(data);
+  writer->SetFileName(tmp.c_str());
+  writer->SetDataModeToAppended();
+  writer->EncodeAppendedDataOff();  // raw binary
+  writer->SetHeaderTypeToUInt64();
+  switch (compression) {
+    case Compression::None:
+      writer->SetCompressorTypeToNone();
+      break;
+    case Compression::LZ4:
+      writer->SetCompressorTypeToLZ4();
+      writer->SetCompressionLevel(1);
+      break;
+    case Compression::ZLib:
+      writer->SetCompressorTypeToZLib();
+      writer->SetCompressionLevel(1);
+      break;
+  }
+  const int ok = writer->Write();
+  if (!ok || writer->GetErrorCode() != vtkErrorCode::NoError) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    std::string why = errors->message.empty() ? vtk_error_text(writer->GetErrorCode())
+                                              : short_vtk_message(errors->message);
+    throw InputError(fmt::format("cannot write '{}': {}", path.string(), why));
+  }
+  rename_into_place(tmp, path);
 }
 
 /// Escape the five XML special characters for an attribute value.
@@ -225,20 +296,8 @@ void write_body_vtu(const fs::path& path, const solid::SolidBody& body, const Ve
   points->SetData(vector_array("Points", x.data(), nv));
   grid->SetPoints(points);
 
-  // Cells: VTK_TETRA from offsets + connectivity, stored (and written) as Int32, which is
-  // what Index is: the tets are copied in one block and the files are ~20% smaller than
-  // with VTK's default 64-bit ids.
-  static_assert(sizeof(Index) == sizeof(vtkTypeInt32), "Index must be 32-bit");
-  vtkNew<vtkTypeInt32Array> offsets;
-  offsets->SetNumberOfValues(nt + 1);
-  for (Index t = 0; t <= nt; ++t) offsets->SetValue(t, 4 * t);
-  vtkNew<vtkTypeInt32Array> connectivity;
-  connectivity->SetNumberOfValues(4 * static_cast<vtkIdType>(nt));
-  std::memcpy(connectivity->GetPointer(0), body.tets().data(),
-              sizeof(Index) * 4 * static_cast<size_t>(nt));
-  vtkNew<vtkCellArray> cells;
-  cells->SetData(offsets, connectivity);
-  grid->SetCells(VTK_TETRA, cells);
+  // Cells: VTK_TETRA, Int32 offsets + connectivity.
+  grid->SetCells(VTK_TETRA, int32_cells(body.tets().data(), nt, 4));
 
   // Point data.
   vtkPointData* pd = grid->GetPointData();
@@ -266,38 +325,111 @@ void write_body_vtu(const fs::path& path, const solid::SolidBody& body, const Ve
   cd->AddArray(scalar_array("von_mises_stress", fields.von_mises_stress));
   cd->AddArray(scalar_array("volume_ratio", fields.volume_ratio));
 
-  // Write to a temporary name, then rename into place.
-  const fs::path tmp = tmp_path(path);
   vtkNew<vtkXMLUnstructuredGridWriter> writer;
-  vtkNew<ErrorCollector> errors;
-  writer->AddObserver(vtkCommand::ErrorEvent, errors);
-  writer->SetInputData(grid);
-  writer->SetFileName(tmp.c_str());
-  writer->SetDataModeToAppended();
-  writer->EncodeAppendedDataOff();  // raw binary
-  writer->SetHeaderTypeToUInt64();
-  switch (compression) {
-    case Compression::None:
-      writer->SetCompressorTypeToNone();
-      break;
-    case Compression::LZ4:
-      writer->SetCompressorTypeToLZ4();
-      writer->SetCompressionLevel(1);
-      break;
-    case Compression::ZLib:
-      writer->SetCompressorTypeToZLib();
-      writer->SetCompressionLevel(1);
-      break;
+  write_xml_atomic(writer, grid, path, compression);
+}
+
+// ---- fluid mesh and interface ----------------------------------------------------------
+
+void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression compression) {
+  install_vtk_output_window();
+  const Index nv = m.num_vertices();
+  const Index nt = m.num_tets();
+  TETFSI_CHECK(m.volumes.size() == nt, "fluid mesh: {} volumes for {} tets", m.volumes.size(), nt);
+  TETFSI_CHECK(m.vertex_body.size() == nv, "fluid mesh: {} vertex_body entries for {} vertices",
+               m.vertex_body.size(), nv);
+
+  vtkNew<vtkUnstructuredGrid> grid;
+  vtkNew<vtkPoints> points;
+  points->SetData(vector_array("Points", m.vertices.data(), nv));
+  grid->SetPoints(points);
+  grid->SetCells(VTK_TETRA, int32_cells(m.tets.data(), nt, 4));
+
+  grid->GetPointData()->AddArray(int_array("vertex_body", m.vertex_body));
+
+  const mesh::TetQuality q = mesh::tet_quality(m.vertices, m.tets);
+  vtkCellData* cd = grid->GetCellData();
+  cd->AddArray(scalar_array("volume", m.volumes));
+  cd->AddArray(scalar_array("q_min_dihedral_deg", q.min_dihedral_deg));
+  cd->AddArray(scalar_array("q_max_dihedral_deg", q.max_dihedral_deg));
+  cd->AddArray(scalar_array("q_radius_edge", q.radius_edge));
+  cd->AddArray(scalar_array("q_shape", q.shape));
+  vtkNew<vtkUnsignedCharArray> touches;
+  touches->SetName("touches_solid");
+  touches->SetNumberOfComponents(1);
+  touches->SetNumberOfTuples(nt);
+  for (Index t = 0; t < nt; ++t) {
+    bool any = false;
+    for (int k = 0; k < 4; ++k) any = any || m.vertex_body[m.tets(t, k)] >= 0;
+    touches->SetValue(t, any ? 1 : 0);
   }
-  const int ok = writer->Write();
-  if (!ok || writer->GetErrorCode() != vtkErrorCode::NoError) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    std::string why = errors->message.empty() ? vtk_error_text(writer->GetErrorCode())
-                                              : short_vtk_message(errors->message);
-    throw InputError(fmt::format("cannot write '{}': {}", path.string(), why));
+  cd->AddArray(touches);
+
+  vtkNew<vtkXMLUnstructuredGridWriter> writer;
+  write_xml_atomic(writer, grid, path, compression);
+}
+
+void write_interface_vtp(const fs::path& path, const mesh::TetMesh& m, Compression compression) {
+  install_vtk_output_window();
+  const Index nf = m.num_faces();
+  TETFSI_CHECK(m.face_kind.size() == static_cast<size_t>(nf),
+               "fluid mesh: {} face kinds for {} faces", m.face_kind.size(), nf);
+
+  // The Solid faces, and their vertices numbered in order of first use.
+  std::vector<Index> faces;
+  for (Index f = 0; f < nf; ++f)
+    if (m.face_kind[static_cast<size_t>(f)] == mesh::FaceKind::Solid) faces.push_back(f);
+  const Index n = static_cast<Index>(faces.size());
+  VecXi local = VecXi::Constant(m.num_vertices(), -1);
+  std::vector<Index> used;  // local point → fluid vertex
+  MatX3i tris(n, 3);
+  for (Index i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const Index v = m.faces(faces[static_cast<size_t>(i)], k);
+      if (local[v] < 0) {
+        local[v] = static_cast<Index>(used.size());
+        used.push_back(v);
+      }
+      tris(i, k) = local[v];
+    }
   }
-  rename_into_place(tmp, path);
+  const Index np = static_cast<Index>(used.size());
+  MatX3 x(np, 3);
+  VecXi fluid_vertex(np);
+  for (Index p = 0; p < np; ++p) {
+    x.row(p) = m.vertices.row(used[static_cast<size_t>(p)]);
+    fluid_vertex[p] = used[static_cast<size_t>(p)];
+  }
+
+  VecXi body(n), triangle(n);
+  VecX area(n), dual(n);
+  MatX3 normal(n, 3), bary(n, 3);
+  for (Index i = 0; i < n; ++i) {
+    const Index f = faces[static_cast<size_t>(i)];
+    body[i] = m.face_body[f];
+    triangle[i] = m.face_triangle[f];
+    area[i] = m.face_areas[f];
+    dual[i] = m.dual_lengths[f];
+    normal.row(i) = m.face_normals.row(f);
+    bary.row(i) = m.face_bary.row(f);
+  }
+
+  vtkNew<vtkPolyData> poly;
+  vtkNew<vtkPoints> points;
+  points->SetData(vector_array("Points", x.data(), np));
+  poly->SetPoints(points);
+  poly->SetPolys(int32_cells(tris.data(), n, 3));
+  poly->GetPointData()->AddArray(int_array("fluid_vertex", fluid_vertex));
+  vtkCellData* cd = poly->GetCellData();
+  cd->AddArray(int_array("body", body));
+  cd->AddArray(int_array("triangle", triangle));
+  cd->AddArray(scalar_array("area", area));
+  cd->AddArray(scalar_array("dual_length", dual));
+  cd->AddArray(vector_array("normal", normal.data(), n));
+  cd->AddArray(vector_array("bary", bary.data(), n));
+
+  vtkNew<vtkXMLPolyDataWriter> writer;
+  write_xml_atomic(writer, poly, path, compression);
 }
 
 // ---- .pvd ----------------------------------------------------------------------------------
@@ -324,29 +456,51 @@ void PvdWriter::add(double time, const std::string& relative_file) {
 
 // ---- stats.csv -----------------------------------------------------------------------------
 
-const std::vector<std::string>& StatsWriter::phase_columns() {
+const std::vector<std::string>& StatsWriter::phase_columns(bool fluid) {
   static const std::vector<std::string> p = {"assemble", "solve", "update", "output", "total"};
-  return p;
+  static const std::vector<std::string> pf = {"assemble", "solve",  "update",
+                                              "remesh",   "output", "total"};
+  return fluid ? pf : p;
 }
 
-const std::vector<std::string>& StatsWriter::columns() {
-  static const std::vector<std::string> c = [] {
-    std::vector<std::string> v = {"step", "time", "dt"};
-    for (const auto& p : phase_columns()) v.push_back(p);
-    for (const char* s : {"solver_iterations", "solver_residual", "contacts", "kinetic_energy",
-                          "elastic_energy", "gravity_potential", "total_energy"})
+namespace {
+
+std::vector<std::string> make_columns(bool fluid) {
+  std::vector<std::string> v = {"step", "time", "dt"};
+  for (const auto& p : StatsWriter::phase_columns(fluid)) v.push_back(p);
+  for (const char* s : {"solver_iterations", "solver_residual", "contacts", "kinetic_energy",
+                        "elastic_energy", "gravity_potential", "total_energy"})
+    v.emplace_back(s);
+  if (fluid) {
+    for (const char* s :
+         {"fluid_cells", "fluid_vertices", "steiner_points", "recovery_rounds", "remesh_s"})
       v.emplace_back(s);
-    return v;
-  }();
-  return c;
+    for (const auto& [name, value] : mesh::quality_columns(mesh::QualitySummary{}))
+      v.push_back(name);
+  }
+  return v;
 }
 
-StatsWriter::StatsWriter(const fs::path& path) : m_path(path) {
+/// Number of quality columns (mesh::quality_columns has a fixed length).
+size_t num_quality_columns() {
+  static const size_t n = mesh::quality_columns(mesh::QualitySummary{}).size();
+  return n;
+}
+
+}  // namespace
+
+const std::vector<std::string>& StatsWriter::columns(bool fluid) {
+  static const std::vector<std::string> c = make_columns(false);
+  static const std::vector<std::string> cf = make_columns(true);
+  return fluid ? cf : c;
+}
+
+StatsWriter::StatsWriter(const fs::path& path, bool fluid) : m_path(path), m_fluid(fluid) {
   m_file = std::fopen(path.c_str(), "w");
   if (!m_file)
     throw InputError(fmt::format("cannot write '{}': {}", path.string(), std::strerror(errno)));
   std::string header;
-  for (const auto& c : columns()) {
+  for (const auto& c : columns(fluid)) {
     if (!header.empty()) header += ',';
     header += c;
   }
@@ -361,10 +515,24 @@ StatsWriter::~StatsWriter() {
 
 void StatsWriter::write(const StepStats& r) {
   std::string line = fmt::format("{},{:.17g},{:.17g}", r.step, r.time, r.dt);
-  for (const auto& p : phase_columns()) line += fmt::format(",{:.6g}", r.phases.get(p));
-  line += fmt::format(",{},{:.17g},{},{:.17g},{:.17g},{:.17g},{:.17g}\n", r.solver_iterations,
+  for (const auto& p : phase_columns(m_fluid)) line += fmt::format(",{:.6g}", r.phases.get(p));
+  line += fmt::format(",{},{:.17g},{},{:.17g},{:.17g},{:.17g},{:.17g}", r.solver_iterations,
                       r.solver_residual, r.contacts, r.kinetic_energy, r.elastic_energy,
                       r.gravity_potential, r.total_energy());
+  if (m_fluid) {
+    const size_t nq = num_quality_columns();
+    if (r.fluid) {
+      const FluidStepStats& f = *r.fluid;
+      TETFSI_CHECK(f.quality.size() == nq, "stats row has {} quality columns, expected {}",
+                   f.quality.size(), nq);
+      line += fmt::format(",{},{},{},{},{:.6g}", f.cells, f.vertices, f.steiner_points,
+                          f.recovery_rounds, f.remesh_s);
+      for (const auto& [name, value] : f.quality) line += fmt::format(",{:.17g}", value);
+    } else {
+      for (size_t k = 0; k < 5 + nq; ++k) line += ",nan";
+    }
+  }
+  line += '\n';
   if (std::fputs(line.c_str(), m_file) < 0 || std::fflush(m_file) != 0)
     throw InputError(fmt::format("cannot write '{}': {}", m_path.string(), std::strerror(errno)));
 }
@@ -396,7 +564,7 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
                            const solid::SolidWorld& world)
     : m_out(prepare_out_dir(out_dir)),
       m_compression(parse_compression(scene.output.compression)),
-      m_stats(m_out / "stats.csv") {
+      m_stats(m_out / "stats.csv", scene.fluid.has_value()) {
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
@@ -416,9 +584,30 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
     m_pvd.emplace_back(m_out / (name + ".pvd"));
     m_file_names.push_back(std::move(name));
   }
+  if (scene.fluid) {
+    for (size_t i = 0; i < m_file_names.size(); ++i) {
+      for (const char* stream : {"fluid", "interface"}) {
+        if (m_file_names[i] == stream)
+          throw InputError(fmt::format(
+              "body '{}' would be written to '{}.pvd', which holds the {} mesh in a scene with "
+              "a fluid: rename the body",
+              world.bodies[i].name(), stream, stream));
+      }
+    }
+    for (const char* stream : {"fluid", "interface"}) {
+      std::error_code ec;
+      fs::create_directories(m_out / stream, ec);
+      if (ec)
+        throw InputError(fmt::format("cannot create output folder '{}': {}",
+                                     (m_out / stream).string(), ec.message()));
+    }
+    m_fluid_pvd.emplace(m_out / "fluid.pvd");
+    m_interface_pvd.emplace(m_out / "interface.pvd");
+  }
 }
 
-void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time) {
+void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
+                               const mesh::TetMesh* fluid) {
   TETFSI_CHECK(world.bodies.size() == m_pvd.size(), "world has {} bodies, output has {}",
                world.bodies.size(), m_pvd.size());
   for (size_t i = 0; i < world.bodies.size(); ++i) {
@@ -426,6 +615,14 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
     const std::string rel = fmt::format("{}/{}_{:06d}.vtu", name, name, step);
     write_body_vtu(m_out / rel, world.bodies[i], world.gravity, m_compression);
     m_pvd[i].add(time, rel);
+  }
+  if (m_fluid_pvd && fluid) {
+    const std::string rel = fmt::format("fluid/fluid_{:06d}.vtu", step);
+    write_fluid_vtu(m_out / rel, *fluid, m_compression);
+    m_fluid_pvd->add(time, rel);
+    const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
+    write_interface_vtp(m_out / rel_i, *fluid, m_compression);
+    m_interface_pvd->add(time, rel_i);
   }
   ++m_frames;
 }

@@ -2,12 +2,17 @@
 /// @file output.hpp
 /// Simulation output for ParaView: one `.vtu` per body and frame, a `.pvd` collection per
 /// body that lists the frames with their times, and a `stats.csv` with one row per step.
+/// A scene with a fluid also gets the fluid mesh and its solid-interface faces per frame.
 ///
 /// Layout of an output folder `OUT` (all of it written by `OutputWriter`):
 /// ```
 /// OUT/scene.resolved.json          the scene with every default filled in
 /// OUT/<body>.pvd                   collection: (time, file) per frame, open this in ParaView
 /// OUT/<body>/<body>_<step>.vtu     frames (step number, 6 digits)
+/// OUT/fluid.pvd                    fluid scenes: the fluid mesh of each frame
+/// OUT/fluid/fluid_<step>.vtu         (write_fluid_vtu)
+/// OUT/interface.pvd                fluid scenes: the fluid faces on the solids of each frame
+/// OUT/interface/interface_<step>.vtp (write_interface_vtp)
 /// OUT/stats.csv                    one row per step (see StatsWriter::columns())
 /// OUT/summary.json                 written by the run loop at the end (tools/run.hpp)
 /// ```
@@ -19,11 +24,14 @@
 /// VTK stays inside output.cpp; this header only sees plain types.
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/timer.hpp"
 #include "core/types.hpp"
+#include "mesh/tet_mesh.hpp"
 #include "solid/solid_body.hpp"
 
 namespace tetfsi::solid {
@@ -57,6 +65,38 @@ std::string to_string(Compression c);
 /// @throws InputError naming the file if it cannot be written.
 void write_body_vtu(const std::filesystem::path& path, const solid::SolidBody& body,
                     const Vec3& gravity, Compression compression);
+
+/// Write a fluid mesh as an XML unstructured grid (appended raw binary), for watching the
+/// dynamic mesh and its quality in ParaView.
+///
+/// Points are TetMesh::vertices (m); cells are its tets as VTK_TETRA, in order. Cell data
+/// (Float64 unless noted): `volume` V_t (m³, TetMesh::volumes), and the figures of
+/// mesh::tet_quality: `q_min_dihedral_deg`, `q_max_dihedral_deg` (degrees), `q_radius_edge`
+/// (circumradius / shortest edge), `q_shape` (1 regular, → 0 flat); `touches_solid` (UInt8:
+/// 1 if any of the tet's vertices lies on a solid surface, TetMesh::vertex_body ≥ 0).
+/// Point data: `vertex_body` (Int32: the body whose surface the vertex lies on, −1 for fluid
+/// samples).
+///
+/// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
+/// @throws InputError naming the file if it cannot be written.
+void write_fluid_vtu(const std::filesystem::path& path, const mesh::TetMesh& fluid,
+                     Compression compression);
+
+/// Write the solid-interface faces of a fluid mesh (TetMesh::face_kind == FaceKind::Solid)
+/// as an XML poly data file of triangles (appended raw binary), in face order.
+///
+/// Points are the vertices these faces use, numbered in order of first use (m). Each
+/// triangle keeps the face's stored vertex order, so its right-hand normal is n_f (from the
+/// fluid into the solid). Cell data: `body` (Int32, TetMesh::face_body), `triangle` (Int32:
+/// the triangle of that body's SolidSurface, TetMesh::face_triangle), `area` (m²),
+/// `dual_length` d_f (m), `normal` n_f (3 components), `bary` (3 components: barycentric
+/// weights of the face centroid on that triangle). Point data: `fluid_vertex` (Int32: the
+/// point's index in the fluid mesh). A mesh without solid faces gives an empty, valid file.
+///
+/// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
+/// @throws InputError naming the file if it cannot be written.
+void write_interface_vtp(const std::filesystem::path& path, const mesh::TetMesh& fluid,
+                         Compression compression);
 
 /// Write `text` to `path` atomically: `<path>.tmp`, flush, close, rename over `path`.
 /// @throws InputError naming the file if it cannot be written.
@@ -99,18 +139,31 @@ class PvdWriter {
   std::vector<PvdEntry> m_entries;
 };
 
+/// The fluid part of a stats.csv row: the mesh built after the step.
+struct FluidStepStats {
+  Index cells = 0;           ///< fluid tets
+  Index vertices = 0;        ///< fluid mesh vertices
+  Index steiner_points = 0;  ///< RemeshReport::steiner_points
+  int recovery_rounds = 0;   ///< RemeshReport::recovery_rounds
+  double remesh_s = 0.0;     ///< RemeshReport::seconds_total (s)
+  /// mesh::quality_columns(mesh::summarize_quality(mesh)): (name, value) in that fixed order.
+  std::vector<std::pair<std::string, double>> quality;
+};
+
 /// One row of stats.csv.
 struct StepStats {
   int step = 0;       ///< step number, 1-based (0 would be the initial state)
   double time = 0.0;  ///< s, time at the end of the step
   double dt = 0.0;    ///< s
-  PhaseTimes phases;  ///< seconds per phase; columns assemble, solve, update, output, total
+  PhaseTimes phases;  ///< seconds per phase; columns as StatsWriter::phase_columns()
   int solver_iterations = 0;
   double solver_residual = 0.0;
   Index contacts = 0;
   double kinetic_energy = 0.0;     ///< J, summed over bodies
   double elastic_energy = 0.0;     ///< J
   double gravity_potential = 0.0;  ///< J, −Σ m g·x
+  /// Fluid scenes: figures of the fluid mesh (a row without them writes "nan" there).
+  std::optional<FluidStepStats> fluid;
   /// kinetic + elastic + gravity potential (J); the work of applied loads is not included.
   double total_energy() const { return kinetic_energy + elastic_energy + gravity_potential; }
 };
@@ -120,42 +173,54 @@ struct StepStats {
 class StatsWriter {
  public:
   /// Creates (truncates) the file and writes the header.
+  /// @param fluid write the fluid columns too (columns(true))
   /// @throws InputError naming the file if it cannot be opened.
-  explicit StatsWriter(const std::filesystem::path& path);
+  explicit StatsWriter(const std::filesystem::path& path, bool fluid = false);
   ~StatsWriter();
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
 
   void write(const StepStats& row);
 
-  /// The column names in order: step, time, dt, the phases of `phase_columns()`,
+  /// The column names in order: step, time, dt, the phases of `phase_columns(fluid)`,
   /// solver_iterations, solver_residual, contacts, kinetic_energy, elastic_energy,
-  /// gravity_potential, total_energy.
-  static const std::vector<std::string>& columns();
-  /// The timed phases that get a column (seconds): assemble, solve, update, output, total.
-  static const std::vector<std::string>& phase_columns();
+  /// gravity_potential, total_energy; with `fluid` then fluid_cells, fluid_vertices,
+  /// steiner_points, recovery_rounds, remesh_s and the names of mesh::quality_columns
+  /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...).
+  static const std::vector<std::string>& columns(bool fluid = false);
+  /// The timed phases that get a column (seconds): assemble, solve, update, output, total;
+  /// with `fluid`, remesh (building the solid surfaces and the fluid mesh) after update.
+  static const std::vector<std::string>& phase_columns(bool fluid = false);
+
+  bool has_fluid() const { return m_fluid; }
 
  private:
   std::filesystem::path m_path;
   std::FILE* m_file = nullptr;
+  bool m_fluid = false;
 };
 
 /// Owns the output folder of one run: writes scene.resolved.json, the frames and their
 /// `.pvd` collections, and stats.csv.
 class OutputWriter {
  public:
-  /// Creates `out_dir` (and parents) and one subfolder per body, writes
-  /// `scene.resolved.json` and starts `stats.csv`. If the folder holds an earlier run
+  /// Creates `out_dir` (and parents) and one subfolder per body (and `fluid/`, `interface/`
+  /// if the scene has a fluid), writes `scene.resolved.json` and starts `stats.csv` (with
+  /// the fluid columns if the scene has a fluid). If the folder holds an earlier run
   /// (a stats.csv, summary.json or scene.resolved.json), logs a warning: our files are
   /// overwritten, nothing else is touched or deleted.
-  /// @throws InputError if the folder cannot be created or written, or if two body names map
-  ///   to the same file name.
+  /// @throws InputError if the folder cannot be created or written, if two body names map
+  ///   to the same file name, or if a body's file name is "fluid" or "interface" in a scene
+  ///   with a fluid.
   OutputWriter(const std::filesystem::path& out_dir, const Scene& scene,
                const solid::SolidWorld& world);
 
   /// Write one `.vtu` per body for the world's current state, labelled `step` (file name)
-  /// and `time` (in the `.pvd`), and update every `.pvd`.
-  void write_frame(const solid::SolidWorld& world, int step, double time);
+  /// and `time` (in the `.pvd`), and update every `.pvd`. In a fluid scene, also the fluid
+  /// mesh and its interface faces (fluid.pvd, interface.pvd) if `fluid` is given; without it
+  /// (no mesh could be built) the frame has bodies only.
+  void write_frame(const solid::SolidWorld& world, int step, double time,
+                   const mesh::TetMesh* fluid = nullptr);
   /// Append a row to stats.csv.
   void write_stats(const StepStats& row) { m_stats.write(row); }
   /// Write `summary.json` (pretty JSON text, atomically).
@@ -166,12 +231,16 @@ class OutputWriter {
   Compression compression() const { return m_compression; }
   /// The `.pvd` of each body, in body order.
   std::vector<std::filesystem::path> pvd_paths() const;
+  /// True if the scene has a fluid (fluid.pvd, interface.pvd and the fluid stats columns).
+  bool has_fluid() const { return m_fluid_pvd.has_value(); }
 
  private:
   std::filesystem::path m_out;
   Compression m_compression;
-  std::vector<std::string> m_file_names;  ///< per body: file-system safe name
-  std::vector<PvdWriter> m_pvd;           ///< per body
+  std::vector<std::string> m_file_names;     ///< per body: file-system safe name
+  std::vector<PvdWriter> m_pvd;              ///< per body
+  std::optional<PvdWriter> m_fluid_pvd;      ///< fluid scenes: OUT/fluid.pvd
+  std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
   StatsWriter m_stats;
   int m_frames = 0;
 };

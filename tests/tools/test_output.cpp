@@ -10,19 +10,24 @@
 #include <string>
 #include <vector>
 
+#include <vtkCellArray.h>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
+#include <vtkPolyData.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLDataElement.h>
 #include <vtkXMLDataParser.h>
+#include <vtkXMLPolyDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
 #include "mesh/generate.hpp"
+#include "mesh/quality.hpp"
+#include "mesh/tet_mesh.hpp"
 #include "solid/world.hpp"
 #include "tools/output.hpp"
 #include "tools/scene.hpp"
@@ -76,6 +81,49 @@ vtkSmartPointer<vtkUnstructuredGrid> read_vtu(const fs::path& p) {
   vtkSmartPointer<vtkUnstructuredGrid> g = r->GetOutput();
   REQUIRE(g != nullptr);
   return g;
+}
+
+/// A fluid mesh of the box [0, 1] × [0, 1] × [0, 0.5] (2 × 2 × 2 cells, 48 tets, 27 vertices)
+/// whose bottom faces (z = 0, 8 triangles of total area 1 m²) are made Solid faces of body 1
+/// by hand, as the remesher would tag them; their vertices get vertex_body = 1. One vertex is
+/// moved off the lattice so the quality fields vary from tet to tet.
+mesh::TetMesh make_fluid_mesh() {
+  mesh::VolumeMesh box = mesh::make_box(Vec3(0, 0, 0), Vec3(1, 1, 0.5), Vec3i(2, 2, 2));
+  box.vertices.row(13) += Vec3(0.05, -0.03, 0.02).transpose();  // the centre vertex
+  mesh::TetMesh m = mesh::build_tet_mesh(box.vertices, box.tets);
+  Index k = 0;
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    if (!m.is_boundary(f) || std::abs(m.face_centroids(f, 2)) > 1e-12) continue;
+    m.face_kind[static_cast<size_t>(f)] = mesh::FaceKind::Solid;
+    m.face_body[f] = 1;
+    m.face_triangle[f] = 10 + k;
+    m.face_bary.row(f) = Vec3(0.2, 0.3, 0.5).transpose() + Vec3(0.01, -0.01, 0.0).transpose() * k;
+    for (int c = 0; c < 3; ++c) m.vertex_body[m.faces(f, c)] = 1;
+    ++k;
+  }
+  REQUIRE(k == 8);
+  return m;
+}
+
+/// Read a .vtp with VTK's reader; fails the test if the reader reports an error.
+vtkSmartPointer<vtkPolyData> read_vtp(const fs::path& p) {
+  vtkNew<vtkXMLPolyDataReader> r;
+  r->SetFileName(p.c_str());
+  r->Update();
+  REQUIRE(r->GetErrorCode() == 0);
+  vtkSmartPointer<vtkPolyData> g = r->GetOutput();
+  REQUIRE(g != nullptr);
+  return g;
+}
+
+/// Max |a − b| between a 1-component VTK array and `v`.
+double max_diff(vtkDataArray* a, const VecX& v) {
+  REQUIRE(a != nullptr);
+  REQUIRE(a->GetNumberOfComponents() == 1);
+  REQUIRE(a->GetNumberOfTuples() == v.size());
+  double m = 0.0;
+  for (Index i = 0; i < v.size(); ++i) m = std::max(m, std::abs(a->GetComponent(i, 0) - v[i]));
+  return m;
 }
 
 /// Max |a − b| between a 3-component VTK array and n × 3 row-major data.
@@ -249,6 +297,162 @@ TEST_CASE("write_body_vtu: an unwritable path is one InputError naming the file"
   }
 }
 
+TEST_CASE("write_fluid_vtu: points, tets, volume, quality, touches_solid and vertex_body") {
+  TempDir dir("fluid_vtu");
+  const mesh::TetMesh m = make_fluid_mesh();
+  const mesh::TetQuality q = mesh::tet_quality(m.vertices, m.tets);
+  const Index nv = m.num_vertices(), nt = m.num_tets();
+  for (const char* name : {"lz4", "zlib", "none"}) {
+    CAPTURE(name);
+    const fs::path p = dir.path / fmt::format("fluid_{}.vtu", name);
+    write_fluid_vtu(p, m, parse_compression(name));
+    CHECK(!has_tmp_files(dir.path));
+    auto grid = read_vtu(p);
+    REQUIRE(grid->GetNumberOfPoints() == nv);
+    REQUIRE(grid->GetNumberOfCells() == nt);
+    double dx = 0.0;
+    for (Index i = 0; i < nv; ++i) {
+      double x[3];
+      grid->GetPoint(i, x);
+      for (int k = 0; k < 3; ++k) dx = std::max(dx, std::abs(x[k] - m.vertices(i, k)));
+    }
+    CHECK(dx == 0.0);
+    bool cells_ok = true;
+    for (Index t = 0; t < nt; ++t) {
+      cells_ok = cells_ok && grid->GetCellType(t) == VTK_TETRA;
+      vtkIdType npts = 0;
+      const vtkIdType* pts = nullptr;
+      grid->GetCellPoints(t, npts, pts);
+      cells_ok = cells_ok && npts == 4;
+      for (int k = 0; k < 4 && cells_ok; ++k) cells_ok = pts[k] == m.tets(t, k);
+    }
+    CHECK(cells_ok);
+
+    vtkCellData* cd = grid->GetCellData();
+    CHECK(max_diff(cd->GetArray("volume"), m.volumes) == 0.0);
+    CHECK(max_diff(cd->GetArray("q_min_dihedral_deg"), q.min_dihedral_deg) == 0.0);
+    CHECK(max_diff(cd->GetArray("q_max_dihedral_deg"), q.max_dihedral_deg) == 0.0);
+    CHECK(max_diff(cd->GetArray("q_radius_edge"), q.radius_edge) == 0.0);
+    CHECK(max_diff(cd->GetArray("q_shape"), q.shape) == 0.0);
+    // The moved vertex makes the figures differ between tets.
+    CHECK(q.min_dihedral_deg.maxCoeff() - q.min_dihedral_deg.minCoeff() > 1.0);
+    CHECK(cd->GetArray("volume")->GetDataType() == VTK_DOUBLE);
+
+    // touches_solid: 1 exactly for the tets with a vertex on z = 0.
+    vtkDataArray* touches = cd->GetArray("touches_solid");
+    REQUIRE(touches != nullptr);
+    CHECK(touches->GetDataType() == VTK_UNSIGNED_CHAR);
+    REQUIRE(touches->GetNumberOfTuples() == nt);
+    int touching = 0;
+    bool touches_ok = true;
+    for (Index t = 0; t < nt; ++t) {
+      bool low = false;
+      for (int k = 0; k < 4; ++k) low = low || m.vertices(m.tets(t, k), 2) == 0.0;
+      touches_ok = touches_ok && touches->GetComponent(t, 0) == (low ? 1.0 : 0.0);
+      touching += low ? 1 : 0;
+    }
+    CHECK(touches_ok);
+    CHECK(touching > 0);
+    CHECK(touching < nt);
+
+    vtkDataArray* vb = grid->GetPointData()->GetArray("vertex_body");
+    REQUIRE(vb != nullptr);
+    CHECK(vb->GetDataType() == VTK_INT);
+    REQUIRE(vb->GetNumberOfTuples() == nv);
+    int on_solid = 0;
+    bool vb_ok = true;
+    for (Index i = 0; i < nv; ++i) {
+      vb_ok = vb_ok && vb->GetComponent(i, 0) == m.vertex_body[i];
+      on_solid += vb->GetComponent(i, 0) == 1.0 ? 1 : 0;
+    }
+    CHECK(vb_ok);
+    CHECK(on_solid == 9);  // the 3 × 3 vertices of the bottom
+    CHECK(vb->GetComponent(13, 0) == -1.0);
+  }
+}
+
+TEST_CASE("write_interface_vtp: the Solid faces only with compact points and their arrays") {
+  TempDir dir("interface_vtp");
+  const mesh::TetMesh m = make_fluid_mesh();
+  std::vector<Index> solid;
+  for (Index f = 0; f < m.num_faces(); ++f)
+    if (m.face_kind[static_cast<size_t>(f)] == mesh::FaceKind::Solid) solid.push_back(f);
+  REQUIRE(solid.size() == 8);
+  for (const char* name : {"lz4", "zlib", "none"}) {
+    CAPTURE(name);
+    const fs::path p = dir.path / fmt::format("interface_{}.vtp", name);
+    write_interface_vtp(p, m, parse_compression(name));
+    CHECK(!has_tmp_files(dir.path));
+    auto poly = read_vtp(p);
+    REQUIRE(poly->GetNumberOfCells() == 8);
+    CHECK(poly->GetNumberOfPolys() == 8);
+    CHECK(poly->GetNumberOfPoints() == 9);  // only the bottom's vertices
+
+    vtkDataArray* fv = poly->GetPointData()->GetArray("fluid_vertex");
+    REQUIRE(fv != nullptr);
+    REQUIRE(fv->GetNumberOfTuples() == 9);
+    vtkCellData* cd = poly->GetCellData();
+    for (const char* a : {"body", "triangle", "area", "dual_length", "normal", "bary"})
+      REQUIRE(cd->GetArray(a) != nullptr);
+    CHECK(cd->GetArray("body")->GetDataType() == VTK_INT);
+    CHECK(cd->GetArray("triangle")->GetDataType() == VTK_INT);
+    CHECK(cd->GetArray("normal")->GetNumberOfComponents() == 3);
+    CHECK(cd->GetArray("bary")->GetNumberOfComponents() == 3);
+
+    double total_area = 0.0, diff = 0.0;
+    bool cells_ok = true;
+    for (Index i = 0; i < 8; ++i) {
+      const Index f = solid[static_cast<size_t>(i)];
+      // Each triangle is the face with its stored vertex order (so its normal is n_f), and
+      // every point sits where its fluid vertex is.
+      vtkIdType npts = 0;
+      const vtkIdType* pts = nullptr;
+      poly->GetCellPoints(i, npts, pts);
+      cells_ok = cells_ok && npts == 3;
+      for (int k = 0; k < 3 && cells_ok; ++k) {
+        const Index v = static_cast<Index>(fv->GetComponent(pts[k], 0));
+        cells_ok = v == m.faces(f, k);
+        double x[3];
+        poly->GetPoint(pts[k], x);
+        for (int c = 0; c < 3; ++c) diff = std::max(diff, std::abs(x[c] - m.vertices(v, c)));
+      }
+      CHECK(cd->GetArray("body")->GetComponent(i, 0) == 1.0);
+      CHECK(cd->GetArray("triangle")->GetComponent(i, 0) == m.face_triangle[f]);
+      CHECK(cd->GetArray("area")->GetComponent(i, 0) == m.face_areas[f]);
+      CHECK(cd->GetArray("dual_length")->GetComponent(i, 0) == m.dual_lengths[f]);
+      for (int c = 0; c < 3; ++c) {
+        diff = std::max(
+            diff, std::abs(cd->GetArray("normal")->GetComponent(i, c) - m.face_normals(f, c)));
+        diff =
+            std::max(diff, std::abs(cd->GetArray("bary")->GetComponent(i, c) - m.face_bary(f, c)));
+      }
+      // Bottom faces: the normal points out of the fluid, down into the "solid".
+      CHECK(cd->GetArray("normal")->GetComponent(i, 2) == doctest::Approx(-1.0).epsilon(1e-12));
+      total_area += cd->GetArray("area")->GetComponent(i, 0);
+    }
+    CHECK(cells_ok);
+    CHECK(diff == 0.0);
+    CHECK(total_area == doctest::Approx(1.0).epsilon(1e-12));
+  }
+
+  // A mesh without solid faces gives an empty file that reads back.
+  const mesh::VolumeMesh box = mesh::make_box(Vec3(0, 0, 0), Vec3(1, 1, 1), Vec3i(1, 1, 1));
+  const mesh::TetMesh plain = mesh::build_tet_mesh(box.vertices, box.tets);
+  write_interface_vtp(dir.path / "empty.vtp", plain, Compression::LZ4);
+  auto empty = read_vtp(dir.path / "empty.vtp");
+  CHECK(empty->GetNumberOfCells() == 0);
+  CHECK(empty->GetNumberOfPoints() == 0);
+
+  // An unwritable path is one InputError naming the file.
+  try {
+    write_interface_vtp("/nonexistent_tetfsi_dir/i.vtp", m, Compression::LZ4);
+    FAIL("expected an InputError");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("i.vtp") != std::string::npos);
+    CHECK(std::string(e.what()).find('\n') == std::string::npos);
+  }
+}
+
 TEST_CASE("parse_compression rejects unknown names") {
   CHECK_THROWS_AS(parse_compression("gzip"), InputError);
   CHECK(file_safe_name("my body/1") == "my_body_1");
@@ -368,5 +572,130 @@ TEST_CASE("OutputWriter: layout of an output folder, 3 frames at t = 0, 0.5, 1.2
     auto grid = read_vtu(out / pvd.files[f]);
     CHECK(max_diff(grid->GetPointData()->GetArray("displacement"), written_d[f].data(),
                    world.bodies[0].num_nodes()) <= 1e-12);
+  }
+}
+
+TEST_CASE("StatsWriter with a fluid: remesh phase, fluid and quality columns") {
+  TempDir dir("stats_fluid");
+  const fs::path p = dir.path / "stats.csv";
+  const mesh::TetMesh m = make_fluid_mesh();
+  const auto quality = mesh::quality_columns(mesh::summarize_quality(m));
+  {
+    StatsWriter s(p, true);
+    CHECK(s.has_fluid());
+    StepStats r;
+    r.step = 1;
+    r.dt = 0.01;
+    r.time = 0.01;
+    r.phases.add("remesh", 0.25);
+    FluidStepStats f;
+    f.cells = m.num_tets();
+    f.vertices = m.num_vertices();
+    f.steiner_points = 7;
+    f.recovery_rounds = 2;
+    f.remesh_s = 0.125;
+    f.quality = quality;
+    r.fluid = f;
+    s.write(r);
+    r.step = 2;
+    r.fluid.reset();  // a row without figures: "nan" in every fluid column
+    s.write(r);
+  }
+  const auto lines = read_lines(p);
+  REQUIRE(lines.size() == 3);
+  const auto& cols = StatsWriter::columns(true);
+  CHECK(cols.size() == StatsWriter::columns().size() + 1 + 5 + quality.size());
+  std::vector<std::string> header;
+  {
+    std::stringstream ss(lines[0]);
+    for (std::string c; std::getline(ss, c, ',');) header.push_back(c);
+  }
+  CHECK(header == cols);
+  CHECK(lines[0].rfind("step,time,dt,assemble,solve,update,remesh,output,total,", 0) == 0);
+  for (const char* c : {"fluid_cells", "fluid_vertices", "steiner_points", "recovery_rounds",
+                        "remesh_s", "q_min_dihedral_deg", "q_slivers", "q_max_radius_edge"})
+    CHECK(std::find(cols.begin(), cols.end(), c) != cols.end());
+  std::vector<std::string> row;
+  {
+    std::stringstream ss(lines[1]);
+    for (std::string c; std::getline(ss, c, ',');) row.push_back(c);
+  }
+  REQUIRE(row.size() == cols.size());
+  auto value = [&](const std::string& name) {
+    const auto it = std::find(cols.begin(), cols.end(), name);
+    REQUIRE(it != cols.end());
+    return std::stod(row[static_cast<size_t>(it - cols.begin())]);
+  };
+  CHECK(value("remesh") == 0.25);
+  CHECK(value("fluid_cells") == 48);
+  CHECK(value("fluid_vertices") == 27);
+  CHECK(value("steiner_points") == 7);
+  CHECK(value("recovery_rounds") == 2);
+  CHECK(value("remesh_s") == 0.125);
+  for (const auto& [name, v] : quality) {
+    CAPTURE(name);
+    if (std::isfinite(v)) CHECK(value(name) == v);  // 17 digits: bit-identical
+  }
+  CHECK(count_fields(lines[2]) == cols.size());
+  CHECK(lines[2].find(",nan,") != std::string::npos);
+  CHECK(lines[2].substr(lines[2].rfind(',') + 1) == "nan");
+}
+
+TEST_CASE("OutputWriter with a fluid: fluid.pvd and interface.pvd next to the body's") {
+  TempDir dir("layout_fluid");
+  const fs::path out = dir.path / "run";
+  Scene scene;
+  scene.name = "unit";
+  scene.fluid = FluidSpec{};
+  solid::SolidWorld world;
+  world.bodies.push_back(make_test_body());
+  const mesh::TetMesh m = make_fluid_mesh();
+  {
+    OutputWriter w(out, scene, world);
+    CHECK(w.has_fluid());
+    w.write_frame(world, 0, 0.0, &m);
+    w.write_frame(world, 3, 0.5);  // no fluid mesh given: a body-only frame
+    w.write_frame(world, 6, 1.0, &m);
+  }
+  CHECK(!has_tmp_files(out));
+  CHECK(parse_pvd(out / "block.pvd").times == std::vector<double>{0.0, 0.5, 1.0});
+  const ParsedPvd fluid = parse_pvd(out / "fluid.pvd");
+  CHECK(fluid.times == std::vector<double>{0.0, 1.0});
+  CHECK(fluid.files ==
+        std::vector<std::string>{"fluid/fluid_000000.vtu", "fluid/fluid_000006.vtu"});
+  const ParsedPvd iface = parse_pvd(out / "interface.pvd");
+  CHECK(iface.times == std::vector<double>{0.0, 1.0});
+  CHECK(iface.files == std::vector<std::string>{"interface/interface_000000.vtp",
+                                                "interface/interface_000006.vtp"});
+  CHECK(read_vtu(out / fluid.files[1])->GetNumberOfCells() == 48);
+  CHECK(read_vtp(out / iface.files[1])->GetNumberOfCells() == 8);
+  CHECK(read_lines(out / "stats.csv").at(0).find("q_min_dihedral_deg") != std::string::npos);
+
+  // Without a fluid: none of it, and the stats header is the solid-only one.
+  const fs::path plain = dir.path / "plain";
+  {
+    Scene s2;
+    s2.name = "unit";
+    OutputWriter w(plain, s2, world);
+    CHECK_FALSE(w.has_fluid());
+    w.write_frame(world, 0, 0.0, &m);  // a mesh given anyway is ignored
+  }
+  CHECK(!fs::exists(plain / "fluid.pvd"));
+  CHECK(!fs::exists(plain / "fluid"));
+  CHECK(!fs::exists(plain / "interface"));
+  CHECK(read_lines(plain / "stats.csv").at(0).find("remesh") == std::string::npos);
+
+  // A body whose file name is one of the fluid streams' is refused in a fluid scene.
+  solid::SolidWorld clash;
+  clash.bodies.push_back(make_test_body());
+  clash.bodies.emplace_back("fluid", mesh::make_box(Vec3(0, 0, 0), Vec3(1, 1, 1), Vec3i(1, 1, 1)),
+                            solid::Material{});
+  try {
+    OutputWriter w(dir.path / "clash", scene, clash);
+    FAIL("expected an InputError");
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    CHECK(msg.find("body 'fluid'") != std::string::npos);
+    CHECK(msg.find("rename the body") != std::string::npos);
   }
 }
