@@ -4,6 +4,7 @@
 ///                    [--progress auto|tty|plain|off]
 ///   tetfsi validate SCENE [--set key.path=value ...]
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
+///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
 /// command-line usage errors are reported by CLI11 with its exit code. Ctrl-C (or SIGTERM)
@@ -24,6 +25,7 @@
 #include "tools/bench_solvers.hpp"
 #include "tools/output.hpp"
 #include "tools/process_env.hpp"
+#include "tools/quality_cmd.hpp"
 #include "tools/run.hpp"
 #include "tools/scene.hpp"
 
@@ -72,6 +74,7 @@ int main(int argc, char** argv) {
       "  tetfsi validate data/scenes/sheet_sag.json\n"
       "  tetfsi run data/scenes/sheet_sag.json --steps 50 --set output.every=5\n"
       "  tetfsi bench solvers --n 250000 --backends cholmod,amg --json bench.json\n"
+      "  tetfsi quality out/sheet_sag/sheet/sheet_000050.vtu --json q.json --png q.png\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json. Errors: one line 'error: ...', exit code 1.\n");
 
@@ -159,6 +162,24 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->type_name("A,B");
 
+  // ---- quality ----
+  CLI::App* quality = app.add_subcommand(
+      "quality",
+      "mesh-quality figures of any tetrahedral .vtu: dihedral angles, shape, dual lengths, "
+      "histograms");
+  std::string quality_file;
+  std::string quality_json;
+  std::string quality_png;
+  quality->add_option("FILE", quality_file, "VTK XML unstructured grid (VTK_TETRA cells are used)")
+      ->required()
+      ->type_name("FILE.vtu");
+  quality->add_option("--json", quality_json, "also write the figures and histograms as JSON")
+      ->type_name("FILE");
+  quality
+      ->add_option("--png", quality_png,
+                   "also draw the four histograms as bar charts into this PNG")
+      ->type_name("FILE");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -201,6 +222,9 @@ int main(int argc, char** argv) {
     }
     if (*bench_solvers_cmd) {
       return tools::bench_solvers(bench_n, bench_json, bench_backends, std::cout);
+    }
+    if (*quality) {
+      return tools::quality_command(quality_file, quality_json, quality_png, std::cout);
     }
   } catch (const std::exception& e) {
     return report_error(e.what());  // tetfsi::Error and everything else: one line
