@@ -1,8 +1,9 @@
 // Tests of tools/quality_cmd.cpp and tools/raster.cpp: `tetfsi quality` run as a user would
 // (TETFSI_EXE, tests/tools/CMakeLists.txt) on .vtu files written here with VTK — a regular
 // tet, Kuhn boxes from make_box, boxes with other cell types, an inverted tet, vertex_body
-// arrays — checking the report, the JSON against summarize_quality, the PNG's header, and
-// one-line errors; plus the raster's text metrics and a PNG round trip.
+// arrays, a fluid frame from write_fluid_vtu — checking the report, the JSON against
+// summarize_quality, the PNG's header, and one-line errors; plus the raster's text metrics and a
+// PNG round trip.
 #include <doctest/doctest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -35,6 +36,7 @@
 #include "mesh/generate.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/tet_mesh.hpp"
+#include "tools/output.hpp"
 #include "tools/quality_cmd.hpp"
 #include "tools/raster.hpp"
 
@@ -367,6 +369,34 @@ TEST_SUITE("unit") {
     const nlohmann::json ja = nlohmann::json::parse(text);
     CHECK(ja["q_min_dihedral_away_deg"].is_null());
     CHECK(ja["q_min_dihedral_deg"].is_number());
+  }
+
+  TEST_CASE("tetfsi quality: a fluid frame of write_fluid_vtu reads back with its vertex_body") {
+    TempDir dir("fluid");
+    mesh::VolumeMesh box = mesh::make_box(Vec3(0, 0, 0), Vec3(3, 3, 3), Vec3i(3, 3, 3));
+    box.vertices.row(0) = Vec3(0.7, 0.7, 0.7);  // flattens the corner cube's tets
+    mesh::TetMesh m = mesh::build_tet_mesh(box.vertices, box.tets);
+    for (Index i = 0; i < m.num_vertices(); ++i) {
+      const Vec3 p = m.vertices.row(i);
+      m.vertex_body(i) = (p.array() < 0.8).any() || (p.array() > 2.5).any() ? 1 : -1;
+    }
+    tools::write_fluid_vtu(dir.path / "fluid.vtu", m, tools::Compression::LZ4);
+    const mesh::QualitySummary expect = mesh::summarize_quality(m);
+    REQUIRE(expect.min_dihedral_away_deg > expect.min_dihedral_deg + 10.0);
+
+    const Result r = tetfsi_exe(dir.path, "quality fluid.vtu --json q.json");
+    INFO(r.out, r.err);
+    REQUIRE(r.code == 0);
+    CHECK(r.out.find("vertex_body: 56 of 64 points on a solid surface") != std::string::npos);
+    CHECK(r.out.find(mesh::format_quality_report(expect)) != std::string::npos);
+    const nlohmann::json j = nlohmann::json::parse(read_text(dir.path / "q.json"));
+    for (const auto& [name, value] : mesh::quality_columns(expect)) {
+      INFO(name);
+      if (std::isfinite(value))
+        CHECK(j[name].get<double>() == doctest::Approx(value).epsilon(1e-12));
+      else
+        CHECK(j[name].is_null());
+    }
   }
 
   TEST_CASE(
