@@ -21,6 +21,7 @@
 #include "core/log.hpp"
 #include "core/timer.hpp"
 #include "mesh/delaunay.hpp"
+#include "mesh/quality.hpp"
 #include "mesh/volume_mesh.hpp"
 
 namespace tetfsi::mesh {
@@ -41,6 +42,13 @@ constexpr double kSurfaceEdgeFactor = 1.5;
 /// slivers (min dihedral 0.4°), so those stay exact: the octree transitions keep ~15% of
 /// their faces co-spherical (d_f = 0 up to round-off) and no sliver.
 constexpr double kWallJitter = 0.1;
+/// Cells with a smaller minimum dihedral angle (degrees) lose a lattice vertex, in up to
+/// kSliverRounds rounds.
+constexpr double kSliverDeg = 5.0;
+constexpr int kSliverRounds = 4;
+/// A cell of four surface vertices of one body with |6V| below this times (longest edge)³ is
+/// flat (coplanar up to round-off).
+constexpr double kFlat = 1e-9;
 
 // ---------------------------------------------------------------------------------------
 // Geometry helpers
@@ -371,16 +379,23 @@ class RefinedSurface {
       if (t == g) return w;
     throw InternalError("remesh: surface point not on its triangle");
   }
-  /// Longest edge of sub s as (a, b).
+  /// Longest edge of sub s as (a, b); ties broken by the edge key, so that "longest" is a
+  /// strict order and LEPP paths end.
   std::pair<int, int> longest_edge(const SubTri& s, double* len = nullptr) const {
     int best = 0;
     double l2 = -1;
+    std::uint64_t best_key = 0;
     for (int k = 0; k < 3; ++k) {
-      const double d = (x(s.v[k]) - x(s.v[(k + 1) % 3])).squaredNorm();
-      if (d > l2) l2 = d, best = k;
+      const int a = s.v[k], b = s.v[(k + 1) % 3];
+      const double d = (x(a) - x(b)).squaredNorm();
+      const std::uint64_t key = edge_key(a, b);
+      if (d > l2 || (d == l2 && key > best_key)) l2 = d, best = k, best_key = key;
     }
     if (len) *len = std::sqrt(l2);
     return {s.v[best], s.v[(best + 1) % 3]};
+  }
+  Vec3 normal(const SubTri& s) const {
+    return (x(s.v[1]) - x(s.v[0])).cross(x(s.v[2]) - x(s.v[0])).normalized();
   }
   void diametral(const SubTri& s, Vec3& c, double& r2) const {
     c = triangle_circumcentre(x(s.v[0]), x(s.v[1]), x(s.v[2]));
@@ -391,10 +406,11 @@ class RefinedSurface {
   int split_edge(int a, int b, std::vector<int>* new_subs = nullptr) {
     auto it = m_edges.find(edge_key(a, b));
     if (it == m_edges.end()) return -1;
+    const double t = 0.5;
     const std::array<int, 2> on = it->second;
     const int m = static_cast<int>(points.size());
     SurfacePoint mp;
-    mp.x = 0.5 * (x(a) + x(b));
+    mp.x = (1.0 - t) * x(a) + t * x(b);
     mp.body = points[a].body;
     points.push_back(std::move(mp));
     body_vertex.push_back(-1);
@@ -408,7 +424,7 @@ class RefinedSurface {
         if ((p == a && q == b) || (p == b && q == a)) break;
       }
       const int p = old.v[k], q = old.v[(k + 1) % 3], r = old.v[(k + 2) % 3];
-      const Vec3 w = 0.5 * (bary(p, old.tri) + bary(q, old.tri));
+      const Vec3 w = (1.0 - t) * bary(a, old.tri) + t * bary(b, old.tri);
       bool known = false;
       for (const auto& e : points[m].on) known |= e.first == old.tri;
       if (!known) points[m].on.emplace_back(old.tri, w);
@@ -418,21 +434,36 @@ class RefinedSurface {
     }
     return m;
   }
-  /// Split the given edges (deduplicated; edges already gone are skipped). Returns the number
-  /// of points added.
-  int split_edges(std::vector<std::pair<int, int>> edges, std::vector<int>* new_subs = nullptr) {
-    std::sort(edges.begin(), edges.end(), [](auto e, auto f) {
-      return edge_key(e.first, e.second) < edge_key(f.first, f.second);
-    });
+  /// Refine each listed sub-triangle (if still alive) by Rivara's longest-edge propagation
+  /// path: walk to the neighbour across the longest edge until the edge is the longest of both
+  /// triangles, split it there, repeat until the sub-triangle itself is split. Angles stay
+  /// bounded below (no ever-thinner triangles). Returns the number of points added.
+  int refine_subs(const std::vector<int>& list, std::vector<int>* new_subs = nullptr) {
     int added = 0;
-    std::uint64_t last = ~0ULL;
-    for (auto [a, b] : edges) {
-      const std::uint64_t k = edge_key(a, b);
-      if (k == last) continue;
-      last = k;
-      added += split_edge(a, b, new_subs) >= 0;
+    for (int s : list) {
+      while (subs[s].alive) {
+        int t = s;
+        for (;;) {
+          const auto e = longest_edge(subs[t]);
+          const auto& on = m_edges.at(edge_key(e.first, e.second));
+          const int n = on[0] == t ? on[1] : on[0];
+          if (n < 0) throw InternalError("remesh: open solid surface in refinement");
+          const auto en = longest_edge(subs[n]);
+          if (edge_key(en.first, en.second) == edge_key(e.first, e.second)) {
+            split_edge(e.first, e.second, new_subs);
+            ++added;
+            break;
+          }
+          t = n;
+        }
+      }
     }
     return added;
+  }
+  /// The sub-triangle across edge (v[k], v[k+1]) of sub s (−1 if none).
+  int neighbour(int s, int k) const {
+    const auto& on = m_edges.at(edge_key(subs[s].v[k], subs[s].v[(k + 1) % 3]));
+    return on[0] == s ? on[1] : on[0];
   }
   /// Alive sub-triangles of each global triangle.
   std::vector<std::vector<int>> subs_by_triangle() const {
@@ -477,16 +508,17 @@ class RefinedSurface {
 /// Delaunay face of any superset that keeps the spheres empty).
 void refine_surface(RefinedSurface& surf, const SizeField& size, int max_rounds) {
   for (int round = 0; round < max_rounds; ++round) {
-    std::vector<std::pair<int, int>> split;
-    for (const SubTri& s : surf.subs) {
-      if (!s.alive) continue;
+    std::vector<int> split;
+    for (std::size_t s = 0; s < surf.subs.size(); ++s) {
+      const SubTri& st = surf.subs[s];
+      if (!st.alive) continue;
       double len = 0;
-      const auto e = surf.longest_edge(s, &len);
-      const Vec3 g = (surf.x(s.v[0]) + surf.x(s.v[1]) + surf.x(s.v[2])) / 3.0;
-      if (len > kSurfaceEdgeFactor * size.at(g, 0.0)) split.push_back(e);
+      surf.longest_edge(st, &len);
+      const Vec3 g = (surf.x(st.v[0]) + surf.x(st.v[1]) + surf.x(st.v[2])) / 3.0;
+      if (len > kSurfaceEdgeFactor * size.at(g, 0.0)) split.push_back(static_cast<int>(s));
     }
     if (split.empty()) break;
-    surf.split_edges(split);
+    surf.refine_subs(split);
   }
   for (int round = 0; round < max_rounds; ++round) {
     HashGrid grid(2.0 * size.surface());
@@ -498,7 +530,7 @@ void refine_surface(RefinedSurface& surf, const SizeField& size, int max_rounds)
       const double r = std::sqrt(r2s[s]);
       grid.add_box(cs[s] - Vec3::Constant(r), cs[s] + Vec3::Constant(r), static_cast<int>(s));
     }
-    std::vector<std::pair<int, int>> split;
+    std::vector<int> split;
     std::vector<char> marked(surf.subs.size(), 0);
     for (std::size_t p = 0; p < surf.points.size(); ++p) {
       const auto* items = grid.at(surf.points[p].x);
@@ -510,12 +542,12 @@ void refine_surface(RefinedSurface& surf, const SizeField& size, int max_rounds)
           continue;
         if ((surf.points[p].x - cs[s]).squaredNorm() < r2s[s] * (1.0 - 1e-9)) {
           marked[s] = 1;
-          split.push_back(surf.longest_edge(st));
+          split.push_back(s);
         }
       }
     }
     if (split.empty()) return;
-    surf.split_edges(split);
+    surf.refine_subs(split);
   }
 }
 
@@ -640,6 +672,31 @@ class Octree {
     }
   }
 
+  /// Whether every leaf around the lattice point q (units of half the finest spacing) has the
+  /// same level and q is a corner of each: wall jitter only there, since jittered wall points
+  /// where octree levels meet made slivers (min dihedral 3°).
+  bool uniform_around(const std::uint64_t q[3], int fine) const {
+    int level = -1;
+    for (int d = 0; d < 8; ++d) {
+      std::int64_t p[3];
+      bool inside = true;
+      for (int a = 0; a < 3; ++a) {
+        p[a] = static_cast<std::int64_t>(q[a]) + ((d >> a & 1) ? 1 : -1);
+        inside &= p[a] >= 0 && p[a] < (static_cast<std::int64_t>(m_n[a]) << fine);
+      }
+      if (!inside) continue;
+      int l = 0;
+      for (; l <= m_levels; ++l) {
+        const int sh = fine - l;
+        if (m_leaves[l].count(pack3(p[0] >> sh, p[1] >> sh, p[2] >> sh))) break;
+      }
+      if (l > m_levels || (level >= 0 && l != level)) return false;
+      level = l;
+    }
+    const std::uint64_t step = 1ULL << (fine - level);
+    return q[0] % step == 0 && q[1] % step == 0 && q[2] % step == 0;
+  }
+
   /// Corners and centres of the leaves (BCC), deduplicated on the integer grid of half the
   /// finest spacing; points on the box faces get the exact face coordinate.
   Lattice points() const {
@@ -704,7 +761,7 @@ class Octree {
         x(a) =
             q[a] == qmax[a] ? m_domain.hi(a) : m_domain.lo(a) + static_cast<double>(q[a]) * unit(a);
       auto fx = fixed.find(items[n].key);
-      if (kWallJitter > 0 && fx != fixed.end()) {
+      if (kWallJitter > 0 && fx != fixed.end() && uniform_around(q, fine)) {
         // Points on a patch's rectangle edge stay on it, so lattice-aligned patches are exact.
         for (const DomainPatch& dp : m_domain.patches) {
           int j = 0;
@@ -867,6 +924,53 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     }
     return -1;
   };
+  const auto on_box = [&](const Vec3& x) {
+    return (x.array() == domain.lo.array()).any() || (x.array() == domain.hi.array()).any();
+  };
+  // Lattice vertices to delete, one per sliver (min dihedral < kSliverDeg) that has one: the
+  // lattice vertex nearest to the sliver's surface vertices (or its first), never a box point.
+  // Cells are screened by the cheap shape measure 6√2 V / l_rms³ < 0.3 (a small dihedral
+  // angle makes the tet flat, V ≤ c sin θ l³), then tested by their dihedral angles.
+  const auto sliver_vertices = [&](const MatX4i& T) {
+    std::vector<Index> cand;
+    for (Index t = 0; t < T.rows(); ++t) {
+      bool lattice = false;
+      for (int k = 0; k < 4; ++k) lattice |= T(t, k) < nL;
+      if (!lattice) continue;
+      const Vec3& a = pts[T(t, 0)];
+      const Vec3 e1 = pts[T(t, 1)] - a, e2 = pts[T(t, 2)] - a, e3 = pts[T(t, 3)] - a;
+      const double l2 = e1.squaredNorm() + e2.squaredNorm() + e3.squaredNorm() +
+                        (e2 - e1).squaredNorm() + (e3 - e1).squaredNorm() + (e3 - e2).squaredNorm();
+      const double lrms3 = std::pow(l2 / 6.0, 1.5);
+      if (std::sqrt(2.0) * e1.dot(e2.cross(e3)) < 0.3 * lrms3) cand.push_back(t);
+    }
+    MatX4i sub(static_cast<Index>(cand.size()), 4);
+    for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
+    MatX3 P(static_cast<Index>(pts.size()), 3);
+    for (std::size_t v = 0; v < pts.size(); ++v) P.row(v) = pts[v].transpose();
+    const TetQuality q = tet_quality(P, sub);
+    std::vector<int> drop;
+    for (Index i = 0; i < sub.rows(); ++i) {
+      if (!(q.min_dihedral_deg(i) < kSliverDeg)) continue;
+      int best = -1;
+      double best_d = kInf;
+      for (int k = 0; k < 4; ++k) {
+        const int v = sub(i, k);
+        if (v >= nL || on_box(pts[v])) continue;
+        if (best < 0) best = v;
+        for (int j = 0; j < 4; ++j) {
+          if (sub(i, j) < nL) continue;
+          const double d = (pts[v] - pts[sub(i, j)]).squaredNorm();
+          if (d < best_d) best_d = d, best = v;
+        }
+      }
+      if (best >= 0) drop.push_back(best);
+    }
+    std::sort(drop.begin(), drop.end());
+    drop.erase(std::unique(drop.begin(), drop.end()), drop.end());
+    return drop;
+  };
+  int cleanup_rounds = 0;
   for (int round = 0;; ++round) {
     dt.extract(tets, nbrs);
     facet_tri.clear();
@@ -885,7 +989,22 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     std::vector<int> missing;
     for (std::size_t g = 0; g < covered.size(); ++g)
       if (covered[g] < tri_area[g] * (1.0 - 1e-9)) missing.push_back(static_cast<int>(g));
-    if (missing.empty()) break;
+    if (missing.empty()) {
+      // Conforming. Slivers are removed by deleting a lattice vertex of each, then conformity
+      // is checked again. They come from points that are coplanar in exact arithmetic but not
+      // after rounding: a lattice plane through a box solid's face, or lattice points at octree
+      // transitions (lo + q·u is rounded, so exact lattice coplanarity is lost).
+      if (cleanup_rounds >= kSliverRounds) break;
+      ++cleanup_rounds;
+      const std::vector<int> drop = sliver_vertices(tets);
+      if (drop.empty()) break;
+      for (int v : drop) {
+        lattice_removed[v] = 1;
+        dt.remove(v);
+      }
+      report.sliver_points_removed += static_cast<Index>(drop.size());
+      continue;
+    }
     if (round >= options.max_recovery_rounds) {
       const int g = missing.front();
       const int b = set.tri_body[g];
@@ -898,16 +1017,16 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     report.recovery_rounds = round + 1;
     // Split the sub-triangles of the missing triangles that are not mesh faces.
     const auto by_tri = surf->subs_by_triangle();
-    std::vector<std::pair<int, int>> split;
+    std::vector<int> split;
     for (int g : missing)
       for (int s : by_tri[g]) {
         const SubTri& st = surf->subs[s];
         if (!facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)))
-          split.push_back(surf->longest_edge(st));
+          split.push_back(s);
       }
     std::vector<int> new_subs;
     const int before = static_cast<int>(surf->points.size());
-    surf->split_edges(split, &new_subs);
+    surf->refine_subs(split, &new_subs);
     // Keep the new sub-triangles' diametral spheres empty of lattice points.
     for (int s : new_subs) {
       if (!surf->subs[s].alive) continue;
@@ -937,9 +1056,28 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   std::vector<int> region(nT, -1);
   std::vector<char> region_fluid;
   std::vector<Index> stack;
+  // Flat cells on a surface: four surface vertices of one body that are coplanar in exact
+  // geometry (a co-circular coplanar quad of the surface, e.g. a square of a box face, once
+  // rotated and rounded, is a valid but flat Delaunay cell with a meaningless circumcentre).
+  // They belong to the solid: the fluid meets the surface through their other two faces,
+  // which cover the same quad.
+  std::vector<char> flat(nT, 0);
+  for (Index t = 0; t < nT; ++t) {
+    const int v0 = tets(t, 0), v1 = tets(t, 1), v2 = tets(t, 2), v3 = tets(t, 3);
+    if (v0 < nL || v1 < nL || v2 < nL || v3 < nL) continue;
+    const int body = surf->points[surface_id(v0)].body;
+    if (surf->points[surface_id(v1)].body != body || surf->points[surface_id(v2)].body != body ||
+        surf->points[surface_id(v3)].body != body)
+      continue;
+    const Vec3 e1 = pts[v1] - pts[v0], e2 = pts[v2] - pts[v0], e3 = pts[v3] - pts[v0];
+    const double l = std::max(
+        {e1.norm(), e2.norm(), e3.norm(), (e2 - e1).norm(), (e3 - e1).norm(), (e3 - e2).norm()});
+    flat[t] = std::abs(e1.dot(e2.cross(e3))) <= kFlat * l * l * l;
+  }
   const auto is_barrier = [&](Index t, int k) {
     const int a = tets(t, (k + 1) % 4), b = tets(t, (k + 2) % 4), c = tets(t, (k + 3) % 4);
     if (a < nL || b < nL || c < nL) return false;
+    if (flat[t] || (nbrs(t, k) >= 0 && flat[nbrs(t, k)])) return true;
     auto it = facet_tri.find(sorted_key(a, b, c));
     return it != facet_tri.end() && it->second >= 0;
   };
@@ -960,6 +1098,11 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     }
     const Vec3 x =
         0.25 * (pts[tets(seed, 0)] + pts[tets(seed, 1)] + pts[tets(seed, 2)] + pts[tets(seed, 3)]);
+    if (flat[seed]) {
+      region_fluid.push_back(0);
+      ++report.flat_cells_removed;
+      continue;
+    }
     bool inside = false;
     for (std::size_t b = 0; b < solids.size() && !inside; ++b) {
       if ((x.array() < set.body_lo[b].array()).any() || (x.array() > set.body_hi[b].array()).any())
@@ -1020,6 +1163,31 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
                         surf->bary(surface_id(c), g)) /
                        3.0;
         m.face_bary.row(f) = w.transpose();
+        continue;
+      }
+      // A face of a flat cell that straddles two coplanar triangles: it is attributed to the
+      // triangle that holds its centroid.
+      const Vec3 x = m.face_centroids.row(f).transpose();
+      int best = -1;
+      Vec3 best_w;
+      double best_err = kInf;
+      for (int v : {a, b, c})
+        for (const auto& e : surf->points[surface_id(v)].on) {
+          const auto& T = set.corners[e.first];
+          const Vec3 n = (T[1] - T[0]).cross(T[2] - T[0]);
+          const double n2 = n.squaredNorm();
+          const Vec3 w((T[2] - T[1]).cross(x - T[1]).dot(n) / n2,
+                       (T[0] - T[2]).cross(x - T[2]).dot(n) / n2, 0.0);
+          const Vec3 wz(w(0), w(1), 1.0 - w(0) - w(1));
+          const double err = std::max(0.0, -wz.minCoeff()) + std::abs((x - T[0]).dot(n)) / n2;
+          if (err < best_err) best_err = err, best = e.first, best_w = wz;
+        }
+      if (best >= 0 && best_err < 1e-6) {
+        m.face_kind[f] = FaceKind::Solid;
+        m.face_body(f) = solids[set.tri_body[best]].body;
+        m.face_triangle(f) = set.local(best);
+        m.face_bary.row(f) = best_w.cwiseMax(0.0).transpose() / best_w.cwiseMax(0.0).sum();
+        ++report.straddling_faces;
         continue;
       }
     }

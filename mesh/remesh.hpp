@@ -45,9 +45,9 @@ struct FluidDomain {
 /// A solid body's boundary at its current position: a closed, outward-oriented triangle
 /// surface (e.g. mesh::boundary_triangles of the body's tets with the deformed positions).
 struct SolidSurface {
-  int body = 0;        ///< body index, copied to TetMesh::face_body / vertex_body
-  MatX3 vertices;      ///< #Vs × 3 (m)
-  MatX3i triangles;    ///< #Ts × 3, outward normals
+  int body = 0;      ///< body index, copied to TetMesh::face_body / vertex_body
+  MatX3 vertices;    ///< #Vs × 3 (m)
+  MatX3i triangles;  ///< #Ts × 3, outward normals
 };
 
 /// Target edge length of the fluid mesh.
@@ -69,14 +69,20 @@ struct RemeshOptions {
 };
 
 struct RemeshReport {
-  Index lattice_points = 0;   ///< fluid samples kept
-  Index surface_points = 0;   ///< solid boundary vertices inserted
-  Index steiner_points = 0;   ///< points added on solid triangles (placement + recovery)
-  Index cells_delaunay = 0;   ///< finite Delaunay cells before removal
-  Index cells_removed = 0;    ///< cells inside solids
+  Index lattice_points = 0;         ///< fluid samples kept
+  Index surface_points = 0;         ///< solid boundary vertices inserted
+  Index steiner_points = 0;         ///< points added on solid triangles (placement + recovery)
+  Index sliver_points_removed = 0;  ///< lattice points deleted to remove slivers at the surface
+  Index cells_delaunay = 0;         ///< finite Delaunay cells before removal
+  Index cells_removed = 0;          ///< cells inside solids
+  Index flat_cells_removed = 0;     ///< of those: flat cells lying on a solid surface (remesh.cpp)
+  /// Solid faces of such flat cells that straddle two coplanar solid triangles: each is
+  /// attributed to the triangle holding its centroid, so those two triangles are tiled only
+  /// together, not one by one (rare: rotated box faces whose squares are co-circular).
+  Index straddling_faces = 0;
   int recovery_rounds = 0;
-  double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0,
-         seconds_classify = 0, seconds_build = 0, seconds_total = 0;
+  double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0, seconds_classify = 0,
+         seconds_build = 0, seconds_total = 0;
 };
 
 /// Build the fluid mesh. The result satisfies: every solid triangle is a union of Solid
