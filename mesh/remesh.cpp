@@ -970,6 +970,23 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     drop.erase(std::unique(drop.begin(), drop.end()), drop.end());
     return drop;
   };
+  // A face of surface points with no common triangle that still lies in the surface: it
+  // straddles coplanar triangles (the plane of a triangle of one vertex holds the other two).
+  // It seals the solid like a triangle's own faces do.
+  const auto in_surface = [&](int a, int b, int c) {
+    const SurfacePoint &pa = surf->points[surface_id(a)], &pb = surf->points[surface_id(b)],
+                       &pc = surf->points[surface_id(c)];
+    if (pa.body != pb.body || pa.body != pc.body) return false;
+    const double scale = (pa.x - pb.x).norm() + (pb.x - pc.x).norm() + (pc.x - pa.x).norm();
+    for (const auto& e : pa.on) {
+      const auto& T = set.corners[e.first];
+      const Vec3 n = (T[1] - T[0]).cross(T[2] - T[0]).normalized();
+      if (std::abs((pb.x - T[0]).dot(n)) <= 1e-9 * scale &&
+          std::abs((pc.x - T[0]).dot(n)) <= 1e-9 * scale)
+        return true;
+    }
+    return false;
+  };
   int cleanup_rounds = 0;
   for (int round = 0;; ++round) {
     dt.extract(tets, nbrs);
@@ -982,13 +999,24 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
         auto [it, fresh] = facet_tri.try_emplace(sorted_key(a, b, c), -1);
         if (!fresh) continue;
         const int g = common_triangle(a, b, c);
-        it->second = g;
+        it->second = g >= 0 ? g : (in_surface(a, b, c) ? -2 : -1);
         if (g >= 0) covered[g] += 0.5 * (pts[b] - pts[a]).cross(pts[c] - pts[a]).norm();
       }
     }
+    // A triangle is recovered if each of its sub-triangles is a Delaunay face, or if other
+    // faces on it tile it exactly (another diagonal of a co-circular quad). Over-coverage
+    // comes from flat cells on the surface (both diagonals), which classification handles.
     std::vector<int> missing;
-    for (std::size_t g = 0; g < covered.size(); ++g)
-      if (covered[g] < tri_area[g] * (1.0 - 1e-9)) missing.push_back(static_cast<int>(g));
+    const auto by_tri_now = surf->subs_by_triangle();
+    for (std::size_t g = 0; g < covered.size(); ++g) {
+      if (std::abs(covered[g] - tri_area[g]) <= 1e-9 * tri_area[g]) continue;
+      bool all = true;
+      for (int sub : by_tri_now[g]) {
+        const SubTri& st = surf->subs[sub];
+        all &= facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)) > 0;
+      }
+      if (!all) missing.push_back(static_cast<int>(g));
+    }
     if (missing.empty()) {
       // Conforming. Slivers are removed by deleting a lattice vertex of each, then conformity
       // is checked again. They come from points that are coplanar in exact arithmetic but not
@@ -1079,7 +1107,7 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     if (a < nL || b < nL || c < nL) return false;
     if (flat[t] || (nbrs(t, k) >= 0 && flat[nbrs(t, k)])) return true;
     auto it = facet_tri.find(sorted_key(a, b, c));
-    return it != facet_tri.end() && it->second >= 0;
+    return it != facet_tri.end() && it->second != -1;
   };
   for (Index seed = 0; seed < nT; ++seed) {
     if (region[seed] >= 0) continue;
@@ -1132,6 +1160,28 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   }
   report.cells_removed = nT - nF;
   TETFSI_REQUIRE(MeshError, nF > 0, "remesh: no fluid cell is left: the solids fill the domain");
+  // Safety net: the fluid volume must be the box minus the solids (signed, so cavities count
+  // as fluid); anything else is a leak through a triangle that was not recovered.
+  {
+    double expected = (domain.hi - domain.lo).prod(), fluid = 0.0;
+    for (const SolidSurface& sol : solids)
+      for (Index t = 0; t < sol.triangles.rows(); ++t)
+        expected -= Vec3(sol.vertices.row(sol.triangles(t, 0)))
+                        .dot(Vec3(sol.vertices.row(sol.triangles(t, 1)))
+                                 .cross(Vec3(sol.vertices.row(sol.triangles(t, 2))))) /
+                    6.0;
+    for (Index t = 0; t < nT; ++t)
+      if (region_fluid[region[t]])
+        fluid +=
+            (pts[tets(t, 1)] - pts[tets(t, 0)])
+                .dot((pts[tets(t, 2)] - pts[tets(t, 0)]).cross(pts[tets(t, 3)] - pts[tets(t, 0)])) /
+            6.0;
+    TETFSI_REQUIRE(MeshError, std::abs(fluid - expected) <= 1e-8 * (domain.hi - domain.lo).prod(),
+                   "remesh: the fluid cells fill {:.9g} m^3 but the box minus the solids is {:.9g} "
+                   "m^3: a solid surface leaks (not recovered); try a smaller surface_size and "
+                   "report the scene",
+                   fluid, expected);
+  }
   MatX3 verts(old_id.size(), 3);
   for (std::size_t v = 0; v < old_id.size(); ++v) verts.row(v) = pts[old_id[v]].transpose();
   report.seconds_classify = now_seconds() - t0;

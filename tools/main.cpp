@@ -4,6 +4,7 @@
 ///                    [--progress auto|tty|plain|off]
 ///   tetfsi validate SCENE [--set key.path=value ...]
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
+///   tetfsi bench remesh [--json FILE] [--max-cells N]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
@@ -22,6 +23,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/output.hpp"
 #include "tools/process_env.hpp"
@@ -162,6 +164,18 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->type_name("A,B");
 
+  CLI::App* bench_remesh_cmd = bench->add_subcommand(
+      "remesh", "time the fluid remesher against the bare CGAL Delaunay of the same vertices");
+  std::string bench_remesh_json;
+  long bench_remesh_max = 1000000;
+  bench_remesh_cmd->add_option("--json", bench_remesh_json, "also write the results to this JSON file")
+      ->type_name("FILE");
+  bench_remesh_cmd
+      ->add_option("--max-cells", bench_remesh_max,
+                   "skip the cases above this size (30k, 250k, 1M)")
+      ->type_name("N")
+      ->capture_default_str();
+
   // ---- quality ----
   CLI::App* quality = app.add_subcommand(
       "quality",
@@ -222,6 +236,9 @@ int main(int argc, char** argv) {
     }
     if (*bench_solvers_cmd) {
       return tools::bench_solvers(bench_n, bench_json, bench_backends, std::cout);
+    }
+    if (*bench_remesh_cmd) {
+      return tools::bench_remesh(bench_remesh_json, bench_remesh_max, std::cout);
     }
     if (*quality) {
       return tools::quality_command(quality_file, quality_json, quality_png, std::cout);

@@ -1,0 +1,22 @@
+#pragma once
+/// @file bench_remesh.hpp
+/// `tetfsi bench remesh`: the fluid remesher against its floor, the bare CGAL Delaunay
+/// tetrahedralisation of the same vertex set, at about 30k, 250k and 1M cells.
+#include <iosfwd>
+#include <string>
+
+namespace tetfsi::tools {
+
+/// Mesh the unit box around a rubber sheet (0.6 × 0.6 × 0.01 m, tilted 10°) and a sphere
+/// (radius 0.12 m) at three sizes; for each print remesh seconds (with its phases), the
+/// seconds of mesh::delaunay_tets on the final mesh's vertices, their ratio, cells per
+/// second and the quality summary (min dihedral overall and away from the solids, slivers,
+/// interior faces with d_f ≤ 0 and tiny d_f).
+/// @param json_path if nonempty, also write `{"cases": [{"cells", "remesh_s", "delaunay_s",
+///   "ratio", "min_dihedral_deg", "min_dihedral_away_deg", "slivers", "nonpositive_dual",
+///   "tiny_dual", "steiner_points", "recovery_rounds", "phases": {...}}]}` (atomically)
+/// @param max_cells skip cases whose target exceeds this (for quick runs)
+/// @return 0
+int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out);
+
+}  // namespace tetfsi::tools
