@@ -12,6 +12,8 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/timer.hpp"
+#include "mesh/quality.hpp"
+#include "mesh/remesh.hpp"
 #include "solid/static_solve.hpp"
 #include "tools/output.hpp"
 
@@ -150,6 +152,130 @@ std::string one_line(std::string s) {
   return s;
 }
 
+std::string fmt_vec(const Vec3& v) {
+  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
+}
+
+/// The fluid mesh of a fluid scene, rebuilt around the bodies' current boundaries. Each
+/// body's boundary (SolidBody::boundary_triangles of its rest mesh) is compacted once to
+/// the nodes it uses; every rebuild only gathers their positions X + d.
+class FluidRemesher {
+ public:
+  FluidRemesher(const FluidSpec& spec, const solid::SolidWorld& world) : m_spec(spec) {
+    for (const solid::SolidBody& b : world.bodies) {
+      Boundary bd;
+      const MatX3i& tris = b.boundary_triangles();
+      VecXi local = VecXi::Constant(b.num_nodes(), -1);
+      std::vector<Index> nodes;
+      bd.triangles.resize(tris.rows(), 3);
+      for (Index t = 0; t < tris.rows(); ++t) {
+        for (int k = 0; k < 3; ++k) {
+          const Index v = tris(t, k);
+          if (local[v] < 0) {
+            local[v] = static_cast<Index>(nodes.size());
+            nodes.push_back(v);
+          }
+          bd.triangles(t, k) = local[v];
+        }
+      }
+      bd.nodes = Eigen::Map<const VecXi>(nodes.data(), static_cast<Index>(nodes.size()));
+      m_bodies.push_back(std::move(bd));
+      m_legend += fmt::format("{}body {} is '{}'", m_legend.empty() ? "" : ", ",
+                              m_bodies.size() - 1, b.name());
+    }
+  }
+
+  /// Build the fluid mesh around the world's current state and summarise its quality. The
+  /// time of the surfaces and mesh::remesh goes to phase "remesh" of `phases`, that of the
+  /// quality summary to "output". On success the new mesh replaces the old one; on failure
+  /// the old one stays (it matches the last good state).
+  /// @throws MeshError naming the body if a body is not strictly inside the fluid box, or
+  ///   with the remesher's reason (body indices explained by name).
+  void rebuild(const solid::SolidWorld& world, PhaseTimes& phases) {
+    ScopedTimer timer(phases, "remesh");
+    std::vector<mesh::SolidSurface> solids(world.bodies.size());
+    for (size_t i = 0; i < world.bodies.size(); ++i) {
+      const solid::SolidBody& b = world.bodies[i];
+      const Boundary& bd = m_bodies[i];
+      mesh::SolidSurface& s = solids[i];
+      s.body = static_cast<int>(i);
+      s.triangles = bd.triangles;
+      s.vertices.resize(bd.nodes.size(), 3);
+      for (Index k = 0; k < bd.nodes.size(); ++k) {
+        const Index v = bd.nodes[k];
+        s.vertices.row(k) = b.rest_positions().row(v) + b.displacement.row(v);
+      }
+      check_inside(b, i, s.vertices, bd.nodes);
+    }
+    mesh::RemeshReport report;
+    mesh::TetMesh m;
+    try {
+      m = mesh::remesh(m_spec.domain, solids, m_spec.sizing, &report);
+    } catch (const Error& e) {
+      std::string why = e.what();
+      if (why.rfind("remesh: ", 0) == 0) why = why.substr(8);
+      throw MeshError(fmt::format("fluid remesh: {} ({})", why, m_legend));
+    }
+    const double seconds = timer.stop();
+
+    ScopedTimer quality_timer(phases, "output");
+    const mesh::QualitySummary q = mesh::summarize_quality(m);
+    m_mesh = std::move(m);
+    m_stats.cells = m_mesh->num_tets();
+    m_stats.vertices = m_mesh->num_vertices();
+    m_stats.steiner_points = report.steiner_points;
+    m_stats.recovery_rounds = report.recovery_rounds;
+    m_stats.remesh_s = report.seconds_total;
+    m_stats.quality = mesh::quality_columns(q);
+    FluidSummary& f = m_summary;
+    if (std::isfinite(q.min_dihedral_deg))
+      f.min_dihedral_deg =
+          f.remeshes == 0 ? q.min_dihedral_deg : std::min(f.min_dihedral_deg, q.min_dihedral_deg);
+    f.max_slivers = std::max(f.max_slivers, q.slivers);
+    f.remeshes += 1;
+    f.remesh_s += seconds;
+    f.max_remesh_s = std::max(f.max_remesh_s, seconds);
+    f.cells = m_stats.cells;
+    f.vertices = m_stats.vertices;
+  }
+
+  /// The figures of the current mesh for a stats row.
+  const FluidStepStats& stats() const { return m_stats; }
+  const mesh::TetMesh* mesh() const { return m_mesh ? &*m_mesh : nullptr; }
+  const FluidSummary& summary() const { return m_summary; }
+
+ private:
+  struct Boundary {
+    VecXi nodes;       ///< body node of each compact surface vertex
+    MatX3i triangles;  ///< boundary triangles in compact numbering
+  };
+
+  /// Every boundary node strictly inside the fluid box, or a MeshError naming the body.
+  void check_inside(const solid::SolidBody& b, size_t index, const MatX3& x,
+                    const VecXi& nodes) const {
+    const Vec3& lo = m_spec.domain.lo;
+    const Vec3& hi = m_spec.domain.hi;
+    for (Index k = 0; k < x.rows(); ++k) {
+      const Vec3 p = x.row(k).transpose();
+      if ((p.array() > lo.array()).all() && (p.array() < hi.array()).all()) continue;
+      const Vec3 blo = x.colwise().minCoeff().transpose();
+      const Vec3 bhi = x.colwise().maxCoeff().transpose();
+      throw MeshError(fmt::format(
+          "body '{}' (bodies[{}]) is not strictly inside the fluid box {}..{}: node {} is at {} "
+          "and the body spans {}..{}; enlarge fluid.domain or keep the body inside",
+          b.name(), index, fmt_vec(lo), fmt_vec(hi), nodes[k], fmt_vec(p), fmt_vec(blo),
+          fmt_vec(bhi)));
+    }
+  }
+
+  FluidSpec m_spec;
+  std::vector<Boundary> m_bodies;
+  std::string m_legend;  ///< "body 0 is 'sheet', body 1 is 'flag'"
+  std::optional<mesh::TetMesh> m_mesh;
+  FluidStepStats m_stats;
+  FluidSummary m_summary;
+};
+
 /// The scene with the command-line step/end-time overrides applied (also in `resolved`, so
 /// that scene.resolved.json reproduces the run).
 Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
@@ -185,8 +311,8 @@ Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
   return s;
 }
 
-void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out,
-                 const RunOptions& opt, RunResult& r) {
+void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fluid,
+                 OutputWriter& out, const RunOptions& opt, RunResult& r) {
   const double dt = scene.time.dt;
   const int n = scene.time.num_steps();
   const int every = std::max(1, scene.output.every);
@@ -201,7 +327,7 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out
   auto write_last_good_frame = [&](int done) {
     if (done <= last_frame) return;
     try {
-      out.write_frame(world, done, done * dt);
+      out.write_frame(world, done, done * dt, fluid ? fluid->mesh() : nullptr);
     } catch (const Error& e) {
       logger().warn("could not write the frame of step {}: {}", done, e.what());
     }
@@ -228,9 +354,13 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out
       row.contacts = rep.contacts;
       r.solver_iterations += rep.iterations;
       if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
+      if (fluid) {
+        fluid->rebuild(world, row.phases);
+        row.fluid = fluid->stats();
+      }
       if (step % every == 0 || step == n) {
         ScopedTimer timer(row.phases, "output");
-        out.write_frame(world, step, t);
+        out.write_frame(world, step, t, fluid ? fluid->mesh() : nullptr);
         last_frame = step;
       }
       fill_energies(world, row);
@@ -254,7 +384,8 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, OutputWriter& out
   r.completed = true;
 }
 
-void run_static(const Scene& scene, solid::SolidWorld& world, OutputWriter& out, RunResult& r) {
+void run_static(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fluid,
+                OutputWriter& out, RunResult& r) {
   r.steps_planned = 1;
   r.dt = 1.0;
   if (!world.obstacles.empty())
@@ -281,9 +412,13 @@ void run_static(const Scene& scene, solid::SolidWorld& world, OutputWriter& out,
         row.solver_residual = std::max(row.solver_residual, rep.residual);
       }
     }
+    if (fluid) {
+      fluid->rebuild(world, row.phases);
+      row.fluid = fluid->stats();
+    }
     {
       ScopedTimer timer(row.phases, "output");
-      out.write_frame(world, 1, 1.0);
+      out.write_frame(world, 1, 1.0, fluid ? fluid->mesh() : nullptr);
     }
   } catch (const Error& e) {
     initial.restore(world);
@@ -318,16 +453,33 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world.bodies.size(),
                 world.bodies.size() == 1 ? "y" : "ies", r.build_s);
 
+  std::optional<FluidRemesher> fluid;
+  if (scene.fluid) fluid.emplace(*scene.fluid, world);
+
   t = now_seconds();
   OutputWriter out(opt.out_dir, scene, world);
-  out.write_frame(world, 0, 0.0);
-  if (scene.mode == Mode::Static)
-    run_static(scene, world, out, r);
+  bool initial_ok = true;
+  if (fluid) {
+    PhaseTimes unused;  // step 0 has no stats row
+    try {
+      fluid->rebuild(world, unused);
+    } catch (const Error& e) {
+      initial_ok = false;
+      r.error = one_line(fmt::format("step 0 (t = 0 s) failed: {}", e.what()));
+    }
+  }
+  out.write_frame(world, 0, 0.0, fluid ? fluid->mesh() : nullptr);
+  if (!initial_ok) {
+    r.steps_planned = scene.mode == Mode::Static ? 1 : scene.time.num_steps();
+    r.dt = scene.mode == Mode::Static ? 1.0 : scene.time.dt;
+  } else if (scene.mode == Mode::Static)
+    run_static(scene, world, fluid ? &*fluid : nullptr, out, r);
   else
-    run_dynamic(scene, world, out, opt, r);
+    run_dynamic(scene, world, fluid ? &*fluid : nullptr, out, opt, r);
   r.wall_s = now_seconds() - t;
   r.frames_written = out.frames_written();
   fill_final(world, r);
+  if (fluid) r.fluid = fluid->summary();
   try {
     out.write_summary(summary_json(r));
   } catch (const Error& e) {
@@ -366,6 +518,17 @@ std::string summary_json(const RunResult& r) {
                       {"tets", b.tets},
                       {"max_displacement", b.max_displacement}});
   j["bodies"] = bodies;
+  if (r.fluid) {
+    const FluidSummary& f = *r.fluid;
+    j["fluid"] = {{"remeshes", f.remeshes},
+                  {"remesh_seconds", f.remesh_s},
+                  {"ms_per_remesh", f.ms_per_remesh()},
+                  {"max_remesh_seconds", f.max_remesh_s},
+                  {"cells", f.cells},
+                  {"vertices", f.vertices},
+                  {"min_dihedral_deg", f.min_dihedral_deg},
+                  {"max_slivers", f.max_slivers}};
+  }
   return j.dump(2) + "\n";
 }
 
@@ -389,6 +552,14 @@ void print_summary(const RunResult& r, std::ostream& out) {
                      r.kinetic_energy + r.elastic_energy + r.gravity_potential);
   for (const auto& b : r.bodies)
     out << fmt::format("body '{}': max |d| = {:.6g} m\n", b.name, b.max_displacement);
+  if (r.fluid && r.fluid->remeshes > 0) {
+    const FluidSummary& f = *r.fluid;
+    out << fmt::format(
+        "fluid: {} remeshes, {:.3g} ms each on average (max {:.3g} ms); last mesh {} cells, {} "
+        "vertices; min dihedral {:.3g} deg, at most {} slivers\n",
+        f.remeshes, f.ms_per_remesh(), 1e3 * f.max_remesh_s, f.cells, f.vertices,
+        f.min_dihedral_deg, f.max_slivers);
+  }
   if (r.unconverged_steps > 0)
     out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",
                        r.unconverged_steps);

@@ -43,6 +43,17 @@ struct BodySummary {
   double max_displacement = 0.0;  ///< max over nodes of |d| (m)
 };
 
+/// The fluid mesh over a run (fluid scenes only).
+struct FluidSummary {
+  int remeshes = 0;               ///< fluid meshes built (step 0 and after every step)
+  double remesh_s = 0.0;          ///< wall seconds in the remesh phase, summed
+  double max_remesh_s = 0.0;      ///< the slowest one (s)
+  Index cells = 0, vertices = 0;  ///< of the last mesh
+  double min_dihedral_deg = 0.0;  ///< smallest dihedral angle over every mesh (degrees)
+  Index max_slivers = 0;          ///< most cells with min dihedral < 5° in one mesh
+  double ms_per_remesh() const { return remeshes > 0 ? 1e3 * remesh_s / remeshes : 0.0; }
+};
+
 struct RunResult {
   bool completed = false;    ///< every step ran; false if a step failed (see `error`)
   bool interrupted = false;  ///< stopped on request (RunOptions::stop); `error` says where
@@ -63,6 +74,7 @@ struct RunResult {
   double elastic_energy = 0.0;     ///< final, J
   double gravity_potential = 0.0;  ///< final, J
   std::vector<BodySummary> bodies;
+  std::optional<FluidSummary> fluid;  ///< set for a scene with a fluid
 
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
 };
@@ -72,12 +84,19 @@ struct RunResult {
 ///    last one; a stats row every step;
 ///  - static: `solid::solve_static` on each body with f_e = external_forces(gravity) and the
 ///    scene's static options, then frame 1 at pseudo-time 1.0 and one stats row.
+/// A scene with a fluid also gets a fluid mesh built by mesh::remesh around every body's
+/// boundary triangles at their current positions X + d: at t = 0 and after every step (timed
+/// as the phase `remesh`), written with each frame and summarised in each stats row
+/// (tools/output.hpp). Before each remesh every body's boundary must lie strictly inside the
+/// fluid box, else the step fails with a message naming the body.
 /// Ends by writing summary.json. A step that throws a tetfsi::Error (e.g. SolverError:
-/// diverged) does not throw out of here: the run stops, the frames, the `.pvd` files and the
-/// stats rows written so far stay valid, the state after the last good step is written as a
-/// frame if it is not one yet, and the result says `completed = false` with a one-line
-/// `error` (also recorded in summary.json). A stop request (RunOptions::stop) ends the run
-/// the same way between two steps, with `interrupted = true`.
+/// diverged, or a MeshError from the remesh) does not throw out of here: the run stops, the
+/// frames, the `.pvd` files and the stats rows written so far stay valid, the state after the
+/// last good step is written as a frame if it is not one yet (with the fluid mesh built for
+/// it), and the result says `completed = false` with a one-line `error` (also recorded in
+/// summary.json). If the fluid mesh of t = 0 cannot be built, frame 0 has the bodies only and
+/// no step is taken. A stop request (RunOptions::stop) ends the run the same way between two
+/// steps, with `interrupted = true`.
 /// @throws InputError / MeshError for a scene that cannot be built or an output folder that
 ///   cannot be written.
 RunResult run_scene(const Scene& scene, const RunOptions& options);

@@ -6,22 +6,27 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
+#include <vtkCellData.h>
 #include <vtkDataArray.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
+#include <vtkPolyData.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLDataElement.h>
 #include <vtkXMLDataParser.h>
+#include <vtkXMLPolyDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <nlohmann/json.hpp>
 
@@ -63,12 +68,13 @@ struct Result {
   std::vector<std::string> err_lines() const { return lines_of(err); }
 };
 
-/// Run `tetfsi <args>` in folder `cwd`, capturing stdout and stderr.
-Result tetfsi(const fs::path& cwd, const std::string& args) {
+/// Run `tetfsi <args>` in folder `cwd`, capturing stdout and stderr. `limits` is a shell
+/// prefix (e.g. "ulimit -v 4000000;") for runs that must not take the machine down.
+Result tetfsi(const fs::path& cwd, const std::string& args, const std::string& limits = "") {
   const fs::path out = cwd / "cli_stdout.txt";
   const fs::path err = cwd / "cli_stderr.txt";
-  const std::string cmd = fmt::format("cd '{}' && '{}' {} >'{}' 2>'{}'", cwd.string(), TETFSI_EXE,
-                                      args, out.string(), err.string());
+  const std::string cmd = fmt::format("cd '{}' && {} '{}' {} >'{}' 2>'{}'", cwd.string(), limits,
+                                      TETFSI_EXE, args, out.string(), err.string());
   const int status = std::system(cmd.c_str());
   Result r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -131,6 +137,70 @@ long vtu_points(const fs::path& p) {
   r->Update();
   if (r->GetErrorCode() != 0 || !r->GetOutput()) return -1;
   return static_cast<long>(r->GetOutput()->GetNumberOfPoints());
+}
+
+/// Fluid runs: at most 4 GB of address space and 5 minutes, so that a remesher that runs
+/// away fails the test instead of taking the machine down.
+const std::string kFluidLimits = "ulimit -v 4000000; timeout 300";
+
+/// Total area of the boundary of the tet mesh in a .vtu (the deformed body of a frame, m²):
+/// the triangles that belong to exactly one tet. (Computed here rather than with tetfsi's
+/// mesh library, so that the check does not share code with what it checks.)
+double vtu_boundary_area(const fs::path& p) {
+  vtkNew<vtkXMLUnstructuredGridReader> r;
+  r->SetFileName(p.c_str());
+  r->Update();
+  REQUIRE(r->GetErrorCode() == 0);
+  vtkUnstructuredGrid* g = r->GetOutput();
+  std::map<std::array<vtkIdType, 3>, int> count;
+  for (vtkIdType t = 0; t < g->GetNumberOfCells(); ++t) {
+    vtkIdType n = 0;
+    const vtkIdType* pts = nullptr;
+    g->GetCellPoints(t, n, pts);
+    REQUIRE(n == 4);
+    for (int k = 0; k < 4; ++k) {
+      std::array<vtkIdType, 3> f;
+      for (int c = 0, m = 0; c < 4; ++c)
+        if (c != k) f[static_cast<size_t>(m++)] = pts[c];
+      std::sort(f.begin(), f.end());
+      ++count[f];
+    }
+  }
+  double area = 0.0;
+  for (const auto& [f, n] : count) {
+    if (n != 1) continue;
+    double a[3], b[3], c[3];
+    g->GetPoint(f[0], a);
+    g->GetPoint(f[1], b);
+    g->GetPoint(f[2], c);
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double w[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                         u[0] * v[1] - u[1] * v[0]};
+    area += 0.5 * std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+  }
+  return area;
+}
+
+/// Σ of a 1-component cell array of a .vtp, and its cell count.
+double vtp_cell_sum(const fs::path& p, const char* array, long* cells = nullptr) {
+  vtkNew<vtkXMLPolyDataReader> r;
+  r->SetFileName(p.c_str());
+  r->Update();
+  REQUIRE(r->GetErrorCode() == 0);
+  vtkDataArray* a = r->GetOutput()->GetCellData()->GetArray(array);
+  REQUIRE(a != nullptr);
+  double s = 0.0;
+  for (vtkIdType i = 0; i < a->GetNumberOfTuples(); ++i) s += a->GetComponent(i, 0);
+  if (cells) *cells = static_cast<long>(r->GetOutput()->GetNumberOfCells());
+  return s;
+}
+
+std::vector<std::string> csv_fields(const std::string& line) {
+  std::vector<std::string> f;
+  std::stringstream ss(line);
+  for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+  return f;
 }
 
 }  // namespace
@@ -405,4 +475,151 @@ TEST_CASE("the shipped csm1 scene: point A of the last frame within 3% of Turek-
                                   << ey << ")");
   CHECK(ex < 0.03);
   CHECK(ey < 0.03);
+}
+
+TEST_CASE("tetfsi run: remesh_sheet writes the fluid mesh and its interface with every frame") {
+  // The shipped scene, 3 steps with a frame each, at coarse fluid sizes (a few seconds).
+  TempDir dir("remesh_sheet");
+  const fs::path scene = fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "remesh_sheet.json";
+  const Result r = tetfsi(dir.path,
+                          fmt::format("run '{}' --out o --progress off --steps 3 --set "
+                                      "output.every=1 --set fluid.mesh.surface_size=0.1 --set "
+                                      "fluid.mesh.far_size=0.4",
+                                      scene.string()),
+                          kFluidLimits);
+  INFO("stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  const fs::path out = dir.path / "o";
+  CHECK(r.out.find("fluid: 4 remeshes") != std::string::npos);
+
+  bool ok = false;
+  const Pvd sheet = parse_pvd(out / "sheet.pvd", ok);
+  REQUIRE(ok);
+  const Pvd fluid = parse_pvd(out / "fluid.pvd", ok);
+  REQUIRE(ok);
+  const Pvd iface = parse_pvd(out / "interface.pvd", ok);
+  REQUIRE(ok);
+  REQUIRE(fluid.times.size() == 4);
+  CHECK(fluid.times == sheet.times);
+  CHECK(iface.times == sheet.times);
+  for (int i = 0; i < 4; ++i) {
+    CAPTURE(i);
+    CHECK(fluid.files[i] == fmt::format("fluid/fluid_{:06d}.vtu", i));
+    CHECK(iface.files[i] == fmt::format("interface/interface_{:06d}.vtp", i));
+
+    // The fluid mesh with its quality arrays.
+    vtkNew<vtkXMLUnstructuredGridReader> reader;
+    reader->SetFileName((out / fluid.files[i]).c_str());
+    reader->Update();
+    REQUIRE(reader->GetErrorCode() == 0);
+    vtkUnstructuredGrid* g = reader->GetOutput();
+    CHECK(g->GetNumberOfCells() > 1000);
+    for (const char* a : {"volume", "q_min_dihedral_deg", "q_max_dihedral_deg", "q_radius_edge",
+                          "q_shape", "touches_solid"}) {
+      CAPTURE(a);
+      REQUIRE(g->GetCellData()->GetArray(a) != nullptr);
+      CHECK(g->GetCellData()->GetArray(a)->GetNumberOfTuples() == g->GetNumberOfCells());
+    }
+    vtkDataArray* vb = g->GetPointData()->GetArray("vertex_body");
+    REQUIRE(vb != nullptr);
+    double range[2];
+    vb->GetRange(range);
+    CHECK(range[0] == -1.0);  // fluid samples
+    CHECK(range[1] == 0.0);   // and vertices on the sheet (body 0)
+
+    // The interface faces tile the sheet's boundary at that frame: their area is the area of
+    // the deformed sheet's boundary triangles (2 · 1 · 1 + 4 · 1 · 0.02 = 2.08 m² flat).
+    long faces = 0;
+    const double area = vtp_cell_sum(out / iface.files[i], "area", &faces);
+    CHECK(faces >= 2 * 20 * 20 * 2);  // at least the sheet's own boundary triangles
+    const double sheet_area = vtu_boundary_area(out / sheet.files[i]);
+    if (i == 0) CHECK(sheet_area == doctest::Approx(2.08).epsilon(1e-12));
+    CHECK(area == doctest::Approx(sheet_area).epsilon(1e-9));
+    CHECK(vtp_cell_sum(out / iface.files[i], "body") == 0.0);
+  }
+
+  // stats.csv: the remesh phase, the fluid figures and the quality summary every step.
+  const auto stats = lines_of(read_text(out / "stats.csv"));
+  REQUIRE(stats.size() == 4);
+  const auto cols = csv_fields(stats[0]);
+  for (const char* c :
+       {"remesh", "fluid_cells", "fluid_vertices", "steiner_points", "recovery_rounds", "remesh_s",
+        "q_min_dihedral_deg", "q_slivers", "q_max_weight"})
+    CHECK(std::find(cols.begin(), cols.end(), c) != cols.end());
+  const auto row = csv_fields(stats[3]);
+  REQUIRE(row.size() == cols.size());
+  const size_t cells_col =
+      static_cast<size_t>(std::find(cols.begin(), cols.end(), "fluid_cells") - cols.begin());
+  CHECK(std::stol(row[cells_col]) > 1000);
+
+  const auto summary = nlohmann::json::parse(read_text(out / "summary.json"));
+  CHECK(summary["completed"] == true);
+  CHECK(summary["fluid"]["remeshes"] == 4);
+  CHECK(summary["fluid"]["cells"].get<long>() == std::stol(row[cells_col]));
+}
+
+TEST_CASE("tetfsi run: a body outside the fluid box is a one-line error naming the body") {
+  TempDir dir("fluid_outside");
+  SUBCASE("already at t = 0: frame 0 of the body, no step") {
+    nlohmann::json s = tiny_scene(5);
+    s["fluid"] = {{"domain", {{"lo", {-0.5, -0.5, -0.5}}, {"hi", {1.5, 1.5, 0.9}}}},
+                  {"mesh", {{"surface_size", 0.25}, {"far_size", 0.5}}}};
+    write_scene(dir.path, s);
+    const Result r =
+        tetfsi(dir.path, "run tiny.json --out o --progress off --log-level off", kFluidLimits);
+    CHECK(r.code == 1);
+    const auto lines = r.err_lines();
+    REQUIRE(lines.size() == 1);
+    CHECK(lines[0].rfind("error: step 0 (t = 0 s) failed: body 'block' (bodies[0]) is not "
+                         "strictly inside the fluid box",
+                         0) == 0);
+    CHECK(lines[0].find("enlarge fluid.domain") != std::string::npos);
+    bool ok = false;
+    const Pvd pvd = parse_pvd(dir.path / "o" / "block.pvd", ok);
+    REQUIRE(ok);
+    CHECK(pvd.times == std::vector<double>{0.0});
+    CHECK(!fs::exists(dir.path / "o" / "fluid.pvd"));  // no fluid mesh could be built
+    CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 1);
+    const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+    CHECK(summary["completed"] == false);
+    CHECK(summary["steps"] == 0);
+    CHECK(summary["error"].get<std::string>().find("body 'block'") != std::string::npos);
+  }
+  SUBCASE("falling out during the run: the frames up to the last good step stay") {
+    // An unpinned block falling at 1 m/s leaves the box (its bottom 5 cm below it) after
+    // about 5 steps of 0.01 s.
+    nlohmann::json s = tiny_scene(20);
+    s["bodies"][0]["pins"] = nlohmann::json::array();
+    s["bodies"][0]["initial_velocity"] = {0.0, 0.0, -1.0};
+    s["output"]["every"] = 2;
+    s["fluid"] = {{"domain", {{"lo", {-0.5, -0.5, -0.05}}, {"hi", {1.5, 1.5, 1.5}}}},
+                  {"mesh", {{"surface_size", 0.25}, {"far_size", 0.5}}}};
+    write_scene(dir.path, s);
+    const Result r =
+        tetfsi(dir.path, "run tiny.json --out o --progress off --log-level off", kFluidLimits);
+    CHECK(r.code == 1);
+    const auto lines = r.err_lines();
+    REQUIRE(lines.size() == 1);
+    CHECK(lines[0].rfind("error: step ", 0) == 0);
+    CHECK(lines[0].find("failed: body 'block' (bodies[0]) is not strictly inside the fluid box") !=
+          std::string::npos);
+    const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+    CHECK(summary["completed"] == false);
+    const int steps = summary["steps"].get<int>();
+    CHECK(steps >= 3);
+    CHECK(steps <= 6);
+    CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() ==
+          1 + static_cast<size_t>(steps));
+    // Body and fluid collections both end at the last good step, with the same times.
+    bool ok = false;
+    const Pvd body = parse_pvd(dir.path / "o" / "block.pvd", ok);
+    REQUIRE(ok);
+    const Pvd fluid = parse_pvd(dir.path / "o" / "fluid.pvd", ok);
+    REQUIRE(ok);
+    CHECK(fluid.times == body.times);
+    CHECK(body.files.back() == fmt::format("block/block_{:06d}.vtu", steps));
+    CHECK(fluid.files.back() == fmt::format("fluid/fluid_{:06d}.vtu", steps));
+    for (const auto& e : fs::recursive_directory_iterator(dir.path / "o"))
+      CHECK(e.path().extension() != ".tmp");
+  }
 }
