@@ -558,6 +558,13 @@ void refine_surface(RefinedSurface& surf, const SizeField& size, int max_rounds)
 struct Lattice {
   std::vector<Vec3> points;
   std::vector<double> size;  ///< local spacing of each point (m)
+  /// If the octree is isotropic (one root size in every axis), the Delaunay is computed in
+  /// lattice units y = (x − lo) / unit, where lattice points have exact integer coordinates
+  /// (`y`): x = lo + q·unit is rounded, which turns exactly coplanar lattice points (many, at
+  /// octree transitions) into nearly flat cells. Delaunay is invariant under this similarity.
+  bool isotropic = false;
+  double unit = 1.0;
+  std::vector<Vec3> y;
 };
 
 class Octree {
@@ -568,6 +575,26 @@ class Octree {
     for (int a = 0; a < 3; ++a) {
       m_n[a] = std::max(1, static_cast<int>(std::ceil(L(a) / size.far() - 1e-9)));
       m_root(a) = L(a) / m_n[a];
+    }
+    // One root size for all axes if the box allows it (the box's sides commensurate with a
+    // size ≤ far_size, e.g. 1.4 × 1.4 × 0.8 with 0.2): an isotropic lattice (see Lattice).
+    double best = 0;
+    int best_n[3] = {0, 0, 0};
+    for (int a = 0; a < 3; ++a)
+      for (int N = m_n[a]; N <= 4 * m_n[a]; ++N) {
+        const double r = L(a) / N;
+        int n[3];
+        bool ok = true;
+        for (int b = 0; b < 3 && ok; ++b) {
+          n[b] = static_cast<int>(std::lround(L(b) / r));
+          ok = n[b] >= 1 && std::abs(L(b) / r - n[b]) <= 1e-9 * n[b];
+        }
+        if (ok && r > best) best = r, std::copy(n, n + 3, best_n);
+      }
+    if (best > 0) {
+      m_isotropic = true;
+      for (int a = 0; a < 3; ++a) m_n[a] = best_n[a];
+      m_root = Vec3::Constant(best);
     }
     const double rmax = m_root.maxCoeff();
     m_levels = std::max(0, static_cast<int>(std::ceil(std::log2(rmax / size.surface()) - 1e-9)));
@@ -748,6 +775,8 @@ class Octree {
       return a.key < b.key || (a.key == b.key && a.size < b.size);
     });
     Lattice out;
+    out.isotropic = m_isotropic;
+    out.unit = m_root(0) / static_cast<double>(1ULL << fine);
     const std::uint64_t qmax[3] = {static_cast<std::uint64_t>(m_n[0]) << fine,
                                    static_cast<std::uint64_t>(m_n[1]) << fine,
                                    static_cast<std::uint64_t>(m_n[2]) << fine};
@@ -783,6 +812,15 @@ class Octree {
             x(a) += kWallJitter * items[n].size * u;
         }
       }
+      if (m_isotropic) {
+        Vec3 y;
+        for (int a = 0; a < 3; ++a)
+          y(a) = x(a) == (q[a] == qmax[a] ? m_domain.hi(a)
+                                          : m_domain.lo(a) + static_cast<double>(q[a]) * unit(a))
+                     ? static_cast<double>(q[a])
+                     : (x(a) - m_domain.lo(a)) / unit(a);  // jittered
+        out.y.push_back(y);
+      }
       out.points.push_back(x);
       out.size.push_back(items[n].size);
     }
@@ -795,6 +833,7 @@ class Octree {
   int m_n[3];
   Vec3 m_root;
   int m_levels = 0;
+  bool m_isotropic = false;
   std::vector<std::unordered_set<std::uint64_t>> m_leaves;  ///< per level
 };
 
@@ -875,23 +914,31 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
         estimate, sizing.max_cells, size.scale);
   }
   std::vector<Vec3> pts;
+  std::vector<Vec3> dt_pts;  // the same points in the Delaunay's coordinates (see Lattice)
+  const auto to_dt = [&](const Vec3& x) -> Vec3 {
+    return lat.isotropic ? Vec3((x - domain.lo) / lat.unit) : x;
+  };
   std::vector<int> lattice_id;  // Delaunay id -> lattice index, for ids < num_lattice
   for (std::size_t p = 0; p < lat.points.size(); ++p)
     if (keep[p]) {
       pts.push_back(lat.points[p]);
+      dt_pts.push_back(lat.isotropic ? lat.y[p] : lat.points[p]);
       lattice_id.push_back(static_cast<int>(p));
     }
   const int nL = static_cast<int>(pts.size());
   report.lattice_points = nL;
   report.surface_points = 0;
   for (int b : surf->body_vertex) report.surface_points += b >= 0;
-  for (const SurfacePoint& sp : surf->points) pts.push_back(sp.x);
+  for (const SurfacePoint& sp : surf->points) {
+    pts.push_back(sp.x);
+    dt_pts.push_back(to_dt(sp.x));
+  }
   report.seconds_placement = now_seconds() - t_start;
 
   // 3. Delaunay.
   double t0 = now_seconds();
   Delaunay dt;
-  dt.build(pts);
+  dt.build(dt_pts);
   report.seconds_delaunay = now_seconds() - t0;
 
   // 4. Conformity: every solid triangle must be covered by Delaunay faces lying on it.
@@ -1071,7 +1118,8 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     }
     for (int p = before; p < static_cast<int>(surf->points.size()); ++p) {
       pts.push_back(surf->points[p].x);
-      dt.insert(pts.back(), static_cast<int>(pts.size()) - 1);
+      dt_pts.push_back(to_dt(pts.back()));
+      dt.insert(dt_pts.back(), static_cast<int>(pts.size()) - 1);
     }
   }
   report.steiner_points = static_cast<Index>(surf->points.size()) - report.surface_points;

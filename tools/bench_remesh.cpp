@@ -21,11 +21,7 @@
 
 namespace tetfsi::tools {
 
-namespace {
-
-/// The solids of the benchmark: a tilted thin sheet and a sphere (an icosphere, 4
-/// subdivisions: 5120 triangles).
-std::vector<mesh::SolidSurface> bench_solids() {
+std::vector<mesh::SolidSurface> bench_remesh_solids() {
   std::vector<mesh::SolidSurface> out;
   {
     const mesh::VolumeMesh vm =
@@ -78,13 +74,11 @@ std::vector<mesh::SolidSurface> bench_solids() {
   return out;
 }
 
-}  // namespace
-
 int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out) {
   mesh::FluidDomain domain;
   domain.lo = Vec3::Zero();
   domain.hi = Vec3::Ones();
-  const std::vector<mesh::SolidSurface> solids = bench_solids();
+  const std::vector<mesh::SolidSurface> solids = bench_remesh_solids();
   // Surface sizes that give about 30k, 250k and 1M cells (far size 4×, grading 0.5).
   const struct {
     long target;

@@ -4,8 +4,16 @@
 /// tetrahedralisation of the same vertex set, at about 30k, 250k and 1M cells.
 #include <iosfwd>
 #include <string>
+#include <vector>
+
+#include "mesh/remesh.hpp"
 
 namespace tetfsi::tools {
+
+/// The solids of the benchmark: a 0.6 × 0.6 × 0.01 m sheet (24 × 24 cells) tilted 10°
+/// about (1, 1, 0), centred at (0.45, 0.5, 0.62), body 0; an icosphere (4 subdivisions,
+/// 5120 triangles) of radius 0.12 m at (0.5, 0.5, 0.28), body 1.
+std::vector<mesh::SolidSurface> bench_remesh_solids();
 
 /// Mesh the unit box around a rubber sheet (0.6 × 0.6 × 0.01 m, tilted 10°) and a sphere
 /// (radius 0.12 m) at three sizes; for each print remesh seconds (with its phases), the
