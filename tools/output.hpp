@@ -188,8 +188,9 @@ class StatsWriter {
   /// steiner_points, recovery_rounds, remesh_s and the names of mesh::quality_columns
   /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...).
   static const std::vector<std::string>& columns(bool fluid = false);
-  /// The timed phases that get a column (seconds): assemble, solve, update, output, total;
-  /// with `fluid`, remesh (building the solid surfaces and the fluid mesh) after update.
+  /// The timed phases that get a column (seconds): assemble, solve, update, output (frames,
+  /// and in fluid scenes the quality summary of the fluid mesh), total; with `fluid`, remesh
+  /// (gathering the solid surfaces and mesh::remesh) after update.
   static const std::vector<std::string>& phase_columns(bool fluid = false);
 
   bool has_fluid() const { return m_fluid; }

@@ -578,6 +578,16 @@ void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std
     out << fmt::format("body '{}': {} nodes, {} tets, mass {:.6g} kg, {} fixed DOFs\n", b.name(),
                        b.num_nodes(), b.num_tets(), b.total_mass(), b.num_fixed_dofs());
   out << fmt::format("obstacles: {}\n", world.obstacles.size());
+  if (scene.fluid) {
+    const mesh::FluidDomain& d = scene.fluid->domain;
+    const mesh::Sizing& z = scene.fluid->sizing;
+    out << fmt::format(
+        "fluid: box {}..{}, {} by default, {} patch{}; mesh surface_size {:.6g} m, far_size "
+        "{:.6g} m, grading {:.6g}{}\n",
+        fmt_vec(d.lo), fmt_vec(d.hi), mesh::to_string(d.default_kind), d.patches.size(),
+        d.patches.size() == 1 ? "" : "es", z.surface_size, z.far_size, z.grading,
+        z.max_cells > 0 ? fmt::format(", at most {} cells", z.max_cells) : std::string());
+  }
 }
 
 }  // namespace tetfsi::tools

@@ -491,6 +491,10 @@ TEST_CASE("tetfsi run: remesh_sheet writes the fluid mesh and its interface with
   REQUIRE(r.code == 0);
   const fs::path out = dir.path / "o";
   CHECK(r.out.find("fluid: 4 remeshes") != std::string::npos);
+  const Result v = tetfsi(dir.path, fmt::format("validate '{}'", scene.string()));
+  CHECK(v.code == 0);
+  CHECK(v.out.find("fluid: box [-0.2, -0.2, -0.5]..[1.2, 1.2, 0.3], wall by default, 1 patch") !=
+        std::string::npos);
 
   bool ok = false;
   const Pvd sheet = parse_pvd(out / "sheet.pvd", ok);
@@ -560,7 +564,7 @@ TEST_CASE("tetfsi run: remesh_sheet writes the fluid mesh and its interface with
 
 TEST_CASE("tetfsi run: a body outside the fluid box is a one-line error naming the body") {
   TempDir dir("fluid_outside");
-  SUBCASE("already at t = 0: frame 0 of the body, no step") {
+  SUBCASE("already at t = 0: frame 0 of the body and no step") {
     nlohmann::json s = tiny_scene(5);
     s["fluid"] = {{"domain", {{"lo", {-0.5, -0.5, -0.5}}, {"hi", {1.5, 1.5, 0.9}}}},
                   {"mesh", {{"surface_size", 0.25}, {"far_size", 0.5}}}};

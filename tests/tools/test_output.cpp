@@ -297,7 +297,8 @@ TEST_CASE("write_body_vtu: an unwritable path is one InputError naming the file"
   }
 }
 
-TEST_CASE("write_fluid_vtu: points, tets, volume, quality, touches_solid and vertex_body") {
+TEST_CASE(
+    "write_fluid_vtu: points and tets with volume and quality and touches_solid and vertex_body") {
   TempDir dir("fluid_vtu");
   const mesh::TetMesh m = make_fluid_mesh();
   const mesh::TetQuality q = mesh::tet_quality(m.vertices, m.tets);
@@ -575,7 +576,7 @@ TEST_CASE("OutputWriter: layout of an output folder, 3 frames at t = 0, 0.5, 1.2
   }
 }
 
-TEST_CASE("StatsWriter with a fluid: remesh phase, fluid and quality columns") {
+TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality columns") {
   TempDir dir("stats_fluid");
   const fs::path p = dir.path / "stats.csv";
   const mesh::TetMesh m = make_fluid_mesh();
