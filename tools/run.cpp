@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <ostream>
 
 #include <nlohmann/json.hpp>
@@ -190,7 +191,8 @@ class FluidRemesher {
   /// quality summary to "output". On success the new mesh replaces the old one; on failure
   /// the old one stays (it matches the last good state).
   /// @throws MeshError naming the body if a body is not strictly inside the fluid box, or
-  ///   with the remesher's reason (body indices explained by name).
+  ///   with the remesher's reason (body indices explained by name; any std::exception from
+  ///   the remesher becomes a MeshError).
   void rebuild(const solid::SolidWorld& world, PhaseTimes& phases) {
     ScopedTimer timer(phases, "remesh");
     std::vector<mesh::SolidSurface> solids(world.bodies.size());
@@ -211,7 +213,9 @@ class FluidRemesher {
     mesh::TetMesh m;
     try {
       m = mesh::remesh(m_spec.domain, solids, m_spec.sizing, &report);
-    } catch (const Error& e) {
+    } catch (const std::exception& e) {
+      // tetfsi errors, and also what CGAL or the allocator may throw (std::logic_error,
+      // std::bad_alloc): the run stops like on any failed step instead of losing its summary.
       std::string why = e.what();
       if (why.rfind("remesh: ", 0) == 0) why = why.substr(8);
       throw MeshError(fmt::format("fluid remesh: {} ({})", why, m_legend));
