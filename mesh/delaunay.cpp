@@ -123,6 +123,19 @@ void Delaunay::extract(MatX4i& tets, MatX4i& neighbours) const {
   }
 }
 
+void Delaunay::cells_touching(int min_id, MatX4i& tets) const {
+  // One pass over the cells (walking the incident cells of each surface vertex and sorting
+  // the handles measured slower).
+  const DT& dt = m_impl->dt;
+  std::vector<int> ids;
+  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
+    const int a = c->vertex(0)->info(), b = c->vertex(1)->info(), e = c->vertex(2)->info(),
+              f = c->vertex(3)->info();
+    if (std::max(std::max(a, b), std::max(e, f)) >= min_id) ids.insert(ids.end(), {a, b, e, f});
+  }
+  tets = Eigen::Map<MatX4i>(ids.data(), static_cast<Index>(ids.size() / 4), 4);
+}
+
 MatX4i delaunay_of(const std::vector<Vec3>& points) {
   Delaunay d;
   d.build(points);

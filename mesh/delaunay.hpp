@@ -38,6 +38,11 @@ class Delaunay {
   /// index across the opposite face (−1 for the convex hull).
   void extract(MatX4i& tets, MatX4i& neighbours) const;
 
+  /// The finite cells (as ids, positively oriented) with at least one vertex of id ≥ min_id,
+  /// each once: every face whose three vertices have such ids is a face of one of them.
+  /// Cheaper than `extract` (one pass, no neighbours) when few ids are that large.
+  void cells_touching(int min_id, MatX4i& tets) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> m_impl;

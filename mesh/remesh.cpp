@@ -45,7 +45,7 @@ constexpr double kWallJitter = 0.1;
 /// Cells with a smaller minimum dihedral angle (degrees) lose a lattice vertex, in up to
 /// kSliverRounds rounds.
 constexpr double kSliverDeg = 5.0;
-constexpr int kSliverRounds = 4;
+constexpr int kSliverRounds = 2;
 /// A cell of four surface vertices of one body with |6V| below this times (longest edge)³ is
 /// flat (coplanar up to round-off).
 constexpr double kFlat = 1e-9;
@@ -609,11 +609,37 @@ class Octree {
   }
 
   Lattice build() {
-    std::vector<int> all(m_set.corners.size());
-    std::iota(all.begin(), all.end(), 0);
+    // Candidate triangles of each root cube (within the keep radius of subdivide, from the
+    // triangle's box): binned, not by testing every triangle against every root.
+    const double keep = std::max(0.0, cube_size(0) - m_size.surface()) / m_size.sizing->grading +
+                        0.5 * extent(0).norm();
+    const std::size_t nroots = static_cast<std::size_t>(m_n[0]) * m_n[1] * m_n[2];
+    std::vector<std::vector<int>> cand(nroots);
+    for (std::size_t g = 0; g < m_set.corners.size(); ++g) {
+      int lo[3], hi[3];
+      for (int a = 0; a < 3; ++a) {
+        const double u0 = (m_set.box_lo[g](a) - keep - m_domain.lo(a)) / m_root(a) - 0.5;
+        const double u1 = (m_set.box_hi[g](a) + keep - m_domain.lo(a)) / m_root(a) - 0.5;
+        lo[a] = std::max(0, static_cast<int>(std::ceil(u0)));
+        hi[a] = std::min(m_n[a] - 1, static_cast<int>(std::floor(u1)));
+      }
+      for (int k = lo[2]; k <= hi[2]; ++k)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int i = lo[0]; i <= hi[0]; ++i) {
+            const Vec3 c = centre(0, i, j, k);
+            const Vec3 d = (m_set.box_lo[g] - c).cwiseMax(c - m_set.box_hi[g]).cwiseMax(0.0);
+            if (d.norm() < keep)
+              cand[i +
+                   static_cast<std::size_t>(m_n[0]) * (j + static_cast<std::size_t>(m_n[1]) * k)]
+                  .push_back(static_cast<int>(g));
+          }
+    }
     for (int k = 0; k < m_n[2]; ++k)
       for (int j = 0; j < m_n[1]; ++j)
-        for (int i = 0; i < m_n[0]; ++i) subdivide(0, i, j, k, all);
+        for (int i = 0; i < m_n[0]; ++i)
+          subdivide(0, i, j, k,
+                    cand[i + static_cast<std::size_t>(m_n[0]) *
+                                 (j + static_cast<std::size_t>(m_n[1]) * k)]);
     balance();
     return points();
   }
@@ -627,12 +653,21 @@ class Octree {
 
   void subdivide(int level, int i, int j, int k, const std::vector<int>& cand) {
     const Vec3 c = centre(level, i, j, k);
-    double dist = kInf;
-    for (int g : cand) {
-      const auto& t = m_set.corners[g];
-      dist = std::min(dist, (closest_on_triangle(c, t[0], t[1], t[2]) - c).norm());
-    }
     const double s = cube_size(level);
+    // Split iff s > size(c) = min(far, surface + grading · dist, refine): the distance only
+    // matters below (s − surface) / grading, so stop at the first triangle that close, and
+    // skip triangles whose box is farther.
+    const double reach = (s / (1.0 + 1e-9) - m_size.surface()) / m_size.sizing->grading;
+    double dist = kInf;
+    if (reach > 0) {
+      for (int g : cand) {
+        const Vec3 d = (m_set.box_lo[g] - c).cwiseMax(c - m_set.box_hi[g]).cwiseMax(0.0);
+        if (d.squaredNorm() >= reach * reach) continue;
+        const auto& t = m_set.corners[g];
+        dist = std::min(dist, (closest_on_triangle(c, t[0], t[1], t[2]) - c).norm());
+        if (dist < reach) break;
+      }
+    }
     const bool split = level < m_levels && s > m_size.at(c, dist) * (1.0 + 1e-9);
     if (!split) {
       m_leaves[level].insert(pack3(i, j, k));
@@ -988,8 +1023,8 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
       const Vec3 e1 = pts[T(t, 1)] - a, e2 = pts[T(t, 2)] - a, e3 = pts[T(t, 3)] - a;
       const double l2 = e1.squaredNorm() + e2.squaredNorm() + e3.squaredNorm() +
                         (e2 - e1).squaredNorm() + (e3 - e1).squaredNorm() + (e3 - e2).squaredNorm();
-      const double lrms3 = std::pow(l2 / 6.0, 1.5);
-      if (std::sqrt(2.0) * e1.dot(e2.cross(e3)) < 0.3 * lrms3) cand.push_back(t);
+      const double v6 = e1.dot(e2.cross(e3));  // √2 v6 < 0.3 (l2/6)^1.5, without pow
+      if (v6 <= 0 || 2.0 * v6 * v6 < 0.09 * (l2 / 6.0) * (l2 / 6.0) * (l2 / 6.0)) cand.push_back(t);
     }
     MatX4i sub(static_cast<Index>(cand.size()), 4);
     for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
@@ -1035,13 +1070,14 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     return false;
   };
   int cleanup_rounds = 0;
+  MatX4i near;  // cells touching the surface
   for (int round = 0;; ++round) {
-    dt.extract(tets, nbrs);
+    dt.cells_touching(nL, near);
     facet_tri.clear();
     std::vector<double> covered(set.corners.size(), 0.0);
-    for (Index t = 0; t < tets.rows(); ++t) {
+    for (Index t = 0; t < near.rows(); ++t) {
       for (int k = 0; k < 4; ++k) {
-        const int a = tets(t, (k + 1) % 4), b = tets(t, (k + 2) % 4), c = tets(t, (k + 3) % 4);
+        const int a = near(t, (k + 1) % 4), b = near(t, (k + 2) % 4), c = near(t, (k + 3) % 4);
         if (a < nL || b < nL || c < nL) continue;
         auto [it, fresh] = facet_tri.try_emplace(sorted_key(a, b, c), -1);
         if (!fresh) continue;
@@ -1069,6 +1105,7 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
       // is checked again. They come from points that are coplanar in exact arithmetic but not
       // after rounding: a lattice plane through a box solid's face, or lattice points at octree
       // transitions (lo + q·u is rounded, so exact lattice coplanarity is lost).
+      dt.extract(tets, nbrs);
       if (cleanup_rounds >= kSliverRounds) break;
       ++cleanup_rounds;
       const std::vector<int> drop = sliver_vertices(tets);
