@@ -950,8 +950,15 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   }
   std::vector<Vec3> pts;
   std::vector<Vec3> dt_pts;  // the same points in the Delaunay's coordinates (see Lattice)
+  // Surface points within 1e-7 lattice units of a lattice plane are put on it: a solid whose
+  // faces lie on lattice planes (round numbers) otherwise makes nearly flat cells with lattice
+  // points, from round-off alone.
   const auto to_dt = [&](const Vec3& x) -> Vec3 {
-    return lat.isotropic ? Vec3((x - domain.lo) / lat.unit) : x;
+    if (!lat.isotropic) return x;
+    Vec3 y = (x - domain.lo) / lat.unit;
+    for (int a = 0; a < 3; ++a)
+      if (std::abs(y(a) - std::round(y(a))) <= 1e-7) y(a) = std::round(y(a));
+    return y;
   };
   std::vector<int> lattice_id;  // Delaunay id -> lattice index, for ids < num_lattice
   for (std::size_t p = 0; p < lat.points.size(); ++p)
