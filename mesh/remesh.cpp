@@ -34,6 +34,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kProtection = 0.5;
 /// A solid sub-triangle whose longest edge exceeds this multiple of the surface size is split.
 constexpr double kSurfaceEdgeFactor = 1.5;
+/// Smallest circumradius, as a fraction of the surface size, that Gabriel refinement splits.
+constexpr double kGabrielFloor = 0.1;
 /// Points on the box faces are moved within the face by up to this fraction of their
 /// spacing (deterministic). A square grid of wall points under the BCC centres makes
 /// co-spherical pyramids, each with an interior face of d_f = 0 (458 in a 10³ box); the
@@ -520,6 +522,11 @@ void refine_surface(RefinedSurface& surf, const SizeField& size, int max_rounds)
     if (split.empty()) break;
     surf.refine_subs(split);
   }
+  // No Gabriel splits below this circumradius: at a concave crease (a fold of the surface
+  // past 180°) the other face's points stay inside every diametral sphere along the edge, and
+  // splitting cascaded to 2e-6 m edges. Those triangles are left to the recovery, which asks
+  // only for a Delaunay face, not an empty diametral sphere.
+  const double floor2 = std::pow(kGabrielFloor * size.surface(), 2);
   for (int round = 0; round < max_rounds; ++round) {
     HashGrid grid(2.0 * size.surface());
     std::vector<Vec3> cs(surf.subs.size());
@@ -538,7 +545,7 @@ void refine_surface(RefinedSurface& surf, const SizeField& size, int max_rounds)
       for (int s : *items) {
         const SubTri& st = surf.subs[s];
         if (marked[s] || st.v[0] == static_cast<int>(p) || st.v[1] == static_cast<int>(p) ||
-            st.v[2] == static_cast<int>(p))
+            st.v[2] == static_cast<int>(p) || r2s[s] < floor2)
           continue;
         if ((surf.points[p].x - cs[s]).squaredNorm() < r2s[s] * (1.0 - 1e-9)) {
           marked[s] = 1;
