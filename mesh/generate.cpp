@@ -3,7 +3,10 @@
 #include "mesh/generate.hpp"
 
 #include <array>
+#include <cmath>
+#include <map>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -81,9 +84,50 @@ VolumeMesh make_box(const Vec3& lo, const Vec3& hi, const Vec3i& cells) {
       }
     }
   }
-  logger().debug("make_box: {} x {} x {} cells, {} vertices, {} tets", cells(0), cells(1),
-                 cells(2), m.num_vertices(), m.num_tets());
+  logger().debug("make_box: {} x {} x {} cells, {} vertices, {} tets", cells(0), cells(1), cells(2),
+                 m.num_vertices(), m.num_tets());
   return m;
+}
+
+SurfaceMesh make_icosphere(const Vec3& centre, double radius, int subdivisions) {
+  TETFSI_REQUIRE(InputError, std::isfinite(radius) && radius > 0 && centre.allFinite(),
+                 "make_icosphere: need a finite centre and radius > 0, got radius {}", radius);
+  TETFSI_REQUIRE(InputError, subdivisions >= 0 && subdivisions <= 7,
+                 "make_icosphere: subdivisions must be 0..7, got {}", subdivisions);
+  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                         {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<Vec3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                          {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                          {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                          {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (auto& p : v) p.normalize();
+  for (int level = 0; level < subdivisions; ++level) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      return mid[key] = static_cast<int>(v.size()) - 1;
+    };
+    std::vector<Vec3i> g;
+    g.reserve(4 * f.size());
+    for (const auto& tri : f) {
+      const int a = midpoint(tri(0), tri(1)), b = midpoint(tri(1), tri(2)),
+                c = midpoint(tri(2), tri(0));
+      g.insert(g.end(), {{tri(0), a, c}, {tri(1), b, a}, {tri(2), c, b}, {a, b, c}});
+    }
+    f = std::move(g);
+  }
+  SurfaceMesh s;
+  s.vertices.resize(static_cast<Index>(v.size()), 3);
+  for (std::size_t i = 0; i < v.size(); ++i)
+    s.vertices.row(static_cast<Index>(i)) = (centre + radius * v[i]).transpose();
+  s.triangles.resize(static_cast<Index>(f.size()), 3);
+  for (std::size_t i = 0; i < f.size(); ++i)
+    s.triangles.row(static_cast<Index>(i)) = f[i].transpose();
+  return s;
 }
 
 }  // namespace tetfsi::mesh

@@ -1083,6 +1083,49 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     }
     return false;
   };
+  // A flat cell on a surface: four surface points of one body with |6V| ≤ kFlat l³
+  // (coplanar up to round-off; a co-circular coplanar quad of the surface, e.g. a square of
+  // a box face, once rotated and rounded, is a valid but flat Delaunay cell with a
+  // meaningless circumcentre).
+  const auto is_flat_surface_cell = [&](int v0, int v1, int v2, int v3) {
+    if (v0 < nL || v1 < nL || v2 < nL || v3 < nL) return false;
+    const int body = surf->points[surface_id(v0)].body;
+    if (surf->points[surface_id(v1)].body != body || surf->points[surface_id(v2)].body != body ||
+        surf->points[surface_id(v3)].body != body)
+      return false;
+    const Vec3 e1 = pts[v1] - pts[v0], e2 = pts[v2] - pts[v0], e3 = pts[v3] - pts[v0];
+    const double l = std::max(
+        {e1.norm(), e2.norm(), e3.norm(), (e2 - e1).norm(), (e3 - e1).norm(), (e3 - e2).norm()});
+    return std::abs(e1.dot(e2.cross(e3))) <= kFlat * l * l * l;
+  };
+  // Sub-triangles that are faces of a flat cell straddling coplanar triangles (no triangle
+  // holds all four of its points).
+  const auto straddled_subs = [&](const MatX4i& cells) {
+    std::unordered_map<TripleKey, int, TripleHash> sub_of;
+    std::vector<int> out;
+    for (Index t = 0; t < cells.rows(); ++t) {
+      const int v0 = cells(t, 0), v1 = cells(t, 1), v2 = cells(t, 2), v3 = cells(t, 3);
+      if (!is_flat_surface_cell(v0, v1, v2, v3)) continue;
+      const int g = common_triangle(v0, v1, v2);
+      bool common = false;
+      if (g >= 0)
+        for (const auto& e : surf->points[surface_id(v3)].on) common |= e.first == g;
+      if (common) continue;  // flat on one triangle: handled by classification, no straddle
+      if (sub_of.empty())
+        for (std::size_t sub = 0; sub < surf->subs.size(); ++sub)
+          if (surf->subs[sub].alive) {
+            const SubTri& st = surf->subs[sub];
+            sub_of.emplace(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL),
+                           static_cast<int>(sub));
+          }
+      for (int k = 0; k < 4; ++k) {
+        auto it = sub_of.find(
+            sorted_key(cells(t, (k + 1) % 4), cells(t, (k + 2) % 4), cells(t, (k + 3) % 4)));
+        if (it != sub_of.end()) out.push_back(it->second);
+      }
+    }
+    return out;
+  };
   int cleanup_rounds = 0;
   MatX4i near;  // cells touching the surface
   for (int round = 0;; ++round) {
@@ -1114,42 +1157,51 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
       }
       if (!all) missing.push_back(static_cast<int>(g));
     }
+    std::vector<int> split;
     if (missing.empty()) {
-      // Conforming. Slivers are removed by deleting a lattice vertex of each, then conformity
-      // is checked again. They come from points that are coplanar in exact arithmetic but not
-      // after rounding: a lattice plane through a box solid's face, or lattice points at octree
-      // transitions (lo + q·u is rounded, so exact lattice coplanarity is lost).
-      dt.extract(tets, nbrs);
-      if (cleanup_rounds >= kSliverRounds) break;
-      ++cleanup_rounds;
-      const std::vector<int> drop = sliver_vertices(tets);
-      if (drop.empty()) break;
-      for (int v : drop) {
-        lattice_removed[v] = 1;
-        dt.remove(v);
+      // Conforming. A flat cell whose four surface points span two coplanar triangles (a
+      // co-circular quad of a rotated box face) would leave fluid faces straddling both:
+      // split the sub-triangles under it instead (their shared edge, by LEPP), within the
+      // round budget.
+      split = straddled_subs(near);
+      if (split.empty() || round >= options.max_recovery_rounds) {
+        // Slivers are removed by deleting a lattice vertex of each, then conformity is
+        // checked again. They come from points that are coplanar in exact arithmetic but not
+        // after rounding (a lattice plane through a box solid's face, or lattice points at
+        // octree transitions when the box needs an anisotropic lattice).
+        dt.extract(tets, nbrs);
+        if (cleanup_rounds >= kSliverRounds) break;
+        ++cleanup_rounds;
+        const std::vector<int> drop = sliver_vertices(tets);
+        if (drop.empty()) break;
+        for (int v : drop) {
+          lattice_removed[v] = 1;
+          dt.remove(v);
+        }
+        report.sliver_points_removed += static_cast<Index>(drop.size());
+        continue;
       }
-      report.sliver_points_removed += static_cast<Index>(drop.size());
-      continue;
-    }
-    if (round >= options.max_recovery_rounds) {
-      const int g = missing.front();
-      const int b = set.tri_body[g];
-      throw MeshError(fmt::format(
-          "remesh: body {}: triangle {} (and {} more) is not recovered by the fluid mesh after {} "
-          "rounds of Steiner points ({:.3g} of its area covered): the surface is too close to "
-          "itself, another body or a wall for the mesh size; use a smaller surface_size",
-          solids[b].body, set.local(g), missing.size() - 1, round, covered[g] / tri_area[g]));
+    } else {
+      if (round >= options.max_recovery_rounds) {
+        const int g = missing.front();
+        const int b = set.tri_body[g];
+        throw MeshError(fmt::format(
+            "remesh: body {}: triangle {} (and {} more) is not recovered by the fluid mesh after "
+            "{} "
+            "rounds of Steiner points ({:.3g} of its area covered): the surface is too close to "
+            "itself, another body or a wall for the mesh size; use a smaller surface_size",
+            solids[b].body, set.local(g), missing.size() - 1, round, covered[g] / tri_area[g]));
+      }
+      // Split the sub-triangles of the missing triangles that are not mesh faces.
+      const auto by_tri = surf->subs_by_triangle();
+      for (int g : missing)
+        for (int s : by_tri[g]) {
+          const SubTri& st = surf->subs[s];
+          if (!facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)))
+            split.push_back(s);
+        }
     }
     report.recovery_rounds = round + 1;
-    // Split the sub-triangles of the missing triangles that are not mesh faces.
-    const auto by_tri = surf->subs_by_triangle();
-    std::vector<int> split;
-    for (int g : missing)
-      for (int s : by_tri[g]) {
-        const SubTri& st = surf->subs[s];
-        if (!facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)))
-          split.push_back(s);
-      }
     std::vector<int> new_subs;
     const int before = static_cast<int>(surf->points.size());
     surf->refine_subs(split, &new_subs);
@@ -1183,24 +1235,12 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   std::vector<int> region(nT, -1);
   std::vector<char> region_fluid;
   std::vector<Index> stack;
-  // Flat cells on a surface: four surface vertices of one body that are coplanar in exact
-  // geometry (a co-circular coplanar quad of the surface, e.g. a square of a box face, once
-  // rotated and rounded, is a valid but flat Delaunay cell with a meaningless circumcentre).
-  // They belong to the solid: the fluid meets the surface through their other two faces,
-  // which cover the same quad.
+  // Flat cells on a surface (is_flat_surface_cell) belong to the solid: the fluid meets the
+  // surface through their other two faces, which cover the same quad.
   std::vector<char> flat(nT, 0);
-  for (Index t = 0; t < nT; ++t) {
-    const int v0 = tets(t, 0), v1 = tets(t, 1), v2 = tets(t, 2), v3 = tets(t, 3);
-    if (v0 < nL || v1 < nL || v2 < nL || v3 < nL) continue;
-    const int body = surf->points[surface_id(v0)].body;
-    if (surf->points[surface_id(v1)].body != body || surf->points[surface_id(v2)].body != body ||
-        surf->points[surface_id(v3)].body != body)
-      continue;
-    const Vec3 e1 = pts[v1] - pts[v0], e2 = pts[v2] - pts[v0], e3 = pts[v3] - pts[v0];
-    const double l = std::max(
-        {e1.norm(), e2.norm(), e3.norm(), (e2 - e1).norm(), (e3 - e1).norm(), (e3 - e2).norm()});
-    flat[t] = std::abs(e1.dot(e2.cross(e3))) <= kFlat * l * l * l;
-  }
+  for (Index t = 0; t < nT; ++t)
+    flat[t] = is_flat_surface_cell(tets(t, 0), tets(t, 1), tets(t, 2), tets(t, 3));
+
   const auto is_barrier = [&](Index t, int k) {
     const int a = tets(t, (k + 1) % 4), b = tets(t, (k + 2) % 4), c = tets(t, (k + 3) % 4);
     if (a < nL || b < nL || c < nL) return false;

@@ -3,7 +3,6 @@
 #include "tools/bench_remesh.hpp"
 
 #include <cmath>
-#include <map>
 #include <ostream>
 #include <vector>
 
@@ -37,38 +36,11 @@ std::vector<mesh::SolidSurface> bench_remesh_solids() {
     out.push_back(std::move(s));
   }
   {
-    const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-    std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0},
-                           {0, -1, t}, {0, 1, t}, {0, -1, -t}, {0, 1, -t},
-                           {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    std::vector<Vec3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                            {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                            {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                            {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
-    for (auto& p : v) p.normalize();
-    for (int level = 0; level < 4; ++level) {
-      std::vector<Vec3i> g;
-      std::map<std::pair<int, int>, int> mid;
-      auto m = [&](int a, int b) {
-        auto key = std::minmax(a, b);
-        auto it = mid.find(key);
-        if (it != mid.end()) return it->second;
-        v.push_back((v[a] + v[b]).normalized());
-        return mid[key] = static_cast<int>(v.size()) - 1;
-      };
-      for (const auto& tri : f) {
-        const int a = m(tri(0), tri(1)), b = m(tri(1), tri(2)), c = m(tri(2), tri(0));
-        g.insert(g.end(), {{tri(0), a, c}, {tri(1), b, a}, {tri(2), c, b}, {a, b, c}});
-      }
-      f = std::move(g);
-    }
+    const mesh::SurfaceMesh sphere = mesh::make_icosphere(Vec3(0.5, 0.5, 0.28), 0.12, 4);
     mesh::SolidSurface s;
     s.body = 1;
-    s.vertices.resize(v.size(), 3);
-    for (std::size_t i = 0; i < v.size(); ++i)
-      s.vertices.row(i) = (Vec3(0.5, 0.5, 0.28) + 0.12 * v[i]).transpose();
-    s.triangles.resize(f.size(), 3);
-    for (std::size_t i = 0; i < f.size(); ++i) s.triangles.row(i) = f[i].transpose();
+    s.vertices = sphere.vertices;
+    s.triangles = sphere.triangles;
     out.push_back(std::move(s));
   }
   return out;

@@ -33,43 +33,13 @@ std::string message_of(F&& f) {
   return "";
 }
 
-/// Closed surface of an icosphere (outward), `levels` subdivisions.
+/// An icosphere (mesh::make_icosphere) as the surface of body `body`.
 SolidSurface icosphere(const Vec3& centre, double radius, int levels, int body = 0) {
-  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-                         {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  std::vector<Vec3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                          {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                          {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                          {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
-  for (auto& p : v) p.normalize();
-  for (int l = 0; l < levels; ++l) {
-    std::map<std::pair<int, int>, int> mid;
-    auto midpoint = [&](int a, int b) {
-      auto key = std::minmax(a, b);
-      auto it = mid.find(key);
-      if (it != mid.end()) return it->second;
-      v.push_back((v[a] + v[b]).normalized());
-      return mid[key] = static_cast<int>(v.size()) - 1;
-    };
-    std::vector<Vec3i> g;
-    for (const auto& tri : f) {
-      const int a = midpoint(tri(0), tri(1)), b = midpoint(tri(1), tri(2)),
-                c = midpoint(tri(2), tri(0));
-      g.push_back({tri(0), a, c});
-      g.push_back({tri(1), b, a});
-      g.push_back({tri(2), c, b});
-      g.push_back({a, b, c});
-    }
-    f = g;
-  }
+  const SurfaceMesh m = make_icosphere(centre, radius, levels);
   SolidSurface s;
   s.body = body;
-  s.vertices.resize(v.size(), 3);
-  for (std::size_t i = 0; i < v.size(); ++i)
-    s.vertices.row(i) = (centre + radius * v[i]).transpose();
-  s.triangles.resize(f.size(), 3);
-  for (std::size_t i = 0; i < f.size(); ++i) s.triangles.row(i) = f[i].transpose();
+  s.vertices = m.vertices;
+  s.triangles = m.triangles;
   return s;
 }
 
@@ -207,6 +177,25 @@ FluidDomain unit_box() {
 }  // namespace
 
 TEST_SUITE("unit") {
+  TEST_CASE("make_icosphere: closed, outward, 20 * 4^s triangles, volume converging to the ball") {
+    double previous_error = 1.0;
+    for (int s = 0; s <= 4; ++s) {
+      const SurfaceMesh m = make_icosphere(Vec3(1, 2, 3), 0.5, s);
+      CHECK(m.num_triangles() == 20 * (1 << (2 * s)));
+      CHECK(m.num_vertices() == 10 * (1 << (2 * s)) + 2);
+      validate_closed_surface(m, "icosphere");  // throws if open or inconsistently oriented
+      SolidSurface sol;
+      sol.vertices = m.vertices;
+      sol.triangles = m.triangles;
+      const double ball = 4.0 / 3.0 * M_PI * 0.125;
+      const double error = (ball - enclosed_volume(sol)) / ball;  // inscribed: smaller
+      CHECK(error > 0);
+      if (s > 0) CHECK(error < previous_error / 3.0);  // second order: about 4x per subdivision
+      previous_error = error;
+    }
+    CHECK(previous_error < 0.01);
+    CHECK_THROWS_AS(make_icosphere(Vec3::Zero(), -1.0, 1), InputError);
+  }
   TEST_CASE("remesh: an empty box is a graded BCC mesh with exact walls and patches") {
     FluidDomain d = unit_box();
     d.patches.push_back({"jet", FaceKind::Inflow, 0, Vec2(0.2, 0.3), Vec2(0.8, 0.7)});
