@@ -294,4 +294,32 @@ Vec3 boundary_area_vector(const TetMesh& m) {
   return s;
 }
 
+VecXi cospherical_groups(const TetMesh& m, double rel_tol, Index* num_groups) {
+  const Index nT = m.num_tets();
+  std::vector<Index> parent(nT);
+  for (Index t = 0; t < nT; ++t) parent[t] = t;
+  auto find = [&](Index t) {
+    while (parent[t] != t) t = parent[t] = parent[parent[t]];
+    return t;
+  };
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    if (m.is_boundary(f)) continue;
+    const Vec3 a = m.vertices.row(m.faces(f, 0)), b = m.vertices.row(m.faces(f, 1)),
+               c = m.vertices.row(m.faces(f, 2));
+    const double edge = ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0;
+    if (!(std::abs(m.dual_lengths(f)) <= rel_tol * edge)) continue;
+    const Index r1 = find(m.face_tets(f, 0)), r2 = find(m.face_tets(f, 1));
+    if (r1 != r2) parent[std::max(r1, r2)] = std::min(r1, r2);
+  }
+  VecXi id = VecXi::Constant(nT, -1);
+  Index n = 0;
+  for (Index t = 0; t < nT; ++t) {
+    const Index r = find(t);
+    if (id(r) < 0) id(r) = n++;
+    id(t) = id(r);
+  }
+  if (num_groups) *num_groups = n;
+  return id;
+}
+
 }  // namespace tetfsi::mesh

@@ -105,4 +105,13 @@ double total_volume(const TetMesh& m);
 /// Σ over boundary faces of A_f n_f: zero for a closed mesh (a consistency check).
 Vec3 boundary_area_vector(const TetMesh& m);
 
+/// Groups of co-spherical cells: cells joined through interior faces whose dual length is
+/// |d_f| ≤ rel_tol × (mean edge of the face) share one id (0..#groups−1, by first cell).
+/// Such cells have the same circumcentre, i.e. one Voronoi vertex: the circumcentric
+/// pressures of a group are one unknown, and the faces inside a group (A_f/d_f = ∞) drop
+/// out of the pressure Laplacian. A Delaunay mesh of points in special position (lattices)
+/// has many; the remesher's octree transitions leave about 8 % of the interior faces so.
+/// @return #T group ids; `num_groups` (optional) receives their number
+VecXi cospherical_groups(const TetMesh& m, double rel_tol = 1e-9, Index* num_groups = nullptr);
+
 }  // namespace tetfsi::mesh

@@ -16,6 +16,7 @@
 #include "mesh/generate.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/remesh.hpp"
+#include "mesh/tet_mesh.hpp"
 #include "mesh/volume_mesh.hpp"
 
 using namespace tetfsi;
@@ -216,6 +217,42 @@ TEST_SUITE("unit") {
     }
     CHECK(inflow == doctest::Approx(0.24).epsilon(1e-12));  // 0.6 × 0.4, on lattice lines
     CHECK(open == doctest::Approx(1.0).epsilon(1e-12));
+  }
+
+  TEST_CASE("cospherical_groups: a Kuhn cube is one group and a BCC lattice has none") {
+    // The 6 Kuhn tets of a cube share the cube's circumsphere: one group.
+    const VolumeMesh cube = make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1));
+    Index n = 0;
+    const VecXi g = cospherical_groups(build_tet_mesh(cube.vertices, cube.tets), 1e-9, &n);
+    CHECK(n == 1);
+    CHECK((g.array() == 0).all());
+    // Two Kuhn cubes: two spheres, two groups.
+    const VolumeMesh two = make_box(Vec3::Zero(), Vec3(2, 1, 1), Vec3i(2, 1, 1));
+    cospherical_groups(build_tet_mesh(two.vertices, two.tets), 1e-9, &n);
+    CHECK(n == 2);
+    // The remesher's uniform BCC interior has no co-spherical cells: every cell its own group.
+    FluidDomain d = unit_box();
+    Sizing s;
+    s.surface_size = s.far_size = 0.1;
+    const TetMesh m = remesh(d, {}, s);
+    cospherical_groups(m, 1e-9, &n);
+    CHECK(n == m.num_tets());
+    // With a sphere, the octree transitions group some cells; each group has one circumcentre.
+    Sizing ss;
+    ss.surface_size = 0.04;
+    ss.far_size = 0.16;
+    const TetMesh ms = remesh(d, {icosphere(Vec3(0.5, 0.5, 0.5), 0.2, 3)}, ss);
+    const VecXi gs = cospherical_groups(ms, 1e-9, &n);
+    CHECK(n < ms.num_tets());
+    std::vector<Index> first(n, -1);
+    Index spread = 0;
+    for (Index t = 0; t < ms.num_tets(); ++t) {
+      Index& f = first[gs(t)];
+      if (f < 0) f = t;
+      spread += (ms.circumcentres.row(t) - ms.circumcentres.row(f)).norm() > 1e-9;
+    }
+    CHECK(spread == 0);
+    MESSAGE("sphere mesh: ", ms.num_tets(), " cells in ", n, " co-spherical groups");
   }
 
   TEST_CASE("remesh: sphere") {
