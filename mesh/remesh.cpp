@@ -975,12 +975,10 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
       if (std::abs(y(a) - std::round(y(a))) <= 1e-7) y(a) = std::round(y(a));
     return y;
   };
-  std::vector<int> lattice_id;  // Delaunay id -> lattice index, for ids < num_lattice
   for (std::size_t p = 0; p < lat.points.size(); ++p)
     if (keep[p]) {
       pts.push_back(lat.points[p]);
       dt_pts.push_back(lat.isotropic ? lat.y[p] : lat.points[p]);
-      lattice_id.push_back(static_cast<int>(p));
     }
   const int nL = static_cast<int>(pts.size());
   report.lattice_points = nL;
