@@ -11,7 +11,9 @@
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "mesh/volume_mesh.hpp"
+#include "tests/test_util.hpp"
 
+using tetfsi::test::message_of;
 using namespace tetfsi;
 using namespace tetfsi::mesh;
 namespace fs = std::filesystem;
@@ -31,16 +33,6 @@ fs::path write_text(const std::string& name, const std::string& text) {
   const fs::path p = scratch_dir() / name;
   std::ofstream(p, std::ios::binary) << text;
   return p;
-}
-
-template <class E, class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  return "";
 }
 
 bool contains(const std::string& s, const std::string& part) {
@@ -95,17 +87,17 @@ TEST_CASE("read TetGen .node/.ele (globally inverted, 1-based) and .vtu: same me
 
 TEST_CASE("small hand-written files: 0-based TetGen, CRLF Gmsh, tabs and comments") {
   write_text("one.ele", "# zero-based\n1 4 0\n0\t0 1 2 3\n");
-  const fs::path node = write_text("one.node",
-                                   "4 3 0 0 # header\n0 0 0 0\n1 2 0 0\n\n2 0 2 0\n3 0 0 2\n");
+  const fs::path node =
+      write_text("one.node", "4 3 0 0 # header\n0 0 0 0\n1 2 0 0\n\n2 0 2 0\n3 0 0 2\n");
   const VolumeMesh tg = read_volume_mesh(node);
   CHECK(tg.num_tets() == 1);
   CHECK(total_volume(tg) == doctest::Approx(8.0 / 6.0).epsilon(1e-15));
 
-  const fs::path crlf = write_text(
-      "crlf.msh",
-      "$MeshFormat\r\n2.2 0 8\r\n$EndMeshFormat\r\n$Nodes\r\n4\r\n1 0 0 0\r\n2 1 0 0\r\n"
-      "3 0 1 0\r\n4 0 0 1\r\n$EndNodes\r\n$Elements\r\n1\r\n1 4 0 1 2 3 4\r\n"
-      "$EndElements\r\n");
+  const fs::path crlf =
+      write_text("crlf.msh",
+                 "$MeshFormat\r\n2.2 0 8\r\n$EndMeshFormat\r\n$Nodes\r\n4\r\n1 0 0 0\r\n2 1 0 0\r\n"
+                 "3 0 1 0\r\n4 0 0 1\r\n$EndNodes\r\n$Elements\r\n1\r\n1 4 0 1 2 3 4\r\n"
+                 "$EndElements\r\n");
   const VolumeMesh g = read_volume_mesh(crlf);
   CHECK(g.num_tets() == 1);
   CHECK(total_volume(g) == doctest::Approx(1.0 / 6.0).epsilon(1e-15));
@@ -175,14 +167,14 @@ TEST_CASE("syntax errors name path:line and what was expected") {
         obj.string() +
             ":4: face vertex 4 refers to vertex 4, but only 3 vertices are defined so far");
 
-  const fs::path vtu = write_text(
-      "truncated.vtu",
-      "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\">\n"
-      "<UnstructuredGrid><Piece NumberOfPoints=\"4\" NumberOfCells=\"1\"><Points>\n");
+  const fs::path vtu =
+      write_text("truncated.vtu",
+                 "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\">\n"
+                 "<UnstructuredGrid><Piece NumberOfPoints=\"4\" NumberOfCells=\"1\"><Points>\n");
   const std::string vtu_msg = message_of<InputError>([&] { read_volume_mesh(vtu); });
   INFO(vtu_msg);
   CHECK(vtu_msg.rfind(vtu.string() + ": VTK could not read the file: Error parsing XML in stream "
-                      "at line 4",
+                                     "at line 4",
                       0) == 0);
   CHECK_FALSE(contains(vtu_msg, "\n"));
   const fs::path not_vtu = write_text("poly.vtu", "<VTKFile type=\"PolyData\"></VTKFile>\n");
@@ -216,8 +208,8 @@ TEST_CASE("surface readers: OFF icosphere, OBJ and STL cubes") {
   const SurfaceMesh stl = read_surface_mesh(kData / "cube.stl");
   const SurfaceMesh bin = read_surface_mesh(kData / "cube_binary.stl");  // header "solid ..."
   for (const SurfaceMesh* s : {&obj, &stl, &bin}) {
-    CHECK(s->num_vertices() == 8);     // STL corners merged exactly
-    CHECK(s->num_triangles() == 12);   // 6 quads fan-split
+    CHECK(s->num_vertices() == 8);    // STL corners merged exactly
+    CHECK(s->num_triangles() == 12);  // 6 quads fan-split
     CHECK_NOTHROW(validate_closed_surface(*s, "cube"));
     CHECK(std::abs(enclosed_volume(*s) - 1.0) <= 1e-15);  // unit cube, exact arithmetic
   }

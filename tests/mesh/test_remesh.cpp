@@ -18,21 +18,13 @@
 #include "mesh/remesh.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "mesh/volume_mesh.hpp"
+#include "tests/test_util.hpp"
 
+using tetfsi::test::message_of;
 using namespace tetfsi;
 using namespace tetfsi::mesh;
 
 namespace {
-
-template <class E, class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  return "";
-}
 
 /// An icosphere (mesh::make_icosphere) as the surface of body `body`.
 SolidSurface icosphere(const Vec3& centre, double radius, int levels, int body = 0) {

@@ -15,22 +15,13 @@
 #include "mesh/io.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "mesh/tetrahedralize.hpp"
+#include "tests/test_util.hpp"
 
+using tetfsi::test::message_of;
 using namespace tetfsi;
 using namespace tetfsi::mesh;
 
 namespace {
-
-/// Message of the exception `f` throws as type E ("" if none).
-template <class E, class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  return "";
-}
 
 /// make_box with its interior vertices moved by up to `amount` × cell size per axis (fixed
 /// seed): every tet stays positive for amount ≤ 0.15, the outer box is unchanged, and the

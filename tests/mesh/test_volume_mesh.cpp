@@ -10,22 +10,13 @@
 #include "core/error.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/volume_mesh.hpp"
+#include "tests/test_util.hpp"
 
+using tetfsi::test::message_of;
 using namespace tetfsi;
 using namespace tetfsi::mesh;
 
 namespace {
-
-/// Message of the exception `f` throws as type E ("" if none).
-template <class E, class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  return "";
-}
 
 /// Surface of a tet mesh's boundary as a SurfaceMesh (same vertex array).
 SurfaceMesh boundary_surface(const VolumeMesh& m) {
@@ -93,8 +84,8 @@ TEST_CASE("boundary_triangles of a box: count, outward, closed, conforming") {
     for (int k = 0; k < 3; ++k) {
       CHECK(tv.count(b(f, k)) == 1);
       const Vec3 p = m.vertices.row(b(f, k));
-      const bool on_face = (p - lo).cwiseAbs().minCoeff() < 1e-15 ||
-                           (p - hi).cwiseAbs().minCoeff() < 1e-15;
+      const bool on_face =
+          (p - lo).cwiseAbs().minCoeff() < 1e-15 || (p - hi).cwiseAbs().minCoeff() < 1e-15;
       CHECK(on_face);
     }
   }
@@ -160,8 +151,7 @@ TEST_CASE("validate_volume_mesh: labels print the file's ids") {
   m.vertices = MatX3{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   m.tets = MatX4i{{0, 2, 1, 3}};
   MeshLabels labels{{10, 20, 30, 40}, {99}};
-  const std::string msg =
-      message_of<MeshError>([&] { validate_volume_mesh(m, "f.msh", labels); });
+  const std::string msg = message_of<MeshError>([&] { validate_volume_mesh(m, "f.msh", labels); });
   CHECK(msg.rfind("f.msh: element 99 (nodes 10 30 20 40) is inverted", 0) == 0);
 }
 

@@ -30,59 +30,21 @@
 #include <vtkXMLUnstructuredGridReader.h>
 #include <nlohmann/json.hpp>
 
+#include "tests/test_util.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name) {
-    path = fs::temp_directory_path() / fmt::format("tetfsi_test_cli_{}_{}", name, getpid());
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+using tetfsi::test::lines_of;
+using tetfsi::test::read_text;
+using tetfsi::test::TempDir;
+using Result = tetfsi::test::CliResult;
 
-std::string read_text(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> lines;
-  std::stringstream ss(text);
-  for (std::string l; std::getline(ss, l);) lines.push_back(l);
-  return lines;
-}
-
-struct Result {
-  int code = -1;
-  std::string out;
-  std::string err;
-  std::vector<std::string> err_lines() const { return lines_of(err); }
-};
-
-/// Run `tetfsi <args>` in folder `cwd`, capturing stdout and stderr. `limits` is a shell
-/// prefix (e.g. "ulimit -v 4000000;") for runs that must not take the machine down.
-Result tetfsi(const fs::path& cwd, const std::string& args, const std::string& limits = "") {
-  const fs::path out = cwd / "cli_stdout.txt";
-  const fs::path err = cwd / "cli_stderr.txt";
-  const std::string cmd = fmt::format("cd '{}' && {} '{}' {} >'{}' 2>'{}'", cwd.string(), limits,
-                                      TETFSI_EXE, args, out.string(), err.string());
-  const int status = std::system(cmd.c_str());
-  Result r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = read_text(out);
-  r.err = read_text(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+/// Run `tetfsi <args>` in `cwd` (tests/test_util.hpp); `limits` is a shell prefix such as
+/// "ulimit -v 4000000;".
+Result run_cli(const fs::path& cwd, const std::string& args, const std::string& limits = "") {
+  return ::tetfsi::test::run_tetfsi(cwd, args, limits);
 }
 
 /// A 2×2×2-cell box (27 nodes, 48 tets) of soft rubber, bottom face pinned, under gravity.
@@ -208,7 +170,7 @@ std::vector<std::string> csv_fields(const std::string& line) {
 TEST_CASE("tetfsi run: a 5-step scene writes frames, collection, stats and summary") {
   TempDir dir("run");
   write_scene(dir.path, tiny_scene(5));
-  const Result r = tetfsi(dir.path, "run tiny.json --progress plain");
+  const Result r = run_cli(dir.path, "run tiny.json --progress plain");
   INFO("stderr: " << r.err);
   REQUIRE(r.code == 0);
 
@@ -250,13 +212,13 @@ TEST_CASE("tetfsi run: --set, --steps, --end-time and output.every change the ru
   write_scene(dir.path, tiny_scene(5));
 
   SUBCASE("--set time.steps=3") {
-    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --set time.steps=3");
+    const Result r = run_cli(dir.path, "run tiny.json --out o --progress off --set time.steps=3");
     INFO("stderr: " << r.err);
     REQUIRE(r.code == 0);
     CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 4);
   }
   SUBCASE("--steps 2 overrides the scene and is recorded in scene.resolved.json") {
-    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --steps 2");
+    const Result r = run_cli(dir.path, "run tiny.json --out o --progress off --steps 2");
     INFO("stderr: " << r.err);
     REQUIRE(r.code == 0);
     CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 3);
@@ -264,13 +226,13 @@ TEST_CASE("tetfsi run: --set, --steps, --end-time and output.every change the ru
     CHECK(resolved["time"]["steps"] == 2);
   }
   SUBCASE("--end-time 0.035 takes ceil(0.035 / 0.01) = 4 steps") {
-    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --end-time 0.035");
+    const Result r = run_cli(dir.path, "run tiny.json --out o --progress off --end-time 0.035");
     INFO("stderr: " << r.err);
     REQUIRE(r.code == 0);
     CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 5);
   }
   SUBCASE("output.every=2: frames at steps 0, 2, 4 and always the last one (5)") {
-    const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --set output.every=2");
+    const Result r = run_cli(dir.path, "run tiny.json --out o --progress off --set output.every=2");
     INFO("stderr: " << r.err);
     REQUIRE(r.code == 0);
     bool ok = false;
@@ -282,7 +244,7 @@ TEST_CASE("tetfsi run: --set, --steps, --end-time and output.every change the ru
     CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 6);  // stats every step
   }
   SUBCASE("--steps and --end-time together are a usage error") {
-    const Result r = tetfsi(dir.path, "run tiny.json --steps 2 --end-time 1");
+    const Result r = run_cli(dir.path, "run tiny.json --steps 2 --end-time 1");
     CHECK(r.code != 0);
     CHECK(!fs::exists(dir.path / "out"));
   }
@@ -293,7 +255,7 @@ TEST_CASE("tetfsi run: static mode writes frame 0 and the equilibrium at pseudo-
   nlohmann::json s = tiny_scene(5);
   s["mode"] = "static";
   write_scene(dir.path, s);
-  const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off");
+  const Result r = run_cli(dir.path, "run tiny.json --out o --progress off");
   INFO("stderr: " << r.err);
   REQUIRE(r.code == 0);
   bool ok = false;
@@ -309,7 +271,7 @@ TEST_CASE("tetfsi run: static mode writes frame 0 and the equilibrium at pseudo-
 TEST_CASE("tetfsi validate: summary of a good scene, one-line error for an unknown key") {
   TempDir dir("validate");
   write_scene(dir.path, tiny_scene());
-  const Result good = tetfsi(dir.path, "validate tiny.json");
+  const Result good = run_cli(dir.path, "validate tiny.json");
   INFO("stderr: " << good.err);
   CHECK(good.code == 0);
   CHECK(good.out.find("27 nodes") != std::string::npos);
@@ -323,7 +285,7 @@ TEST_CASE("tetfsi validate: summary of a good scene, one-line error for an unkno
   bad["bodies"][0]["material"].erase("poisson_ratio");
   bad["bodies"][0]["material"]["poison_ratio"] = 0.3;
   write_scene(dir.path, bad, "bad.json");
-  const Result r = tetfsi(dir.path, "validate bad.json");
+  const Result r = run_cli(dir.path, "validate bad.json");
   CHECK(r.code != 0);
   const auto lines = r.err_lines();
   REQUIRE(lines.size() == 1);
@@ -332,7 +294,7 @@ TEST_CASE("tetfsi validate: summary of a good scene, one-line error for an unkno
   CHECK(lines[0].find("did you mean") != std::string::npos);
 
   // --set goes through the same checks.
-  const Result r2 = tetfsi(dir.path, "validate tiny.json --set time.stpes=3");
+  const Result r2 = run_cli(dir.path, "validate tiny.json --set time.stpes=3");
   CHECK(r2.code != 0);
   REQUIRE(r2.err_lines().size() == 1);
   CHECK(r2.err.find("stpes") != std::string::npos);
@@ -342,7 +304,7 @@ TEST_CASE("tetfsi: a missing scene file is a one-line error") {
   TempDir dir("missing");
   for (const char* cmd : {"run nowhere.json", "validate nowhere.json"}) {
     CAPTURE(cmd);
-    const Result r = tetfsi(dir.path, cmd);
+    const Result r = run_cli(dir.path, cmd);
     CHECK(r.code == 1);
     const auto lines = r.err_lines();
     REQUIRE(lines.size() == 1);
@@ -359,7 +321,7 @@ TEST_CASE("tetfsi run: a failing step leaves a readable collection and a non-zer
   s["gravity"] = {0.0, 0.0, -1e300};
   s["output"]["every"] = 10;  // the last good step is written as a frame anyway
   write_scene(dir.path, s);
-  const Result r = tetfsi(dir.path, "run tiny.json --out o --progress off --log-level off");
+  const Result r = run_cli(dir.path, "run tiny.json --out o --progress off --log-level off");
   CHECK(r.code != 0);
   const auto lines = r.err_lines();
   REQUIRE(lines.size() == 1);
@@ -413,23 +375,23 @@ TEST_CASE("tetfsi run: Ctrl-C stops after the current step with a complete outpu
 
 TEST_CASE("tetfsi --help, --version and usage errors") {
   TempDir dir("help");
-  const Result help = tetfsi(dir.path, "--help");
+  const Result help = run_cli(dir.path, "--help");
   CHECK(help.code == 0);
   for (const char* word : {"run", "validate", "bench", "--log-level"})
     CHECK(help.out.find(word) != std::string::npos);
-  const Result run_help = tetfsi(dir.path, "run --help");
+  const Result run_help = run_cli(dir.path, "run --help");
   CHECK(run_help.code == 0);
   for (const char* word : {"--out", "--set", "--steps", "--end-time", "--progress"})
     CHECK(run_help.out.find(word) != std::string::npos);
 
-  const Result version = tetfsi(dir.path, "--version");
+  const Result version = run_cli(dir.path, "--version");
   CHECK(version.code == 0);
   CHECK(version.out.rfind("tetfsi ", 0) == 0);
 
-  CHECK(tetfsi(dir.path, "").code != 0);  // a subcommand is required
-  CHECK(tetfsi(dir.path, "frobnicate").code != 0);
-  CHECK(tetfsi(dir.path, "run x.json --progress loud").code != 0);
-  const Result lvl = tetfsi(dir.path, "validate x.json --log-level chatty");
+  CHECK(run_cli(dir.path, "").code != 0);  // a subcommand is required
+  CHECK(run_cli(dir.path, "frobnicate").code != 0);
+  CHECK(run_cli(dir.path, "run x.json --progress loud").code != 0);
+  const Result lvl = run_cli(dir.path, "validate x.json --log-level chatty");
   CHECK(lvl.code == 1);
   CHECK(lvl.err_lines().size() == 1);
 }
@@ -441,7 +403,8 @@ TEST_CASE("the shipped csm1 scene: point A of the last frame within 3% of Turek-
   // u_x = −7.187e-3 m, u_y = −66.10e-3 m [Turek & Hron 2006]. Measured: 0.51% / 0.23%.
   TempDir dir("csm1");
   const fs::path scene = fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "csm1.json";
-  const Result r = tetfsi(dir.path, fmt::format("run '{}' --out o --progress off", scene.string()));
+  const Result r =
+      run_cli(dir.path, fmt::format("run '{}' --out o --progress off", scene.string()));
   INFO("stderr: " << r.err);
   REQUIRE(r.code == 0);
   bool ok = false;
@@ -481,17 +444,17 @@ TEST_CASE("tetfsi run: remesh_sheet writes the fluid mesh and its interface with
   // The shipped scene, 3 steps with a frame each, at coarse fluid sizes (a few seconds).
   TempDir dir("remesh_sheet");
   const fs::path scene = fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "remesh_sheet.json";
-  const Result r = tetfsi(dir.path,
-                          fmt::format("run '{}' --out o --progress off --steps 3 --set "
-                                      "output.every=1 --set fluid.mesh.surface_size=0.1 --set "
-                                      "fluid.mesh.far_size=0.4",
-                                      scene.string()),
-                          kFluidLimits);
+  const Result r = run_cli(dir.path,
+                           fmt::format("run '{}' --out o --progress off --steps 3 --set "
+                                       "output.every=1 --set fluid.mesh.surface_size=0.1 --set "
+                                       "fluid.mesh.far_size=0.4",
+                                       scene.string()),
+                           kFluidLimits);
   INFO("stderr: " << r.err);
   REQUIRE(r.code == 0);
   const fs::path out = dir.path / "o";
   CHECK(r.out.find("fluid: 4 remeshes") != std::string::npos);
-  const Result v = tetfsi(dir.path, fmt::format("validate '{}'", scene.string()));
+  const Result v = run_cli(dir.path, fmt::format("validate '{}'", scene.string()));
   CHECK(v.code == 0);
   CHECK(v.out.find("fluid: box [-0.2, -0.2, -0.5]..[1.2, 1.2, 0.3], wall by default, 1 patch") !=
         std::string::npos);
@@ -570,7 +533,7 @@ TEST_CASE("tetfsi run: a body outside the fluid box is a one-line error naming t
                   {"mesh", {{"surface_size", 0.25}, {"far_size", 0.5}}}};
     write_scene(dir.path, s);
     const Result r =
-        tetfsi(dir.path, "run tiny.json --out o --progress off --log-level off", kFluidLimits);
+        run_cli(dir.path, "run tiny.json --out o --progress off --log-level off", kFluidLimits);
     CHECK(r.code == 1);
     const auto lines = r.err_lines();
     REQUIRE(lines.size() == 1);
@@ -600,7 +563,7 @@ TEST_CASE("tetfsi run: a body outside the fluid box is a one-line error naming t
                   {"mesh", {{"surface_size", 0.25}, {"far_size", 0.5}}}};
     write_scene(dir.path, s);
     const Result r =
-        tetfsi(dir.path, "run tiny.json --out o --progress off --log-level off", kFluidLimits);
+        run_cli(dir.path, "run tiny.json --out o --progress off --log-level off", kFluidLimits);
     CHECK(r.code == 1);
     const auto lines = r.err_lines();
     REQUIRE(lines.size() == 1);

@@ -36,6 +36,7 @@
 #include "mesh/generate.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/tet_mesh.hpp"
+#include "tests/test_util.hpp"
 #include "tools/output.hpp"
 #include "tools/quality_cmd.hpp"
 #include "tools/raster.hpp"
@@ -45,54 +46,16 @@ using namespace tetfsi;
 
 namespace {
 
-const double kRegularDihedral = std::acos(1.0 / 3.0) * 180.0 / std::numbers::pi;  // 70.5288°
+using tetfsi::test::lines_of;
+using tetfsi::test::read_text;
+using tetfsi::test::TempDir;
+using Result = tetfsi::test::CliResult;
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name) {
-    path = fs::temp_directory_path() / fmt::format("tetfsi_test_quality_{}_{}", name, getpid());
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
-std::string read_text(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> lines;
-  std::stringstream ss(text);
-  for (std::string l; std::getline(ss, l);) lines.push_back(l);
-  return lines;
-}
-
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
-
-/// Run `tetfsi <args>` in folder `cwd`, capturing stdout and stderr.
 Result tetfsi_exe(const fs::path& cwd, const std::string& args) {
-  const fs::path out = cwd / "cli_stdout.txt", err = cwd / "cli_stderr.txt";
-  const std::string cmd = fmt::format("cd '{}' && '{}' {} >'{}' 2>'{}'", cwd.string(), TETFSI_EXE,
-                                      args, out.string(), err.string());
-  const int status = std::system(cmd.c_str());
-  Result r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = read_text(out);
-  r.err = read_text(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+  return tetfsi::test::run_tetfsi(cwd, args);
 }
+
+const double kRegularDihedral = std::acos(1.0 / 3.0) * 180.0 / std::numbers::pi;  // 70.5288°
 
 /// A cell that is not a tet: VTK type and point ids.
 struct OtherCell {
