@@ -77,8 +77,11 @@ int main(int argc, char** argv) {
       "  tetfsi run data/scenes/sheet_sag.json --steps 50 --set output.every=5\n"
       "  tetfsi bench solvers --n 250000 --backends cholmod,amg --json bench.json\n"
       "  tetfsi quality out/sheet_sag/sheet/sheet_000050.vtu --json q.json --png q.png\n"
+      "  tetfsi run data/scenes/remesh_sheet.json -o out/rs   # the fluid mesh follows the sheet\n"
+      "  tetfsi bench remesh --json remesh.json\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
-      "OUT/summary.json, OUT/scene.resolved.json. Errors: one line 'error: ...', exit code 1.\n");
+      "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
+      "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
 
   /// An integer option that must be at least 1.
   const CLI::Validator at_least_one(
@@ -168,12 +171,14 @@ int main(int argc, char** argv) {
       "remesh", "time the fluid remesher against the bare CGAL Delaunay of the same vertices");
   std::string bench_remesh_json;
   long bench_remesh_max = 1000000;
-  bench_remesh_cmd->add_option("--json", bench_remesh_json, "also write the results to this JSON file")
+  bench_remesh_cmd
+      ->add_option("--json", bench_remesh_json, "also write the results to this JSON file")
       ->type_name("FILE");
   bench_remesh_cmd
       ->add_option("--max-cells", bench_remesh_max,
                    "skip the cases above this size (30k, 250k, 1M)")
       ->type_name("N")
+      ->check(at_least_one)
       ->capture_default_str();
 
   // ---- quality ----
