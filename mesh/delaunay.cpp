@@ -123,6 +123,20 @@ void Delaunay::extract(MatX4i& tets, MatX4i& neighbours) const {
   }
 }
 
+void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
+  const Impl& d = *m_impl;
+  std::vector<DT::Cell_handle> cells;
+  for (int id : ids)
+    if (id >= 0 && static_cast<std::size_t>(id) < d.handles.size() &&
+        d.handles[id] != DT::Vertex_handle())
+      d.dt.finite_incident_cells(d.handles[id], std::back_inserter(cells));
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  tets.resize(static_cast<Index>(cells.size()), 4);
+  for (std::size_t t = 0; t < cells.size(); ++t)
+    for (int k = 0; k < 4; ++k) tets(static_cast<Index>(t), k) = cells[t]->vertex(k)->info();
+}
+
 void Delaunay::cells_touching(int min_id, MatX4i& tets) const {
   // One pass over the cells (walking the incident cells of each surface vertex and sorting
   // the handles measured slower).

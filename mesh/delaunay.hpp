@@ -38,6 +38,10 @@ class Delaunay {
   /// index across the opposite face (−1 for the convex hull).
   void extract(MatX4i& tets, MatX4i& neighbours) const;
 
+  /// The finite cells (as ids) incident to any of the given vertex ids, each once (absent
+  /// ids are skipped).
+  void cells_around(const std::vector<int>& ids, MatX4i& tets) const;
+
   /// The finite cells (as ids, positively oriented) with at least one vertex of id ≥ min_id,
   /// each once: every face whose three vertices have such ids is a face of one of them.
   /// Cheaper than `extract` (one pass, no neighbours) when few ids are that large.

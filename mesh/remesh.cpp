@@ -47,6 +47,10 @@ constexpr double kWallJitter = 0.1;
 /// Cells with a smaller minimum dihedral angle (degrees) lose a lattice vertex, in up to
 /// kSliverRounds rounds.
 constexpr double kSliverDeg = 5.0;
+/// Cells with no solid vertex and a smaller minimum dihedral angle (degrees) get a lattice
+/// vertex perturbed.
+constexpr double kAwayDeg = 10.0;
+constexpr int kPerturbRounds = 4;
 constexpr int kSliverRounds = 2;
 /// A cell of four surface vertices of one body with |6V| below this times (longest edge)³ is
 /// flat (coplanar up to round-off).
@@ -964,7 +968,8 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
         estimate, sizing.max_cells, size.scale);
   }
   std::vector<Vec3> pts;
-  std::vector<Vec3> dt_pts;  // the same points in the Delaunay's coordinates (see Lattice)
+  std::vector<Vec3> dt_pts;     // the same points in the Delaunay's coordinates (see Lattice)
+  std::vector<double> pt_size;  // lattice points: their local spacing (m)
   // Surface points within 1e-7 lattice units of a lattice plane are put on it: a solid whose
   // faces lie on lattice planes (round numbers) otherwise makes nearly flat cells with lattice
   // points, from round-off alone.
@@ -979,6 +984,7 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     if (keep[p]) {
       pts.push_back(lat.points[p]);
       dt_pts.push_back(lat.isotropic ? lat.y[p] : lat.points[p]);
+      pt_size.push_back(lat.size[p]);
     }
   const int nL = static_cast<int>(pts.size());
   report.lattice_points = nL;
@@ -1029,22 +1035,26 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   const auto on_box = [&](const Vec3& x) {
     return (x.array() == domain.lo.array()).any() || (x.array() == domain.hi.array()).any();
   };
+  // Cheap screen for small dihedral angles: the shape measure 6√2 V / l_rms³ below `shape`
+  // (a small dihedral angle θ makes the tet flat, V ≤ c sin θ l³; 0.3 for 5°, 0.5 for 10°),
+  // before the exact test by dihedral angles.
+  const auto maybe_flat = [&](const MatX4i& T, Index t, double shape) {
+    const Vec3& a = pts[T(t, 0)];
+    const Vec3 e1 = pts[T(t, 1)] - a, e2 = pts[T(t, 2)] - a, e3 = pts[T(t, 3)] - a;
+    const double l2 = e1.squaredNorm() + e2.squaredNorm() + e3.squaredNorm() +
+                      (e2 - e1).squaredNorm() + (e3 - e1).squaredNorm() + (e3 - e2).squaredNorm();
+    const double v6 = e1.dot(e2.cross(e3));  // √2 v6 < shape (l2/6)^1.5, without pow
+    return v6 <= 0 || 2.0 * v6 * v6 < shape * shape * (l2 / 6.0) * (l2 / 6.0) * (l2 / 6.0);
+  };
   // Lattice vertices to delete, one per sliver (min dihedral < kSliverDeg) that has one: the
   // lattice vertex nearest to the sliver's surface vertices (or its first), never a box point.
-  // Cells are screened by the cheap shape measure 6√2 V / l_rms³ < 0.3 (a small dihedral
-  // angle makes the tet flat, V ≤ c sin θ l³), then tested by their dihedral angles.
   const auto sliver_vertices = [&](const MatX4i& T) {
     std::vector<Index> cand;
     for (Index t = 0; t < T.rows(); ++t) {
       bool lattice = false;
       for (int k = 0; k < 4; ++k) lattice |= T(t, k) < nL;
       if (!lattice) continue;
-      const Vec3& a = pts[T(t, 0)];
-      const Vec3 e1 = pts[T(t, 1)] - a, e2 = pts[T(t, 2)] - a, e3 = pts[T(t, 3)] - a;
-      const double l2 = e1.squaredNorm() + e2.squaredNorm() + e3.squaredNorm() +
-                        (e2 - e1).squaredNorm() + (e3 - e1).squaredNorm() + (e3 - e2).squaredNorm();
-      const double v6 = e1.dot(e2.cross(e3));  // √2 v6 < 0.3 (l2/6)^1.5, without pow
-      if (v6 <= 0 || 2.0 * v6 * v6 < 0.09 * (l2 / 6.0) * (l2 / 6.0) * (l2 / 6.0)) cand.push_back(t);
+      if (maybe_flat(T, t, 0.3)) cand.push_back(t);
     }
     MatX4i sub(static_cast<Index>(cand.size()), 4);
     for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
@@ -1132,7 +1142,88 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     }
     return out;
   };
-  int cleanup_rounds = 0;
+  // Slivers away from the solids (octree transitions in oblique staircases) are perturbed
+  // rather than deleted [Tournois, Srinivasan & Alliez 2009, sliver perturbation]: each
+  // lattice vertex of each is moved by 0.05–0.2 of its spacing in up to 12 pseudo-random
+  // directions, keeping the first move that raises the smallest dihedral angle of the cells
+  // with no solid vertex around its star's vertices (all the cells a move can change).
+  // Measured on a thin sheet tilted 3°, 17°, 45° and 71°: min dihedral away from it
+  // 3.7–11° without, 10.0–11.0° with four rounds. Returns the number moved.
+  const auto perturb_away_slivers = [&](const MatX4i& T) {
+    MatX3 P(static_cast<Index>(pts.size()), 3);
+    std::vector<int> targets;
+    {
+      std::vector<Index> cand;  // cells with no solid vertex that may have a small angle
+      for (Index t = 0; t < T.rows(); ++t) {
+        bool surface = false;
+        for (int k = 0; k < 4; ++k) surface |= T(t, k) >= nL;
+        if (!surface && maybe_flat(T, t, 0.5)) cand.push_back(t);
+      }
+      for (std::size_t v = 0; v < pts.size(); ++v) P.row(v) = pts[v].transpose();
+      MatX4i sub(static_cast<Index>(cand.size()), 4);
+      for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
+      const TetQuality q = tet_quality(P, sub);
+      for (Index i = 0; i < sub.rows(); ++i) {
+        if (!(q.min_dihedral_deg(i) < kAwayDeg)) continue;
+        for (int k = 0; k < 4; ++k)
+          if (!on_box(pts[sub(i, k)])) targets.push_back(sub(i, k));
+      }
+    }
+    std::sort(targets.begin(), targets.end());
+    targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
+    int moved = 0;
+    MatX4i around;
+    const auto worst_around = [&](const std::vector<int>& ring) {
+      dt.cells_around(ring, around);
+      for (const int v : ring) P.row(v) = pts[v].transpose();
+      const TetQuality q = tet_quality(P, around);
+      double worst = kInf;  // over the cells with no solid vertex
+      for (Index t = 0; t < around.rows(); ++t) {
+        bool surface = false;
+        for (int k = 0; k < 4; ++k) surface |= around(t, k) >= nL;
+        if (!surface) worst = std::min(worst, q.min_dihedral_deg(t));
+      }
+      return worst;
+    };
+    for (const int v : targets) {
+      MatX4i star;
+      dt.cells_around({v}, star);
+      std::vector<int> ring(star.data(), star.data() + star.size());
+      std::sort(ring.begin(), ring.end());
+      ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+      const double before = worst_around(ring);
+      const Vec3 old_x = pts[v], old_y = dt_pts[v];
+      std::uint64_t h = static_cast<std::uint64_t>(v) * 0x9E3779B97F4A7C15ULL + 1;
+      bool ok = false;
+      for (int attempt = 0; attempt < 12 && !ok; ++attempt) {
+        Vec3 dir;
+        for (int a = 0; a < 3; ++a) {
+          h ^= h >> 31;
+          h *= 0xBF58476D1CE4E5B9ULL;
+          h ^= h >> 29;
+          dir(a) = static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0) * 2.0 - 1.0;
+        }
+        if (dir.norm() < 1e-3) continue;
+        const Vec3 x = old_x + (0.05 + 0.05 * (attempt % 4)) * pt_size[v] * dir.normalized();
+        if ((x.array() <= domain.lo.array()).any() || (x.array() >= domain.hi.array()).any())
+          continue;
+        dt.remove(v);
+        pts[v] = x;
+        dt_pts[v] = to_dt(x);
+        dt.insert(dt_pts[v], v);
+        ok = worst_around(ring) > before;
+        if (!ok) {
+          dt.remove(v);
+          pts[v] = old_x;
+          dt_pts[v] = old_y;
+          dt.insert(old_y, v);
+        }
+      }
+      moved += ok;
+    }
+    return moved;
+  };
+  int cleanup_rounds = 0, perturb_rounds = 0;
   MatX4i near;  // cells touching the surface
   for (int round = 0;; ++round) {
     dt.cells_touching(nL, near);
@@ -1176,15 +1267,24 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
         // after rounding (a lattice plane through a box solid's face, or lattice points at
         // octree transitions when the box needs an anisotropic lattice).
         dt.extract(tets, nbrs);
-        if (cleanup_rounds >= kSliverRounds) break;
-        ++cleanup_rounds;
-        const std::vector<int> drop = sliver_vertices(tets);
-        if (drop.empty()) break;
-        for (int v : drop) {
-          lattice_removed[v] = 1;
-          dt.remove(v);
+        bool changed = false;
+        if (perturb_rounds < kPerturbRounds) {
+          ++perturb_rounds;
+          const int moved = perturb_away_slivers(tets);
+          report.sliver_points_moved += moved;
+          changed |= moved > 0;
         }
-        report.sliver_points_removed += static_cast<Index>(drop.size());
+        if (cleanup_rounds < kSliverRounds) {
+          ++cleanup_rounds;
+          const std::vector<int> drop = sliver_vertices(tets);
+          for (int v : drop) {
+            lattice_removed[v] = 1;
+            dt.remove(v);
+          }
+          report.sliver_points_removed += static_cast<Index>(drop.size());
+          changed |= !drop.empty();
+        }
+        if (!changed) break;
         continue;
       }
     } else {

@@ -73,6 +73,7 @@ struct RemeshReport {
   Index surface_points = 0;         ///< solid boundary vertices inserted
   Index steiner_points = 0;         ///< points added on solid triangles (placement + recovery)
   Index sliver_points_removed = 0;  ///< lattice points deleted to remove slivers at the surface
+  Index sliver_points_moved = 0;    ///< lattice points perturbed to remove slivers away from it
   Index cells_delaunay = 0;         ///< finite Delaunay cells before removal
   Index cells_removed = 0;          ///< cells inside solids
   Index flat_cells_removed = 0;     ///< of those: flat cells lying on a solid surface (remesh.cpp)
