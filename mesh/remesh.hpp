@@ -1,19 +1,28 @@
 #pragma once
 /// @file remesh.hpp
 /// The fluid remesher: every time step a new Delaunay tet mesh of the fluid domain around
-/// the current solid boundary triangles (DESIGN.md §2 step 2, §6). CGAL stays in remesh.cpp.
+/// the current solid boundary triangles (DESIGN.md §2 step 2, §3, §6). The implementation is
+/// in remesh.cpp; CGAL only in delaunay.cpp.
 ///
 /// Steps:
-///  1. vertex placement: a graded BCC lattice (60° minimum dihedral in the uniform regions)
-///     whose spacing follows the sizing field; lattice points closer to a solid surface than
-///     the protection distance, or inside a solid triangle's diametral sphere, are dropped;
-///  2. surface vertices: every solid boundary vertex, plus Steiner points on the solid
-///     triangles where the surface size asks for them;
+///  1. vertex placement: a graded BCC lattice (corners and centres of the leaves of a
+///     2:1-balanced octree; 60° minimum dihedral in uniform regions) whose spacing follows the
+///     sizing field; lattice points closer to a solid than half their spacing, or inside a
+///     solid sub-triangle's diametral sphere, are dropped; box-face points are jittered within
+///     the face where the octree is uniform; on a commensurate box the Delaunay runs in lattice
+///     units (exact integer lattice coordinates);
+///  2. surface vertices: every solid boundary vertex, plus Steiner points (Rivara longest-edge
+///     bisection) until sub-triangles are at most 1.5 × surface_size long and Gabriel (empty
+///     diametral spheres, down to 0.1 × surface_size);
 ///  3. Delaunay tetrahedralisation with CGAL (range insertion, spatially sorted);
 ///  4. conformity recovery: every solid boundary triangle must be exactly a union of mesh
 ///     faces. A triangle that is not is split by Steiner points inserted on the solid surface
-///     (recording triangle and barycentric position), and the check repeats;
-///  5. cells inside any solid are removed (a fluid region enclosed by a solid stays fluid);
+///     (recording triangle and barycentric position), and the check repeats; flat cells over
+///     two coplanar triangles are split away the same way; slivers touching a solid lose a
+///     lattice vertex, cells away from the solids under 10° get one perturbed;
+///  5. cells inside any solid are removed by a flood fill between solid faces and one winding
+///     number per region (a fluid region enclosed by a solid stays fluid); the fluid volume is
+///     checked against box − solids;
 ///  6. faces are tagged: walls / inflow / open patches of the box, solid interface faces with
 ///     body, triangle and barycentric weights of the centroid (normal from fluid into solid).
 #include <functional>
@@ -77,11 +86,11 @@ struct RemeshReport {
   Index cells_delaunay = 0;         ///< finite Delaunay cells before removal
   Index cells_removed = 0;          ///< cells inside solids
   Index flat_cells_removed = 0;     ///< of those: flat cells lying on a solid surface (remesh.cpp)
-  /// Solid faces of such flat cells that straddle two coplanar solid triangles: each is
-  /// attributed to the triangle holding its centroid, so those two triangles are tiled only
-  /// together, not one by one (rare: rotated box faces whose squares are co-circular).
+  /// Solid faces of flat cells that straddle two coplanar solid triangles, left when the round
+  /// budget ran out before they were split away: each is attributed to the triangle holding
+  /// its centroid, so those two triangles are tiled only together (0 in every test).
   Index straddling_faces = 0;
-  int recovery_rounds = 0;
+  int recovery_rounds = 0;  ///< rounds that added Steiner points after the Delaunay
   double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0, seconds_classify = 0,
          seconds_build = 0, seconds_total = 0;
 };
