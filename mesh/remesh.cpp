@@ -21,6 +21,7 @@
 #include "core/log.hpp"
 #include "core/timer.hpp"
 #include "mesh/delaunay.hpp"
+#include "mesh/geometry.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/volume_mesh.hpp"
 
@@ -62,28 +63,6 @@ constexpr double kStraddleSplitAt = 0.45;
 // Geometry helpers
 // ---------------------------------------------------------------------------------------
 
-/// Closest point of triangle abc to p [Ericson, Real-Time Collision Detection, §5.1.5].
-Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + (d1 / (d1 - d3)) * ab;
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + (d2 / (d2 - d6)) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b);
-  const double denom = 1.0 / (va + vb + vc);
-  return a + ab * (vb * denom) + ac * (vc * denom);
-}
-
 /// Circumcentre of triangle abc in its plane (the centre of its diametral sphere).
 Vec3 triangle_circumcentre(const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a, n = ab.cross(ac);
@@ -119,18 +98,11 @@ struct TripleKey {
   bool operator==(const TripleKey&) const = default;
 };
 inline TripleKey sorted_key(int a, int b, int c) {
-  if (a > b) std::swap(a, b);
-  if (b > c) std::swap(b, c);
-  if (a > b) std::swap(a, b);
+  sort3(a, b, c);
   return {a, b, c};
 }
 struct TripleHash {
-  std::size_t operator()(const TripleKey& k) const {
-    std::uint64_t h = static_cast<std::uint32_t>(k.a) * 0x9E3779B97F4A7C15ULL;
-    h ^= static_cast<std::uint32_t>(k.b) * 0xC2B2AE3D27D4EB4FULL;
-    h ^= static_cast<std::uint32_t>(k.c) * 0x165667B19E3779F9ULL;
-    return h ^ (h >> 29);
-  }
+  std::size_t operator()(const TripleKey& k) const { return hash_triple(k.a, k.b, k.c); }
 };
 
 /// Uniform hash grid of integer items registered by boxes.

@@ -16,6 +16,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "mesh/geometry.hpp"
 
 namespace tetfsi::mesh {
 
@@ -30,19 +31,6 @@ constexpr int kOutwardFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
 struct Slot {
   int a, b, c, inc;
 };
-
-inline std::uint64_t hash_triple(int a, int b, int c) {
-  std::uint64_t h = static_cast<std::uint32_t>(a) * 0x9E3779B97F4A7C15ULL;
-  h ^= static_cast<std::uint32_t>(b) * 0xC2B2AE3D27D4EB4FULL;
-  h ^= static_cast<std::uint32_t>(c) * 0x165667B19E3779F9ULL;
-  return h ^ (h >> 29);
-}
-
-inline void sort3(int& a, int& b, int& c) {
-  if (a > b) std::swap(a, b);
-  if (b > c) std::swap(b, c);
-  if (a > b) std::swap(a, b);
-}
 
 /// Open-addressing (linear probing) table of faces keyed by sorted vertex triples (a < b < c),
 /// power-of-two capacity, load kept at most 1/2. (A home slot grouped by the smallest vertex
