@@ -23,17 +23,14 @@
 #include <vtkCellType.h>
 #include <vtkCommand.h>
 #include <vtkIdList.h>
-#include <vtkLogger.h>
 #include <vtkNew.h>
-#include <vtkObjectFactory.h>
-#include <vtkOutputWindow.h>
 #include <vtkPoints.h>
-#include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "mesh/vtk_messages.hpp"
 
 namespace fs = std::filesystem;
 
@@ -201,8 +198,8 @@ class IdMap {
 /// Nodes per element of the Gmsh element types up to 31 (0 = unknown), used to skip
 /// elements we do not keep in v2 files (v4 lines are self-delimiting).
 int gmsh_nodes_per_element(long long type) {
-  static constexpr int kNodes[] = {0,  2,  3,  4,  4,  8,  6,  5,  3,  6,  9,  10, 27, 18, 14, 1,
-                                   8,  20, 15, 13, 9,  10, 12, 15, 15, 21, 4,  5,  6,  20, 35, 56};
+  static constexpr int kNodes[] = {0, 2,  3,  4,  4, 8,  6,  5,  3,  6,  9, 10, 27, 18, 14, 1,
+                                   8, 20, 15, 13, 9, 10, 12, 15, 15, 21, 4, 5,  6,  20, 35, 56};
   return type >= 0 && type < static_cast<long long>(std::size(kNodes))
              ? kNodes[static_cast<std::size_t>(type)]
              : 0;
@@ -310,15 +307,14 @@ void read_gmsh_nodes_v4(LineReader& r, RawVolume& raw, IdMap& ids) {
     }
   }
   if (static_cast<long long>(raw.points.size()) != total) {
-    r.fail_msg(fmt::format("$Nodes announced {} nodes but its blocks hold {}", total,
-                           raw.points.size()));
+    r.fail_msg(
+        fmt::format("$Nodes announced {} nodes but its blocks hold {}", total, raw.points.size()));
   }
   expect_end(r, "$EndNodes");
 }
 
 void read_gmsh_elements_v4(LineReader& r, RawVolume& raw, const IdMap& ids) {
-  constexpr std::string_view head =
-      "'numEntityBlocks numElements minElementTag maxElementTag'";
+  constexpr std::string_view head = "'numEntityBlocks numElements minElementTag maxElementTag'";
   r.require_next(head);
   r.need(4, head);
   const long long blocks = r.integer(0, head);
@@ -392,21 +388,25 @@ RawVolume read_gmsh(const fs::path& path) {
     } else if (name == "Nodes" || name == "Elements") {
       if (major == 0) r.fail_msg(fmt::format("${} before $MeshFormat", name));
       if (name == "Nodes") {
-        if (major == 2) read_gmsh_nodes_v2(r, raw, ids);
-        else read_gmsh_nodes_v4(r, raw, ids);
+        if (major == 2)
+          read_gmsh_nodes_v2(r, raw, ids);
+        else
+          read_gmsh_nodes_v4(r, raw, ids);
         have_nodes = true;
       } else {
         if (!have_nodes) r.fail_msg("$Elements before $Nodes");
-        if (major == 2) read_gmsh_elements_v2(r, raw, ids);
-        else read_gmsh_elements_v4(r, raw, ids);
+        if (major == 2)
+          read_gmsh_elements_v2(r, raw, ids);
+        else
+          read_gmsh_elements_v4(r, raw, ids);
       }
     } else {
       skip_section(r, name);  // $PhysicalNames, $Entities, $NodeData, ...: not needed
     }
   }
   if (major == 0) {
-    throw InputError(fmt::format("{}:1: expected $MeshFormat; is this a Gmsh .msh file?",
-                                 r.path()));
+    throw InputError(
+        fmt::format("{}:1: expected $MeshFormat; is this a Gmsh .msh file?", r.path()));
   }
   return raw;
 }
@@ -482,19 +482,6 @@ RawVolume read_tetgen(const fs::path& path) {
 // VTK .vtu
 // ---------------------------------------------------------------------------------------
 
-/// "ERROR: In file.cxx, line 12\nvtkClass (0x1234): message\n\n" → "message" on one line.
-std::string clean_vtk_message(std::string msg) {
-  if (msg.rfind("ERROR: In ", 0) == 0 || msg.rfind("Warning: In ", 0) == 0) {
-    const auto nl = msg.find('\n');
-    msg = nl == std::string::npos ? "" : msg.substr(nl + 1);
-  }
-  const auto obj = msg.find("): ");
-  if (obj != std::string::npos && msg.find(" (0x") < obj) msg = msg.substr(obj + 3);
-  std::replace(msg.begin(), msg.end(), '\n', ' ');
-  while (!msg.empty() && std::isspace(static_cast<unsigned char>(msg.back()))) msg.pop_back();
-  return msg;
-}
-
 /// Collects the first error VTK reports to an object's observers.
 class VtkErrorCatcher : public vtkCommand {
  public:
@@ -508,55 +495,9 @@ class VtkErrorCatcher : public vtkCommand {
   std::string m_message;
 };
 
-/// An output window that keeps VTK's messages instead of printing them, so that a bad file
-/// gives one InputError and nothing on stderr. Installed only for the duration of a read.
-class CapturingOutputWindow : public vtkOutputWindow {
- public:
-  static CapturingOutputWindow* New();
-  vtkTypeMacro(CapturingOutputWindow, vtkOutputWindow);
-  void DisplayText(const char* text) override { keep(text); }
-  void DisplayErrorText(const char* text) override { keep(text); }
-  void DisplayWarningText(const char* text) override { keep(text); }
-  void DisplayGenericWarningText(const char* text) override { keep(text); }
-  void DisplayDebugText(const char*) override {}
-  const std::string& first_message() const { return m_first; }
-
- private:
-  void keep(const char* text) {
-    if (m_first.empty() && text) m_first = text;
-  }
-  std::string m_first;
-};
-vtkStandardNewMacro(CapturingOutputWindow);
-
-/// Installs a CapturingOutputWindow and silences VTK's logger on stderr for its lifetime
-/// (VTK 9 logs errors to stderr besides the output window). Restores the previous window
-/// and the logger's verbosity cutoff afterwards. Not thread-safe: VTK's are globals.
-class ScopedVtkCapture {
- public:
-  ScopedVtkCapture()
-      : m_previous(vtkOutputWindow::GetInstance()),
-        m_verbosity(vtkLogger::GetCurrentVerbosityCutoff()) {
-    vtkOutputWindow::SetInstance(m_window);
-    vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);
-  }
-  ~ScopedVtkCapture() {
-    vtkOutputWindow::SetInstance(m_previous);
-    vtkLogger::SetStderrVerbosity(m_verbosity);
-  }
-  ScopedVtkCapture(const ScopedVtkCapture&) = delete;
-  ScopedVtkCapture& operator=(const ScopedVtkCapture&) = delete;
-  const std::string& first_message() const { return m_window->first_message(); }
-
- private:
-  vtkNew<CapturingOutputWindow> m_window;
-  vtkSmartPointer<vtkOutputWindow> m_previous;
-  vtkLogger::Verbosity m_verbosity;
-};
-
 RawVolume read_vtu(const fs::path& path) {
   require_file(path);
-  const ScopedVtkCapture capture;
+  const VtkMessageCapture capture;  // VTK's messages off stderr, first one kept
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   vtkNew<VtkErrorCatcher> catcher;
   reader->AddObserver(vtkCommand::ErrorEvent, catcher);
@@ -570,8 +511,9 @@ RawVolume read_vtu(const fs::path& path) {
   vtkUnstructuredGrid* grid = reader->GetOutput();
   if (!catcher->message().empty() || !capture.first_message().empty() || grid == nullptr) {
     // The parser's own message (line, column) is the useful one; the reader's comes second.
-    const std::string detail = clean_vtk_message(
-        !capture.first_message().empty() ? capture.first_message() : catcher->message());
+    const std::string detail = !capture.first_message().empty()
+                                   ? capture.first_message()
+                                   : one_line_vtk_message(catcher->message());
     throw InputError(fmt::format("{}: VTK could not read the file: {}", path.string(),
                                  detail.empty() ? "unknown error" : detail));
   }
@@ -657,9 +599,10 @@ RawSurface read_off(const fs::path& path) {
     for (long long k = 0; k < n; ++k) {
       const long long v = r.integer(static_cast<std::size_t>(1 + k), "a vertex index");
       if (v < 0 || v >= nv) {
-        r.fail_msg(fmt::format("face {} refers to vertex {}, but the file has {} vertices "
-                               "(zero-based 0..{})",
-                               f, v, nv, nv - 1));
+        r.fail_msg(
+            fmt::format("face {} refers to vertex {}, but the file has {} vertices "
+                        "(zero-based 0..{})",
+                        f, v, nv, nv - 1));
       }
       poly.push_back(static_cast<Index>(v));
     }
@@ -693,9 +636,10 @@ RawSurface read_obj(const fs::path& path) {
         }
         const long long index = v > 0 ? v - 1 : nv + v;  // negative: relative to the end
         if (index < 0 || index >= nv) {
-          r.fail_msg(fmt::format("face vertex {} refers to vertex {}, but only {} vertices are "
-                                 "defined so far",
-                                 t, v, nv));
+          r.fail_msg(
+              fmt::format("face vertex {} refers to vertex {}, but only {} vertices are "
+                          "defined so far",
+                          t, v, nv));
         }
         poly.push_back(static_cast<Index>(index));
       }
@@ -886,9 +830,8 @@ SurfaceMesh read_surface_mesh(const fs::path& path) {
     raw = read_stl(path);
   } else {
     require_file(path);
-    throw InputError(fmt::format(
-        "{}: unknown surface mesh extension '{}'; use .off, .obj or .stl", path.string(),
-        path.extension().string()));
+    throw InputError(fmt::format("{}: unknown surface mesh extension '{}'; use .off, .obj or .stl",
+                                 path.string(), path.extension().string()));
   }
   SurfaceMesh s;
   s.vertices.resize(static_cast<Index>(raw.points.size()), 3);
@@ -923,8 +866,8 @@ void write_msh(const VolumeMesh& m, const fs::path& path) {
   std::ofstream file(path, std::ios::binary);
   if (file) file.write(out.data(), static_cast<std::streamsize>(out.size()));
   if (!file) {
-    throw InputError(fmt::format("{}: cannot write the file (does the directory exist?)",
-                                 path.string()));
+    throw InputError(
+        fmt::format("{}: cannot write the file (does the directory exist?)", path.string()));
   }
 }
 

@@ -26,9 +26,9 @@
 
 #include "core/error.hpp"
 #include "mesh/tet_mesh.hpp"
+#include "mesh/vtk_messages.hpp"
 #include "tools/output.hpp"
 #include "tools/raster.hpp"
-#include "tools/vtk_messages.hpp"
 
 namespace fs = std::filesystem;
 
@@ -380,7 +380,7 @@ VtuTets read_vtu_tets(const fs::path& path) {
   if (!std::ifstream(path, std::ios::binary))
     throw InputError(fmt::format("{}: cannot read the file: {}", name, std::strerror(errno)));
 
-  const VtkMessageCapture capture;
+  const mesh::VtkMessageCapture capture;
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   vtkNew<ErrorCollector> errors;
   reader->AddObserver(vtkCommand::ErrorEvent, errors);
@@ -394,7 +394,7 @@ VtuTets read_vtu_tets(const fs::path& path) {
   vtkUnstructuredGrid* grid = reader->GetOutput();
   const std::string vtk_message = !capture.first_message().empty()
                                       ? capture.first_message()
-                                      : one_line_vtk_message(errors->message);
+                                      : mesh::one_line_vtk_message(errors->message);
   if (!vtk_message.empty() || grid == nullptr) {
     throw InputError(fmt::format("{}: VTK could not read the file: {}", name,
                                  vtk_message.empty() ? "unknown error" : vtk_message));

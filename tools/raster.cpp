@@ -15,7 +15,7 @@
 #include <vtkUnsignedCharArray.h>
 
 #include "core/error.hpp"
-#include "tools/vtk_messages.hpp"
+#include "mesh/vtk_messages.hpp"
 
 namespace fs = std::filesystem;
 
@@ -236,7 +236,7 @@ void write_png(const fs::path& path, const Image& image) {
   vtkNew<vtkPNGWriter> writer;
   std::string why;
   {
-    const VtkMessageCapture capture;
+    const mesh::VtkMessageCapture capture;
     writer->SetInputData(data);
     writer->SetFileName(tmp.c_str());
     writer->Write();

@@ -1,6 +1,6 @@
 /// @file vtk_messages.cpp
 /// VtkMessageCapture: a capturing vtkOutputWindow installed for a scope.
-#include "tools/vtk_messages.hpp"
+#include "mesh/vtk_messages.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -11,7 +11,7 @@
 #include <vtkOutputWindow.h>
 #include <vtkSmartPointer.h>
 
-namespace tetfsi::tools {
+namespace tetfsi::mesh {
 
 namespace {
 
@@ -71,4 +71,4 @@ std::string one_line_vtk_message(std::string msg) {
   return msg;
 }
 
-}  // namespace tetfsi::tools
+}  // namespace tetfsi::mesh

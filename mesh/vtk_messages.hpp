@@ -2,11 +2,12 @@
 /// @file vtk_messages.hpp
 /// Keep VTK's own error and warning messages off stderr while tetfsi reads or writes a file
 /// with VTK, so that a failure reaches the user as one `error: ...` line (a tetfsi::Error)
-/// instead of VTK's multi-line dumps. VTK stays inside vtk_messages.cpp.
+/// instead of VTK's multi-line dumps. Used by the mesh readers and by tools/ (quality, PNG).
+/// VTK stays inside vtk_messages.cpp.
 #include <memory>
 #include <string>
 
-namespace tetfsi::tools {
+namespace tetfsi::mesh {
 
 /// While alive, VTK's output window keeps messages here instead of printing them, and VTK's
 /// logger is silent on stderr; both are restored on destruction. VTK's output window and
@@ -30,4 +31,4 @@ class VtkMessageCapture {
 /// "ERROR: In file.cxx, line 12\nvtkClass (0x1234): message\n\n" → "message" on one line.
 std::string one_line_vtk_message(std::string message);
 
-}  // namespace tetfsi::tools
+}  // namespace tetfsi::mesh
