@@ -1,0 +1,91 @@
+#pragma once
+/// @file params.hpp
+/// Plain parameter structs of the fluid (what a scene's `fluid` section turns into). Physics
+/// never sees JSON: tools/scene.cpp fills these. SI units throughout.
+#include <string>
+#include <vector>
+
+#include "core/linear_solver.hpp"
+#include "core/types.hpp"
+
+namespace tetfsi::fluid {
+
+/// What happens on the faces of one domain patch (mesh::DomainPatch of the same index).
+struct PatchConditions {
+  /// Inflow patches: speed into the domain (m/s, ≥ 0); the face normal velocity is −speed
+  /// (n_f points out of the fluid).
+  double inflow_speed = 0.0;
+  /// Inflow patches: smoke density (kg/m³ of smoke, ≥ 0) and temperature (K) of the
+  /// emitted fluid; the cells on the patch are set to them every step.
+  double smoke_density = 0.0;
+  double temperature = 0.0;
+  bool emits_temperature = false;  ///< false: the patch emits fluid at ambient temperature
+  /// Open patches: prescribed pressure (Pa, relative to ambient; total pressure for liquids).
+  double pressure = 0.0;
+};
+
+/// A volume source of smoke and heat: every cell whose centroid is in the box is set to
+/// (at least) this density and temperature each step. No mass is injected.
+struct SmokeSource {
+  std::string name;
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  double smoke_density = 1.0;      ///< kg/m³ of smoke
+  double temperature = 0.0;        ///< K
+  bool emits_temperature = false;  ///< false: leave the temperature alone
+};
+
+/// Where the remesher should refine for the fluid (mesh::Sizing::refine).
+struct RefineParams {
+  double size = 0.0;  ///< target edge (m) where smoke or vorticity is significant; 0: off
+  double density_threshold = 0.01;   ///< smoke density above which a cell counts (kg/m³)
+  double vorticity_threshold = 0.0;  ///< |ω| above which a cell counts (1/s); 0: ignore ω
+};
+
+/// Velocity reconstruction inside a tet from the face normal components (reconstruct.hpp).
+enum class Reconstruction {
+  VertexLeastSquares,  ///< least squares of the face components around each vertex, then
+                       ///< barycentric interpolation (continuous; exact for uniform flow)
+  Whitney,             ///< lowest-order Raviart–Thomas / Whitney face elements per tet
+                       ///< (exact for uniform flow, discontinuous between tets)
+};
+
+/// "vertex_ls" | "whitney". @throws InputError naming the value.
+Reconstruction parse_reconstruction(const std::string& name);
+const char* to_string(Reconstruction r);
+
+/// The fluid's physics and numerics.
+struct FluidParams {
+  double density = 1.2;  ///< ρ (kg/m³): 1.2 for air, 1000 for water
+  /// Gravity acting on the fluid itself (m/s², liquids). For a single-density fluid it is a
+  /// pure gradient and is carried by the hydrostatic part of the pressure: p = p_dyn + ρ g·x
+  /// (exact; the velocity never sees it). Smoke scenes use buoyancy instead.
+  Vec3 gravity = Vec3::Zero();
+  Vec3 up = Vec3(0.0, 0.0, 1.0);  ///< unit "up" for buoyancy (scenes: −gravity direction)
+  /// Boussinesq buoyancy on the faces, (−α ρ_smoke + β (T − T_ambient)) up
+  /// [Fedkiw, Stam, Jensen 2001, Eq. (8)]: α in m⁴/(kg s²) (so that α ρ_smoke is m/s²),
+  /// β in m/(s² K).
+  double buoyancy_alpha = 0.0;
+  double buoyancy_beta = 0.0;
+  double ambient_temperature = 0.0;  ///< K (any offset: only T − T_ambient matters)
+  /// Vorticity confinement strength ε (dimensionless; 0 = off) [Fedkiw et al. 2001, Eq. (11)]:
+  /// f = ε h_cell (N × ω), N = ∇|ω| / |∇|ω||.
+  double vorticity_confinement = 0.0;
+  /// Dissipation per second of smoke density and of T − T_ambient (0 = none).
+  double smoke_decay = 0.0;
+  double temperature_decay = 0.0;
+  Reconstruction reconstruction = Reconstruction::VertexLeastSquares;
+  /// Lower bound of the dual length in the Laplacian, as a fraction of the face's mean edge:
+  /// faces of co-spherical cells have d_f = 0 (A_f/d_f = ∞); the bound keeps the pressure
+  /// matrix finite without changing the divergence-free property (operators.hpp).
+  double min_dual_fraction = 0.05;
+  /// The pressure solve: `amg` (hypre BoomerAMG + CG) by default; `cholmod`, `cg_ic`,
+  /// `bicgstab_ilut` or `umfpack` selectable.
+  SolverKind solver = SolverKind::Amg;
+  double solver_rel_tol = 1e-10;
+  int solver_max_iterations = 500;
+  std::vector<PatchConditions> patches;  ///< one per mesh::FluidDomain::patches entry
+  std::vector<SmokeSource> sources;
+  RefineParams refine;
+};
+
+}  // namespace tetfsi::fluid

@@ -1,0 +1,103 @@
+#pragma once
+/// @file simulation.hpp
+/// The fluid on the dynamic tet mesh, one step at a time (DESIGN.md §2 steps 3–6 without the
+/// coupling): transfer = semi-Lagrangian advection from the old mesh onto the new one,
+/// forces and sources, boundary conditions, pressure projection [Chentanez06, Eqs. (1)–(2)],
+/// [KFCO06]. Solids are kinematic here: their surface velocities are given (one-way); the
+/// simultaneous coupling (coupling/) replaces the projection by the coupled solve.
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "core/linear_solver.hpp"
+#include "core/timer.hpp"
+#include "core/types.hpp"
+#include "fluid/params.hpp"
+#include "mesh/tet_mesh.hpp"
+
+namespace tetfsi::fluid {
+
+/// The fluid state on one TetMesh.
+struct FluidState {
+  VecX u;            ///< #F normal velocity along n_f (m/s)
+  VecX p;            ///< #T pressure at the circumcentres (Pa; total, incl. ρ g·x for liquids)
+  VecX density;      ///< #T smoke density (kg/m³)
+  VecX temperature;  ///< #T temperature (K)
+  /// Zero velocity and pressure, no smoke, ambient temperature.
+  static FluidState at_rest(const mesh::TetMesh& m, double ambient_temperature);
+};
+
+/// The velocity of every solid surface vertex, per body, in the vertex numbering of the
+/// mesh::SolidSurface the mesh was built from (TetMesh::face_body / face_triangle refer to
+/// it). The triangles are needed to interpolate at the Solid faces.
+struct SolidSurfaceMotion {
+  MatX3i triangles;  ///< #Ts × 3, as in mesh::SolidSurface
+  MatX3 velocity;    ///< #Vs × 3 (m/s)
+};
+
+/// Diagnostics of one fluid step (stats.csv columns).
+struct FluidStepReport {
+  bool converged = true;           ///< the pressure solve converged
+  int iterations = 0;              ///< pressure-solve iterations
+  double residual = 0.0;           ///< its true relative residual
+  double divergence_before = 0.0;  ///< max_t |(D u*)_t| before the projection (1/s)
+  double divergence_after = 0.0;   ///< max_t |(D u)_t| after it (1/s)
+  double kinetic_energy = 0.0;     ///< ½ ρ Σ_t V_t |u_t|², u_t reconstructed at centroids (J)
+  double smoke_mass = 0.0;         ///< Σ_t V_t ρ_smoke,t (kg)
+  double inflow_flux = 0.0;        ///< −Σ A_f u_f over Inflow faces (m³/s, > 0 into the box)
+  double outflow_flux = 0.0;       ///< Σ A_f u_f over Open faces (m³/s, > 0 out of the box)
+  double solid_flux = 0.0;         ///< Σ A_f u_f over Solid faces (m³/s)
+  double max_speed = 0.0;          ///< max |u_f| (m/s)
+  double cfl = 0.0;                ///< max over cells of h |u_t| / (cell edge)
+  Index traces_clamped = 0;        ///< back-traces stopped at a wall / solid / the box
+};
+
+/// A function "desired edge length at x" for mesh::Sizing::refine (≤ 0: no request).
+using RefineField = std::function<double(const Vec3&)>;
+
+class FluidSimulation {
+ public:
+  explicit FluidSimulation(FluidParams params);
+  ~FluidSimulation();
+  FluidSimulation(FluidSimulation&&) noexcept;
+  FluidSimulation& operator=(FluidSimulation&&) noexcept;
+
+  /// Start on `mesh` with the fluid at rest (sources applied, hydrostatic pressure for
+  /// liquids).
+  void initialize(mesh::TetMesh mesh);
+
+  /// One step of length h onto `new_mesh` (built around the solids at t + h):
+  ///  1. transfer: every new face centre and cell centroid traced back through the old
+  ///     velocity field (RK2, clamped at walls and solids) [KFCO06, §4];
+  ///  2. forces (buoyancy, vorticity confinement), decay, sources, boundary values (inflow,
+  ///     Solid faces n_f · Σ_a w_a v_a from `solids`, walls 0);
+  ///  3. projection: solve the pressure Poisson equation and subtract (h/ρ) G p.
+  /// Phases "transfer", "forces", "assembly", "solve" are added to `phases`.
+  /// @param solids one entry per body index of the mesh's Solid faces (may be empty if the
+  ///   mesh has none)
+  /// @throws SolverError if the pressure solve fails or the state becomes non-finite;
+  ///   the simulation then keeps its previous mesh and state.
+  FluidStepReport step(mesh::TetMesh new_mesh, double h,
+                       const std::vector<SolidSurfaceMotion>& solids, PhaseTimes& phases);
+
+  const mesh::TetMesh& mesh() const;
+  const FluidState& state() const;
+  const FluidParams& params() const;
+  /// Reconstructed velocity at the cell centroids (#T × 3) and at the vertices (#V × 3).
+  MatX3 cell_velocities() const;
+  MatX3 vertex_velocities() const;
+  /// |curl u| per cell (#T, 1/s).
+  VecX vorticity_magnitude() const;
+  /// The refinement the fluid asks the next remesh for (params().refine), or an empty
+  /// function when refinement is off. It samples the current state on a voxel grid, so it
+  /// stays valid after later steps (it does not reference the simulation).
+  RefineField refinement_field() const;
+  /// Time (s) since initialize.
+  double time() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m_impl;
+};
+
+}  // namespace tetfsi::fluid
