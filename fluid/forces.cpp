@@ -1,0 +1,67 @@
+#include "fluid/forces.hpp"
+
+#include <cmath>
+
+#include "fluid/reconstruct.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::FaceKind;
+using mesh::TetMesh;
+
+MatX3 buoyancy(const FluidParams& p, const VecX& density, const VecX& temperature) {
+  const Index nt = static_cast<Index>(density.size());
+  MatX3 a(nt, 3);
+  for (Index t = 0; t < nt; ++t) {
+    // [Fedkiw01, Eq. (8)] f_buoy = −α ρ z + β (T − T_amb) z
+    const double s = -p.buoyancy_alpha * density[t] +
+                     p.buoyancy_beta * (temperature[t] - p.ambient_temperature);
+    a.row(t) = s * p.up.transpose();
+  }
+  return a;
+}
+
+VecX cell_sizes(const TetMesh& m) {
+  // Regular tet of edge e: V = e³ / (6√2).
+  VecX e(m.num_tets());
+  for (Index t = 0; t < m.num_tets(); ++t) e[t] = std::cbrt(m.volumes[t] * 6.0 * std::sqrt(2.0));
+  return e;
+}
+
+MatX3 vorticity_confinement(const TetMesh& m, const MatX3& U, double epsilon) {
+  const Index nt = m.num_tets();
+  MatX3 a = MatX3::Zero(nt, 3);
+  if (epsilon <= 0) return a;
+  const MatX3 w = cell_vorticity(m, U);
+  const VecX wn = w.rowwise().norm();
+  const VecX wv = cell_to_vertex(m, wn);
+  const VecX dx = cell_sizes(m);
+  for (Index t = 0; t < nt; ++t) {
+    const auto g = barycentric_gradients(m, t);
+    Vec3 grad = Vec3::Zero();
+    for (int i = 0; i < 4; ++i) grad += wv[m.tets(t, i)] * g.row(i).transpose();
+    const double gn = grad.norm();
+    if (gn < 1e-12 * (wn[t] / dx[t] + 1e-300)) continue;
+    const Vec3 N = grad / gn;
+    // [Fedkiw01, Eq. (11)] f_conf = ε h (N × ω)
+    a.row(t) = epsilon * dx[t] * N.cross(w.row(t).transpose()).transpose();
+  }
+  return a;
+}
+
+void add_cell_acceleration(const TetMesh& m, const MatX3& accel, double h, VecX& u) {
+  const Index nf = m.num_faces();
+  for (Index f = 0; f < nf; ++f) {
+    const Index t1 = m.face_tets(f, 0), t2 = m.face_tets(f, 1);
+    Vec3 a;
+    if (t2 >= 0)
+      a = 0.5 * (accel.row(t1) + accel.row(t2)).transpose();
+    else if (m.face_kind[f] == FaceKind::Open)
+      a = accel.row(t1).transpose();
+    else
+      continue;
+    u[f] += h * m.face_normals.row(f).dot(a.transpose());
+  }
+}
+
+}  // namespace tetfsi::fluid

@@ -1,0 +1,51 @@
+#pragma once
+/// @file reconstruct.hpp
+/// Velocity vectors from face normal components (DESIGN.md §2 step 3) [KFCO06, §4]:
+///  - VertexLeastSquares: at each vertex v, U_v = argmin Σ_{f ∋ v} A_f (n_f · U − u_f)²
+///    (a 3 × 3 solve; every face around the vertex, boundary faces with their prescribed
+///    values), then u(x) = Σ_i λ_i U_i inside a tet. Continuous; exact for uniform flow.
+///  - Whitney (RT0): in tet t with vertices x_i and outward fluxes Φ_k = s_tk A_k u_k through
+///    the face opposite x_k, u(x) = Σ_k Φ_k (x − x_k) / (3 V_t). Reproduces every face flux
+///    exactly and uniform flow exactly; discontinuous between tets.
+/// Which one the fluid uses is FluidParams::reconstruction; the tests measure both.
+#include "core/types.hpp"
+#include "fluid/params.hpp"
+#include "mesh/tet_mesh.hpp"
+
+namespace tetfsi::fluid {
+
+/// A reconstructed velocity field on a fixed mesh (keeps a reference to it).
+class VelocityField {
+ public:
+  /// @param u #F face normal velocities (m/s)
+  VelocityField(const mesh::TetMesh& m, const VecX& u, Reconstruction kind);
+
+  /// Velocity in tet t at barycentric coordinates λ (Σ λ = 1) (m/s).
+  Vec3 at(Index t, const Vec4& bary) const;
+  /// Velocity at the centroid of every tet (#T × 3).
+  MatX3 cell_velocities() const;
+  /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
+  /// volume-weighted mean of the adjacent tets' RT0 vertex values (Whitney).
+  const MatX3& vertex_velocities() const { return m_vertex; }
+  Reconstruction kind() const { return m_kind; }
+
+ private:
+  const mesh::TetMesh* m_mesh;
+  const VecX* m_u;
+  Reconstruction m_kind;
+  MatX3 m_vertex;
+};
+
+/// Per-vertex least-squares velocities (#V × 3), see the file comment.
+MatX3 vertex_least_squares(const mesh::TetMesh& m, const VecX& u);
+
+/// Volume-weighted average of cell values at the vertices (#V) — for scalar interpolation.
+VecX cell_to_vertex(const mesh::TetMesh& m, const VecX& cell_values);
+
+/// Gradients of the barycentric functions of tet t (row i = ∇λ_i, 1/m).
+Eigen::Matrix<double, 4, 3> barycentric_gradients(const mesh::TetMesh& m, Index t);
+
+/// curl of the vertex-interpolated field per tet (#T × 3, 1/s): ω_t = Σ_i ∇λ_i × U_i.
+MatX3 cell_vorticity(const mesh::TetMesh& m, const MatX3& vertex_velocity);
+
+}  // namespace tetfsi::fluid

@@ -1,0 +1,326 @@
+#include "fluid/simulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "fluid/forces.hpp"
+#include "fluid/operators.hpp"
+#include "fluid/reconstruct.hpp"
+#include "fluid/transfer.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::FaceKind;
+using mesh::TetMesh;
+
+FluidState FluidState::at_rest(const TetMesh& m, double ambient_temperature) {
+  FluidState s;
+  s.u = VecX::Zero(m.num_faces());
+  s.p = VecX::Zero(m.num_tets());
+  s.density = VecX::Zero(m.num_tets());
+  s.temperature = VecX::Constant(m.num_tets(), ambient_temperature);
+  return s;
+}
+
+namespace {
+
+void check_params(const FluidParams& p) {
+  auto finite_nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
+  TETFSI_REQUIRE(InputError, std::isfinite(p.density) && p.density > 0,
+                 "fluid density must be positive, got {}", p.density);
+  TETFSI_REQUIRE(InputError, p.gravity.allFinite(), "fluid gravity must be finite");
+  TETFSI_REQUIRE(InputError, p.up.allFinite() && std::abs(p.up.norm() - 1.0) < 1e-9,
+                 "fluid 'up' must be a unit vector");
+  TETFSI_REQUIRE(InputError, finite_nonneg(p.buoyancy_alpha) && finite_nonneg(p.buoyancy_beta),
+                 "buoyancy alpha and beta must be finite and >= 0");
+  TETFSI_REQUIRE(InputError, std::isfinite(p.ambient_temperature),
+                 "ambient temperature must be finite");
+  TETFSI_REQUIRE(InputError, finite_nonneg(p.vorticity_confinement),
+                 "vorticity confinement must be >= 0");
+  TETFSI_REQUIRE(InputError, finite_nonneg(p.smoke_decay) && finite_nonneg(p.temperature_decay),
+                 "decay rates must be >= 0");
+  TETFSI_REQUIRE(InputError, p.min_dual_fraction > 0 && p.min_dual_fraction < 1,
+                 "min_dual_fraction must be in (0, 1), got {}", p.min_dual_fraction);
+}
+
+/// Hydrostatic part ρ g·x of the total pressure at x (liquids; 0 if gravity is 0).
+double hydrostatic(const FluidParams& p, const Vec3& x) { return p.density * p.gravity.dot(x); }
+
+}  // namespace
+
+struct FluidSimulation::Impl {
+  FluidParams params;
+  TetMesh mesh;
+  FluidState state;
+  std::unique_ptr<LinearSolver> solver;
+  double time = 0.0;
+  bool initialized = false;
+
+  /// Sources: volume boxes and the cells on inflow patches (density, temperature).
+  void apply_sources(const TetMesh& m, FluidState& s) const {
+    if (!params.sources.empty()) {
+      for (Index t = 0; t < m.num_tets(); ++t) {
+        Vec3 c = Vec3::Zero();
+        for (int i = 0; i < 4; ++i) c += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+        for (const SmokeSource& src : params.sources) {
+          if ((c.array() < src.lo.array()).any() || (c.array() > src.hi.array()).any()) continue;
+          s.density[t] = std::max(s.density[t], src.smoke_density);
+          if (src.emits_temperature) s.temperature[t] = src.temperature;
+        }
+      }
+    }
+    for (Index f = 0; f < m.num_faces(); ++f) {
+      if (m.face_kind[f] != FaceKind::Inflow) continue;
+      const Index pi = m.face_patch[f];
+      if (pi < 0 || pi >= static_cast<Index>(params.patches.size())) continue;
+      const PatchConditions& pc = params.patches[pi];
+      const Index t = m.face_tets(f, 0);
+      s.density[t] = pc.smoke_density;
+      s.temperature[t] = pc.emits_temperature ? pc.temperature : params.ambient_temperature;
+    }
+  }
+
+  /// Prescribed normal velocities: walls 0, inflow −speed, solid faces n_f · Σ_a w_a v_a.
+  void apply_boundary_velocity(const TetMesh& m, const std::vector<SolidSurfaceMotion>& solids,
+                               VecX& u) const {
+    for (Index f = 0; f < m.num_faces(); ++f) {
+      switch (m.face_kind[f]) {
+        case FaceKind::Interior:
+        case FaceKind::Open:
+          break;
+        case FaceKind::Wall:
+          u[f] = 0.0;
+          break;
+        case FaceKind::Inflow: {
+          const Index pi = m.face_patch[f];
+          const double speed = pi >= 0 && pi < static_cast<Index>(params.patches.size())
+                                   ? params.patches[pi].inflow_speed
+                                   : 0.0;
+          u[f] = -speed;
+          break;
+        }
+        case FaceKind::Solid: {
+          const Index b = m.face_body[f], tri = m.face_triangle[f];
+          Vec3 v = Vec3::Zero();
+          if (b >= 0 && b < static_cast<Index>(solids.size())) {
+            const SolidSurfaceMotion& s = solids[b];
+            TETFSI_CHECK(tri >= 0 && tri < s.triangles.rows(),
+                         "face {} refers to triangle {} of body {} which has {}", f, tri, b,
+                         s.triangles.rows());
+            for (int k = 0; k < 3; ++k)
+              v += m.face_bary(f, k) * s.velocity.row(s.triangles(tri, k)).transpose();
+          }
+          u[f] = m.face_normals.row(f).dot(v.transpose());  // (H u)_f [DESIGN.md §3]
+          break;
+        }
+      }
+    }
+  }
+
+  VecX open_q(const TetMesh& m, double h) const {
+    VecX q = VecX::Zero(m.num_faces());
+    const double s = h / params.density;
+    for (Index f = 0; f < m.num_faces(); ++f) {
+      if (m.face_kind[f] != FaceKind::Open) continue;
+      const Index pi = m.face_patch[f];
+      const double p = pi >= 0 && pi < static_cast<Index>(params.patches.size())
+                           ? params.patches[pi].pressure
+                           : 0.0;
+      q[f] = s * (p - hydrostatic(params, m.face_centroids.row(f).transpose()));
+    }
+    return q;
+  }
+
+  void ensure_solver() {
+    if (solver) return;
+    SolverOptions o;
+    o.rel_tol = params.solver_rel_tol;
+    o.max_iterations = params.solver_max_iterations;
+    o.symmetric = true;
+    solver = make_linear_solver(params.solver, o);
+  }
+};
+
+FluidSimulation::FluidSimulation(FluidParams params) : m_impl(std::make_unique<Impl>()) {
+  check_params(params);
+  m_impl->params = std::move(params);
+}
+FluidSimulation::~FluidSimulation() = default;
+FluidSimulation::FluidSimulation(FluidSimulation&&) noexcept = default;
+FluidSimulation& FluidSimulation::operator=(FluidSimulation&&) noexcept = default;
+
+void FluidSimulation::initialize(TetMesh m) {
+  Impl& I = *m_impl;
+  I.state = FluidState::at_rest(m, I.params.ambient_temperature);
+  I.apply_sources(m, I.state);
+  for (Index t = 0; t < m.num_tets(); ++t)
+    I.state.p[t] = hydrostatic(I.params, m.circumcentres.row(t).transpose());
+  I.mesh = std::move(m);
+  I.time = 0.0;
+  I.initialized = true;
+}
+
+FluidStepReport FluidSimulation::step(TetMesh nm, double h,
+                                      const std::vector<SolidSurfaceMotion>& solids,
+                                      PhaseTimes& phases) {
+  Impl& I = *m_impl;
+  TETFSI_CHECK(I.initialized, "FluidSimulation::step before initialize");
+  TETFSI_REQUIRE(InputError, std::isfinite(h) && h > 0, "fluid step: dt must be positive, got {}",
+                 h);
+  const FluidParams& P = I.params;
+  FluidStepReport rep;
+  FluidState s;
+  {
+    ScopedTimer timer(phases, "transfer");
+    TransferInput in;
+    in.old_mesh = &I.mesh;
+    in.old_u = &I.state.u;
+    in.old_density = &I.state.density;
+    in.old_temperature = &I.state.temperature;
+    in.reconstruction = P.reconstruction;
+    TransferOutput out = transfer(in, nm, h);
+    s.u = std::move(out.u);
+    s.density = std::move(out.density);
+    s.temperature = std::move(out.temperature);
+    rep.traces_clamped = out.clamped;
+  }
+  {
+    ScopedTimer timer(phases, "forces");
+    if (P.smoke_decay > 0) s.density *= std::exp(-P.smoke_decay * h);
+    if (P.temperature_decay > 0)
+      s.temperature = (s.temperature.array() - P.ambient_temperature) *
+                          std::exp(-P.temperature_decay * h) +
+                      P.ambient_temperature;
+    I.apply_sources(nm, s);
+    if (P.buoyancy_alpha > 0 || P.buoyancy_beta > 0)
+      add_cell_acceleration(nm, buoyancy(P, s.density, s.temperature), h, s.u);
+    if (P.vorticity_confinement > 0) {
+      const MatX3 U = vertex_least_squares(nm, s.u);
+      add_cell_acceleration(nm, vorticity_confinement(nm, U, P.vorticity_confinement), h, s.u);
+    }
+    I.apply_boundary_velocity(nm, solids, s.u);
+  }
+  I.ensure_solver();
+  VecX q;
+  ProjectionReport pr;
+  {
+    const VecX qo = I.open_q(nm, h);
+    pr = project(nm, P.min_dual_fraction, qo, s.u, q, *I.solver);
+  }
+  phases.add("assembly", pr.assembly_s);
+  phases.add("solve", pr.setup_s + pr.solve_s);
+  if (!pr.converged)
+    logger().warn("fluid pressure solve did not converge: {} iterations, residual {:.3g}",
+                  pr.iterations, pr.residual);
+  TETFSI_REQUIRE(SolverError, s.u.allFinite() && s.density.allFinite() && s.temperature.allFinite(),
+                 "fluid state became non-finite at t = {:.6g} s (pressure solve residual {:.3g}); "
+                 "reduce time.dt",
+                 I.time + h, pr.residual);
+  s.p = q * (P.density / h);
+  for (Index t = 0; t < nm.num_tets(); ++t)
+    s.p[t] += hydrostatic(P, nm.circumcentres.row(t).transpose());
+
+  rep.converged = pr.converged;
+  rep.iterations = pr.iterations;
+  rep.residual = pr.residual;
+  rep.divergence_before = pr.divergence_before;
+  rep.divergence_after = pr.divergence_after;
+  I.mesh = std::move(nm);
+  I.state = std::move(s);
+  I.time += h;
+
+  const TetMesh& m = I.mesh;
+  const MatX3 uc = cell_velocities();
+  const VecX speed = uc.rowwise().norm();
+  const VecX dx = cell_sizes(m);
+  rep.kinetic_energy = 0.5 * P.density * (m.volumes.array() * speed.array().square()).sum();
+  rep.smoke_mass = m.volumes.dot(I.state.density);
+  rep.max_speed = I.state.u.size() ? I.state.u.cwiseAbs().maxCoeff() : 0.0;
+  rep.cfl = m.num_tets() ? (h * speed.array() / dx.array()).maxCoeff() : 0.0;
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    const double q_f = m.face_areas[f] * I.state.u[f];
+    switch (m.face_kind[f]) {
+      case FaceKind::Inflow: rep.inflow_flux -= q_f; break;
+      case FaceKind::Open: rep.outflow_flux += q_f; break;
+      case FaceKind::Solid: rep.solid_flux += q_f; break;
+      default: break;
+    }
+  }
+  return rep;
+}
+
+const TetMesh& FluidSimulation::mesh() const { return m_impl->mesh; }
+const FluidState& FluidSimulation::state() const { return m_impl->state; }
+const FluidParams& FluidSimulation::params() const { return m_impl->params; }
+double FluidSimulation::time() const { return m_impl->time; }
+
+MatX3 FluidSimulation::cell_velocities() const {
+  const VelocityField f(m_impl->mesh, m_impl->state.u, m_impl->params.reconstruction);
+  return f.cell_velocities();
+}
+
+MatX3 FluidSimulation::vertex_velocities() const {
+  const VelocityField f(m_impl->mesh, m_impl->state.u, m_impl->params.reconstruction);
+  return f.vertex_velocities();
+}
+
+VecX FluidSimulation::vorticity_magnitude() const {
+  return cell_vorticity(m_impl->mesh, vertex_least_squares(m_impl->mesh, m_impl->state.u))
+      .rowwise()
+      .norm();
+}
+
+RefineField FluidSimulation::refinement_field() const {
+  const RefineParams& rp = m_impl->params.refine;
+  const TetMesh& m = m_impl->mesh;
+  if (!(rp.size > 0) || m.num_tets() == 0) return {};
+  // A voxel grid of spacing `size` over the mesh's box, marking the voxels that hold the
+  // centroid of a significant cell, dilated by one voxel.
+  const Vec3 lo = m.vertices.colwise().minCoeff().transpose();
+  const Vec3 hi = m.vertices.colwise().maxCoeff().transpose();
+  double cell = rp.size;
+  Vec3i n;
+  for (;;) {
+    for (int a = 0; a < 3; ++a)
+      n[a] = std::max(1, static_cast<int>(std::ceil((hi[a] - lo[a]) / cell)));
+    if (static_cast<double>(n[0]) * n[1] * n[2] <= 8e6) break;
+    cell *= 1.25;
+  }
+  std::vector<std::uint8_t> mark(static_cast<size_t>(n[0]) * n[1] * n[2], 0);
+  auto idx = [&](int i, int j, int k) { return (static_cast<size_t>(k) * n[1] + j) * n[0] + i; };
+  const VecX vort = rp.vorticity_threshold > 0 ? vorticity_magnitude() : VecX();
+  Index marked = 0;
+  for (Index t = 0; t < m.num_tets(); ++t) {
+    const bool smoke = m_impl->state.density[t] > rp.density_threshold;
+    const bool swirl = vort.size() && vort[t] > rp.vorticity_threshold;
+    if (!smoke && !swirl) continue;
+    Vec3 c = Vec3::Zero();
+    for (int i = 0; i < 4; ++i) c += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+    Vec3i v;
+    for (int a = 0; a < 3; ++a)
+      v[a] = std::clamp(static_cast<int>((c[a] - lo[a]) / cell), 0, n[a] - 1);
+    for (int dk = -1; dk <= 1; ++dk)
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int di = -1; di <= 1; ++di) {
+          const int i = v[0] + di, j = v[1] + dj, k = v[2] + dk;
+          if (i < 0 || j < 0 || k < 0 || i >= n[0] || j >= n[1] || k >= n[2]) continue;
+          mark[idx(i, j, k)] = 1;
+        }
+    ++marked;
+  }
+  if (marked == 0) return {};
+  const double size = rp.size;
+  return [mark = std::move(mark), lo, n, cell, size](const Vec3& x) -> double {
+    Vec3i v;
+    for (int a = 0; a < 3; ++a) {
+      const int i = static_cast<int>(std::floor((x[a] - lo[a]) / cell));
+      if (i < 0 || i >= n[a]) return 0.0;
+      v[a] = i;
+    }
+    return mark[(static_cast<size_t>(v[2]) * n[1] + v[1]) * n[0] + v[0]] ? size : 0.0;
+  };
+}
+
+}  // namespace tetfsi::fluid

@@ -1,0 +1,154 @@
+#include "fluid/transfer.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+
+#include "core/error.hpp"
+#include "fluid/reconstruct.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::TetMesh;
+
+namespace {
+
+/// Barycentric coordinates of x in tet t.
+Vec4 bary_of(const TetMesh& m, Index t, const Vec3& x) {
+  const Vec3 x0 = m.vertices.row(m.tets(t, 0)).transpose();
+  Mat3 E;
+  for (int i = 0; i < 3; ++i) E.col(i) = m.vertices.row(m.tets(t, i + 1)).transpose() - x0;
+  const Vec3 l = E.partialPivLu().solve(x - x0);
+  return Vec4(1.0 - l.sum(), l[0], l[1], l[2]);
+}
+
+}  // namespace
+
+Vec3 position(const TetMesh& m, const TracePoint& p) {
+  Vec3 x = Vec3::Zero();
+  for (int i = 0; i < 4; ++i) x += p.bary[i] * m.vertices.row(m.tets(p.tet, i)).transpose();
+  return x;
+}
+
+TracePoint walk_segment(const TetMesh& m, const TracePoint& from, const Vec3& x1) {
+  TracePoint cur = from;
+  Vec4 b0 = from.bary;  // where the walk is now, in cur.tet
+  constexpr double eps = 1e-12;
+  const int max_steps = 10000;
+  int prev_face = -1;
+  for (int step = 0; step < max_steps; ++step) {
+    const Vec4 b1 = bary_of(m, cur.tet, x1);
+    if (b1.minCoeff() >= -eps) {
+      cur.bary = b1;
+      return cur;
+    }
+    // Leave through the face k whose coordinate reaches 0 first along b0 → b1.
+    double s_best = 2.0;
+    int k_best = -1;
+    for (int k = 0; k < 4; ++k) {
+      if (b1[k] >= -eps) continue;
+      if (m.tet_faces(cur.tet, k) == prev_face) continue;  // the face we entered through
+      const double denom = b0[k] - b1[k];
+      const double s = denom > 0 ? std::max(0.0, b0[k]) / denom : 0.0;
+      if (s < s_best) {
+        s_best = s;
+        k_best = k;
+      }
+    }
+    if (k_best < 0) {  // only the entry face is "behind": x1 is on it up to round-off
+      cur.bary = b1.cwiseMax(0.0) / b1.cwiseMax(0.0).sum();
+      return cur;
+    }
+    Vec4 bx = b0 + s_best * (b1 - b0);
+    bx[k_best] = 0.0;
+    bx = bx.cwiseMax(0.0);
+    bx /= bx.sum();
+    const Index n = m.neighbours(cur.tet, k_best);
+    if (n < 0) {  // the path leaves the fluid: stop on the boundary face
+      cur.bary = bx;
+      cur.clamped = true;
+      return cur;
+    }
+    const Vec3 xe = [&] {
+      Vec3 x = Vec3::Zero();
+      for (int i = 0; i < 4; ++i) x += bx[i] * m.vertices.row(m.tets(cur.tet, i)).transpose();
+      return x;
+    }();
+    prev_face = m.tet_faces(cur.tet, k_best);
+    cur.tet = n;
+    b0 = bary_of(m, n, xe).cwiseMax(0.0);
+    b0 /= b0.sum();
+  }
+  cur.bary = b0;  // the step limit (never seen): stay where the walk got to
+  return cur;
+}
+
+TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
+  TETFSI_CHECK(in.old_mesh && in.old_u, "transfer needs the old mesh and velocity");
+  const TetMesh& om = *in.old_mesh;
+  TETFSI_CHECK(in.old_u->size() == om.num_faces(), "old u has {} entries for {} faces",
+               in.old_u->size(), om.num_faces());
+  const VelocityField field(om, *in.old_u, in.reconstruction);
+  const mesh::PointLocator locator(om);
+  TransferOutput out;
+  const Index nf = nm.num_faces(), nt = nm.num_tets();
+  out.u.resize(nf);
+  out.density.resize(nt);
+  out.temperature.resize(nt);
+
+  Index hint = -1;
+  // Locate x in the old fluid; a point outside it (in the old solid, or a new region) starts
+  // from the nearest old fluid point.
+  auto start_at = [&](const Vec3& x) {
+    const mesh::Location loc = locator.locate(x, hint);
+    TracePoint p;
+    p.tet = loc.tet;
+    p.bary = loc.bary;
+    if (!loc.inside) ++out.start_outside;
+    hint = loc.tet;
+    return p;
+  };
+  // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
+  auto trace_back = [&](const Vec3& x, const TracePoint& p0) {
+    const Vec3 u0 = field.at(p0.tet, p0.bary);
+    const Vec3 x0 = position(om, p0);
+    const TracePoint pm = walk_segment(om, p0, x0 - 0.5 * h * u0);
+    const Vec3 um = field.at(pm.tet, pm.bary);
+    TracePoint pb = walk_segment(om, p0, x0 - h * um);
+    if (pm.clamped || pb.clamped) ++out.clamped;
+    (void)x;
+    return pb;
+  };
+
+  for (Index f = 0; f < nf; ++f) {
+    const Vec3 x = nm.face_centroids.row(f).transpose();
+    const TracePoint p0 = start_at(x);
+    const TracePoint pb = trace_back(x, p0);
+    out.u[f] = nm.face_normals.row(f).dot(field.at(pb.tet, pb.bary).transpose());
+  }
+
+  const bool scalars = in.old_density || in.old_temperature;
+  if (scalars) {
+    const VecX dv = in.old_density ? cell_to_vertex(om, *in.old_density) : VecX();
+    const VecX tv = in.old_temperature ? cell_to_vertex(om, *in.old_temperature) : VecX();
+    hint = -1;
+    for (Index t = 0; t < nt; ++t) {
+      Vec3 x = Vec3::Zero();
+      for (int i = 0; i < 4; ++i) x += 0.25 * nm.vertices.row(nm.tets(t, i)).transpose();
+      const TracePoint p0 = start_at(x);
+      const TracePoint pb = trace_back(x, p0);
+      double d = 0.0, T = 0.0;
+      for (int i = 0; i < 4; ++i) {
+        const Index v = om.tets(pb.tet, i);
+        if (dv.size()) d += pb.bary[i] * dv[v];
+        if (tv.size()) T += pb.bary[i] * tv[v];
+      }
+      out.density[t] = d;
+      out.temperature[t] = T;
+    }
+  }
+  if (!in.old_density) out.density.setZero();
+  if (!in.old_temperature) out.temperature.setZero();
+  return out;
+}
+
+}  // namespace tetfsi::fluid

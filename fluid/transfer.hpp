@@ -1,0 +1,52 @@
+#pragma once
+/// @file transfer.hpp
+/// Transfer = advection from the old mesh onto the new one (DESIGN.md §2 step 3),
+/// semi-Lagrangian and so unconditionally stable [Stam 1999], [KFCO06, §4]: every face centre
+/// of the new mesh is traced back through the old mesh's reconstructed velocity (RK2) and
+/// takes the normal component of the old field there; cell scalars (smoke, temperature) are
+/// traced from the cell centroids and interpolated linearly from volume-averaged vertex values
+/// (a convex combination: no new extrema).
+///
+/// Back-traces never cross the fluid boundary: the path is walked tet by tet through the old
+/// mesh and stops where it would leave the fluid (at a wall, a solid face or the box). So
+/// smoke cannot jump through a thin solid, and nothing is read from inside a solid.
+#include "core/types.hpp"
+#include "fluid/params.hpp"
+#include "mesh/locate.hpp"
+#include "mesh/tet_mesh.hpp"
+
+namespace tetfsi::fluid {
+
+struct TracePoint {
+  Index tet = -1;
+  Vec4 bary = Vec4::Zero();
+  bool clamped = false;  ///< the path was stopped at the fluid boundary
+};
+
+/// Walk the straight path from the point at (tet, bary) of `m` to x1 through face
+/// neighbours; return where x1 is, or the point where the path leaves the fluid (clamped).
+TracePoint walk_segment(const mesh::TetMesh& m, const TracePoint& from, const Vec3& x1);
+
+/// Position of a trace point (m).
+Vec3 position(const mesh::TetMesh& m, const TracePoint& p);
+
+struct TransferInput {
+  const mesh::TetMesh* old_mesh = nullptr;
+  const VecX* old_u = nullptr;  ///< #F_old face normal velocities
+  const VecX* old_density = nullptr;
+  const VecX* old_temperature = nullptr;
+  Reconstruction reconstruction = Reconstruction::VertexLeastSquares;
+};
+
+struct TransferOutput {
+  VecX u;            ///< #F_new: n_f · u_old(x_back) on every face
+  VecX density;      ///< #T_new
+  VecX temperature;  ///< #T_new
+  Index clamped = 0;       ///< traces stopped at the fluid boundary
+  Index start_outside = 0;  ///< new points that lie outside the old fluid (e.g. where a solid was)
+};
+
+/// Advect the old state by h onto `new_mesh` (see the file comment).
+TransferOutput transfer(const TransferInput& in, const mesh::TetMesh& new_mesh, double h);
+
+}  // namespace tetfsi::fluid
