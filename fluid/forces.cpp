@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 #include "fluid/reconstruct.hpp"
 
 namespace tetfsi::fluid {

@@ -1,6 +1,7 @@
 #include "fluid/reconstruct.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 
 #include "core/error.hpp"
 

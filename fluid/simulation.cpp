@@ -85,6 +85,15 @@ struct FluidSimulation::Impl {
   /// Prescribed normal velocities: walls 0, inflow −speed, solid faces n_f · Σ_a w_a v_a.
   void apply_boundary_velocity(const TetMesh& m, const std::vector<SolidSurfaceMotion>& solids,
                                VecX& u) const {
+    const Index np = static_cast<Index>(params.patches.size());
+    std::vector<double> speed(np, 0.0), area(np, 0.0);
+    for (Index f = 0; f < m.num_faces(); ++f)
+      if (m.face_kind[f] == FaceKind::Inflow && m.face_patch[f] >= 0 && m.face_patch[f] < np)
+        area[m.face_patch[f]] += m.face_areas[f];
+    for (Index i = 0; i < np; ++i) {
+      speed[i] = params.patches[i].inflow_speed;
+      if (params.patches[i].area > 0 && area[i] > 0) speed[i] *= params.patches[i].area / area[i];
+    }
     for (Index f = 0; f < m.num_faces(); ++f) {
       switch (m.face_kind[f]) {
         case FaceKind::Interior:
@@ -95,10 +104,7 @@ struct FluidSimulation::Impl {
           break;
         case FaceKind::Inflow: {
           const Index pi = m.face_patch[f];
-          const double speed = pi >= 0 && pi < static_cast<Index>(params.patches.size())
-                                   ? params.patches[pi].inflow_speed
-                                   : 0.0;
-          u[f] = -speed;
+          u[f] = pi >= 0 && pi < np ? -speed[pi] : 0.0;
           break;
         }
         case FaceKind::Solid: {
@@ -249,6 +255,22 @@ FluidStepReport FluidSimulation::step(TetMesh nm, double h,
     }
   }
   return rep;
+}
+
+void FluidSimulation::set_state(FluidState s) {
+  const TetMesh& m = m_impl->mesh;
+  TETFSI_REQUIRE(InputError,
+                 s.u.size() == m.num_faces() && s.p.size() == m.num_tets() &&
+                     s.density.size() == m.num_tets() && s.temperature.size() == m.num_tets(),
+                 "fluid state sizes (u {}, p {}, density {}, temperature {}) do not match the mesh "
+                 "({} faces, {} cells)",
+                 s.u.size(), s.p.size(), s.density.size(), s.temperature.size(), m.num_faces(),
+                 m.num_tets());
+  TETFSI_REQUIRE(InputError,
+                 s.u.allFinite() && s.p.allFinite() && s.density.allFinite() &&
+                     s.temperature.allFinite(),
+                 "fluid state has non-finite values");
+  m_impl->state = std::move(s);
 }
 
 const TetMesh& FluidSimulation::mesh() const { return m_impl->mesh; }

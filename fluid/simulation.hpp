@@ -80,6 +80,10 @@ class FluidSimulation {
   FluidStepReport step(mesh::TetMesh new_mesh, double h,
                        const std::vector<SolidSurfaceMotion>& solids, PhaseTimes& phases);
 
+  /// Replace the state on the current mesh (e.g. an initial velocity field; tests).
+  /// @throws InputError if a size does not match the mesh or a value is not finite.
+  void set_state(FluidState s);
+
   const mesh::TetMesh& mesh() const;
   const FluidState& state() const;
   const FluidParams& params() const;
