@@ -61,6 +61,13 @@ Index SolidBody::num_fixed_dofs() const {
   return static_cast<Index>(std::count(m_fixed.begin(), m_fixed.end(), std::uint8_t{1}));
 }
 
+void SolidBody::set_kinematic_state(double t) {
+  TETFSI_CHECK(kinematic.has_value(), "{}: set_kinematic_state on a body that is not kinematic",
+               m_name);
+  displacement = kinematic->position(m_mesh.vertices, t) - m_mesh.vertices;
+  velocity = kinematic->velocity(m_mesh.vertices, t);
+}
+
 VecX SolidBody::external_forces(const Vec3& gravity) const {
   MatX3 f = applied_force;
   for (Index i = 0; i < num_nodes(); ++i) f.row(i) += m_mass[i] * gravity.transpose();

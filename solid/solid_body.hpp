@@ -1,11 +1,14 @@
 #pragma once
 /// @file solid_body.hpp
-/// One deformable body: rest mesh, material, state (d, u), loads and fixed DOFs.
+/// One deformable body: rest mesh, material, state (d, u), loads and fixed DOFs; or a
+/// kinematic body, whose state follows a prescribed rigid motion (kinematic.hpp).
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/types.hpp"
 #include "mesh/volume_mesh.hpp"
+#include "solid/kinematic.hpp"
 #include "solid/material.hpp"
 #include "solid/stvk.hpp"
 
@@ -50,6 +53,14 @@ class SolidBody {
   MatX3 displacement;   ///< d (#V × 3, m)
   MatX3 velocity;       ///< u (#V × 3, m/s)
   MatX3 applied_force;  ///< loads set by the scene, gravity excluded (#V × 3, N)
+  /// Set: the body is kinematic. SolidWorld::step does not integrate it (no assembly, solve
+  /// or collisions) but sets d = x(t) − X and u = u(t) from the motion at the new time, so
+  /// pins and loads make no sense on it (step rejects them). Its material is still validated:
+  /// mass and energies use it.
+  std::optional<KinematicMotion> kinematic;
+  bool is_kinematic() const { return kinematic.has_value(); }
+  /// Kinematic bodies: d and u from the motion at time t (s). @pre is_kinematic()
+  void set_kinematic_state(double t);
 
   /// f_e = applied_force + m_i g for every node (3#V, interleaved, N).
   VecX external_forces(const Vec3& gravity) const;

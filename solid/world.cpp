@@ -7,9 +7,40 @@
 
 namespace tetfsi::solid {
 
+namespace {
+
+/// A kinematic body's motion is prescribed: pins or loads on it would be silently ignored.
+void check_kinematic(const SolidBody& body) {
+  TETFSI_REQUIRE(InputError, body.num_fixed_dofs() == 0,
+                 "body '{}' is kinematic: it cannot have pins ({} fixed DOFs); its motion is "
+                 "prescribed",
+                 body.name(), body.num_fixed_dofs());
+  TETFSI_REQUIRE(InputError, body.applied_force.isZero(0.0),
+                 "body '{}' is kinematic: it cannot have loads (applied_force is not zero); its "
+                 "motion is prescribed",
+                 body.name());
+}
+
+}  // namespace
+
+void SolidWorld::set_kinematic_states() {
+  for (SolidBody& body : bodies) {
+    if (body.is_kinematic()) body.set_kinematic_state(time);
+  }
+}
+
 SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
   SolidStepReport report;
+  const double t_new = time + h;
+  for (const SolidBody& body : bodies) {
+    if (body.is_kinematic()) check_kinematic(body);
+  }
   for (SolidBody& body : bodies) {
+    if (body.is_kinematic()) {
+      ScopedTimer timer(times, "update");
+      body.set_kinematic_state(t_new);  // exact: evaluated at t, not integrated
+      continue;
+    }
     TrapezoidalSystem sys;
     {
       ScopedTimer timer(times, "assemble");
@@ -55,6 +86,7 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
       logger().warn("body '{}': linear solve ({}) did not converge: relative residual {:.3g}",
                     body.name(), rep.backend, rep.residual);
   }
+  time = t_new;
   return report;
 }
 

@@ -1,8 +1,9 @@
 #pragma once
 /// @file world.hpp
 /// The solid-only step driver: bodies, gravity and obstacles advanced together with the
-/// linearised trapezoidal rule. (The coupled driver in coupling/ replaces it once the
-/// fluid exists; it keeps the same per-body systems.)
+/// linearised trapezoidal rule; kinematic bodies (SolidBody::kinematic) follow their
+/// prescribed motion instead. (The coupled driver in coupling/ replaces it once the fluid
+/// exists; it keeps the same per-body systems.)
 #include <vector>
 
 #include "core/linear_solver.hpp"
@@ -28,11 +29,21 @@ class SolidWorld {
   SolverKind linear_solver = SolverKind::Cholmod;
   SolverOptions solver_options;
   Trapezoid trapezoid = Trapezoid::Paper;  ///< see integrator.hpp
+  /// Simulated time (s): advanced by h at the end of every successful `step`. Kinematic
+  /// bodies are evaluated at it (set_kinematic_states).
+  double time = 0.0;
 
-  /// Advance every body by h: assemble [Chentanez06, Eq. (4)], solve, apply Eq. (5),
-  /// resolve collisions. Phases "assemble", "solve", "update" are timed into `times`.
-  /// @throws SolverError if a solve fails or the state becomes non-finite, naming the body.
+  /// Advance every body by h. A deformable body: assemble [Chentanez06, Eq. (4)], solve,
+  /// apply Eq. (5), resolve collisions. A kinematic body: d and u set exactly from its motion
+  /// at time + h (timed as "update"; no solve, no collisions, nothing in the report). Then
+  /// time += h. Phases "assemble", "solve", "update" are timed into `times`.
+  /// @throws InputError naming a kinematic body that has fixed DOFs or applied loads;
+  ///   SolverError if a solve fails or the state becomes non-finite, naming the body.
   SolidStepReport step(double h, PhaseTimes& times);
+
+  /// Set every kinematic body's d and u from its motion at `time` (e.g. after building the
+  /// world, so that the initial state is on the path). Deformable bodies are left alone.
+  void set_kinematic_states();
 
   double kinetic_energy() const;
   double elastic_energy() const;

@@ -124,11 +124,12 @@ void fill_final(const solid::SolidWorld& world, RunResult& r) {
   }
 }
 
-/// The state (d, u) of every body, to go back to the last good state when a step fails, so
-/// that the summary reports it rather than a diverged one.
+/// The state (d, u) of every body and the world's time, to go back to the last good state
+/// when a step fails, so that the summary reports it rather than a diverged one.
 class StateSnapshot {
  public:
   void save(const solid::SolidWorld& world) {
+    m_time = world.time;
     m_state.resize(world.bodies.size());
     for (size_t i = 0; i < world.bodies.size(); ++i) {
       m_state[i].first = world.bodies[i].displacement;
@@ -136,6 +137,7 @@ class StateSnapshot {
     }
   }
   void restore(solid::SolidWorld& world) const {
+    world.time = m_time;
     for (size_t i = 0; i < m_state.size() && i < world.bodies.size(); ++i) {
       world.bodies[i].displacement = m_state[i].first;
       world.bodies[i].velocity = m_state[i].second;
@@ -143,6 +145,7 @@ class StateSnapshot {
   }
 
  private:
+  double m_time = 0.0;
   std::vector<std::pair<MatX3, MatX3>> m_state;
 };
 
@@ -408,6 +411,11 @@ void run_static(const Scene& scene, solid::SolidWorld& world, FluidRemesher* flu
     {
       ScopedTimer timer(row.phases, "solve");
       for (auto& body : world.bodies) {
+        if (body.is_kinematic()) {
+          logger().info("body '{}' is kinematic: it stays at its t = 0 pose in a static solve",
+                        body.name());
+          continue;
+        }
         const solid::StaticSolveReport rep =
             solid::solve_static(body, body.external_forces(world.gravity), so);
         logger().info("body '{}': static equilibrium in {} Newton iterations (residual {:.3g})",
@@ -578,9 +586,20 @@ void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std
   else
     out << fmt::format("dt = {:.6g} s, {} steps, a frame every {} ({})\n", scene.time.dt,
                        scene.time.num_steps(), scene.output.every, scene.output.compression);
-  for (const auto& b : world.bodies)
-    out << fmt::format("body '{}': {} nodes, {} tets, mass {:.6g} kg, {} fixed DOFs\n", b.name(),
-                       b.num_nodes(), b.num_tets(), b.total_mass(), b.num_fixed_dofs());
+  for (const auto& b : world.bodies) {
+    if (b.is_kinematic()) {
+      const solid::KinematicMotion& k = *b.kinematic;
+      out << fmt::format(
+          "body '{}': {} nodes, {} tets, mass {:.6g} kg, kinematic: velocity {} m/s, angular "
+          "velocity {} deg/s about {}\n",
+          b.name(), b.num_nodes(), b.num_tets(), b.total_mass(), fmt_vec(k.linear_velocity),
+          fmt_vec(k.angular_velocity * (180.0 / M_PI)), fmt_vec(k.center));
+    } else {
+      out << fmt::format("body '{}': {} nodes, {} tets, mass {:.6g} kg, {} fixed DOFs\n", b.name(),
+                         b.num_nodes(), b.num_tets(), b.total_mass(), b.num_fixed_dofs());
+    }
+  }
+  if (world.bodies.empty()) out << "bodies: none\n";
   out << fmt::format("obstacles: {}\n", world.obstacles.size());
   if (scene.fluid) {
     const mesh::FluidDomain& d = scene.fluid->domain;
@@ -591,6 +610,14 @@ void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std
         fmt_vec(d.lo), fmt_vec(d.hi), mesh::to_string(d.default_kind), d.patches.size(),
         d.patches.size() == 1 ? "" : "es", z.surface_size, z.far_size, z.grading,
         z.max_cells > 0 ? fmt::format(", at most {} cells", z.max_cells) : std::string());
+    const fluid::FluidParams& fp = scene.fluid->params;
+    out << fmt::format(
+        "fluid physics: density {:.6g} kg/m^3, gravity {}, reconstruction {}, pressure solver "
+        "{}, {} source{}{}\n",
+        fp.density, scene.fluid->gravity ? fmt_vec(fp.gravity) + " m/s^2" : std::string("off"),
+        fluid::to_string(fp.reconstruction), to_string(fp.solver), fp.sources.size(),
+        fp.sources.size() == 1 ? "" : "s",
+        fp.refine.size > 0 ? fmt::format(", refine to {:.6g} m", fp.refine.size) : std::string());
   }
 }
 

@@ -83,7 +83,9 @@ struct RunResult {
 ///  - dynamic: `world.step(dt)` per step; a frame every `output.every` steps and always the
 ///    last one; a stats row every step;
 ///  - static: `solid::solve_static` on each body with f_e = external_forces(gravity) and the
-///    scene's static options, then frame 1 at pseudo-time 1.0 and one stats row.
+///    scene's static options (kinematic bodies stay at their t = 0 pose), then frame 1 at
+///    pseudo-time 1.0 and one stats row.
+/// A scene may have no body (a fluid-only scene): the frames then hold the fluid mesh only.
 /// A scene with a fluid also gets a fluid mesh built by mesh::remesh around every body's
 /// boundary triangles at their current positions X + d: at t = 0 and after every step (timed
 /// as the phase `remesh`), written with each frame and summarised in each stats row
@@ -107,8 +109,9 @@ std::string summary_json(const RunResult& r);
 /// Print a human-readable summary of a run (a few lines).
 void print_summary(const RunResult& r, std::ostream& out);
 
-/// Print one line per body (nodes, tets, mass, fixed DOFs) and a line per obstacle count,
-/// for `tetfsi validate`.
+/// Print one line per body (nodes, tets, mass, fixed DOFs, or "kinematic" with its motion;
+/// "bodies: none" without any), the obstacle count and, for a fluid scene, its box, mesh and
+/// physics, for `tetfsi validate`.
 void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out);
 
 }  // namespace tetfsi::tools

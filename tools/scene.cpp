@@ -425,9 +425,18 @@ class Parser {
     return l;
   }
 
+  KinematicSpec kinematic(const Node& n) const {
+    expect_object(n, {"velocity", "angular_velocity_deg", "center"});
+    KinematicSpec k;
+    k.velocity = vec3(n, "velocity", k.velocity);
+    k.angular_velocity_deg = vec3(n, "angular_velocity_deg", k.angular_velocity_deg);
+    if (has(n, "center")) k.center = vec3(child(n, "center"));
+    return k;
+  }
+
   BodySpec body(const Node& n) const {
-    expect_object(n,
-                  {"name", "mesh", "transform", "material", "pins", "loads", "initial_velocity"});
+    expect_object(n, {"name", "mesh", "transform", "material", "pins", "loads", "initial_velocity",
+                      "kinematic"});
     BodySpec b;
     b.name = string(require(n, "name"));
     if (b.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
@@ -447,6 +456,20 @@ class Parser {
       }
     }
     b.initial_velocity = vec3(n, "initial_velocity", b.initial_velocity);
+    if (has(n, "kinematic")) {
+      b.kinematic = kinematic(child(n, "kinematic"));
+      // Its motion is prescribed: anything that would act on it through the FEM is a mistake.
+      const auto reject = [&](const char* key, const char* what) {
+        fail(child_path(n.path, key),
+             fmt::format("body '{}' is kinematic (moved by its 'kinematic' motion): it cannot "
+                         "have {}; remove '{}' or 'kinematic'",
+                         b.name, what, key));
+      };
+      if (!b.pins.empty()) reject("pins", "pins");
+      if (!b.loads.empty()) reject("loads", "loads");
+      if (!b.initial_velocity.isZero(0.0))
+        reject("initial_velocity", "an initial velocity (give kinematic.velocity)");
+    }
     return b;
   }
 
@@ -479,9 +502,12 @@ class Parser {
     return o;
   }
 
-  /// A patch of the fluid box; `box` is the domain, for the overlap check.
-  mesh::DomainPatch patch(const Node& n, std::size_t index, const BoxSpec& box) const {
-    expect_object(n, {"name", "kind", "side", "lo", "hi"});
+  /// A patch of the fluid box and what happens on it; `box` is the domain, for the overlap
+  /// check.
+  mesh::DomainPatch patch(const Node& n, std::size_t index, const BoxSpec& box,
+                          fluid::PatchConditions& conditions) const {
+    expect_object(
+        n, {"name", "kind", "side", "lo", "hi", "speed", "smoke", "temperature", "pressure"});
     mesh::DomainPatch pa;
     pa.name = string(n, "name", fmt::format("patch{}", index));
     if (pa.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
@@ -509,12 +535,64 @@ class Parser {
                                fmt_vec2(pa.lo), fmt_vec2(pa.hi), side, axes, fmt_vec2(face_lo),
                                fmt_vec2(face_hi)));
     }
+    // Conditions: each key belongs to one kind of patch.
+    fluid::PatchConditions& pc = conditions;
+    const std::string kind = mesh::to_string(pa.kind);
+    const auto only_on = [&](const char* key, mesh::FaceKind k) {
+      if (has(n, key) && pa.kind != k)
+        fail(child_path(n.path, key),
+             fmt::format("applies only to an {} patch (this one is {})", mesh::to_string(k), kind));
+    };
+    for (const char* key : {"speed", "smoke", "temperature"}) only_on(key, mesh::FaceKind::Inflow);
+    only_on("pressure", mesh::FaceKind::Open);
+    pc.inflow_speed = non_negative(n, "speed", pc.inflow_speed, " (m/s into the domain)");
+    pc.smoke_density = non_negative(n, "smoke", pc.smoke_density, " (kg/m^3)");
+    if (has(n, "temperature")) {
+      pc.temperature = number(child(n, "temperature"));
+      pc.emits_temperature = true;
+    }
+    pc.pressure = number(n, "pressure", pc.pressure);
     return pa;
   }
 
-  FluidSpec fluid(const Node& n) const {
-    expect_object(n, {"domain", "mesh"});
+  /// Number at `key` (or `fallback`) that must be >= 0; `unit` is " (m)" or "".
+  double non_negative(const Node& n, const std::string& key, double fallback,
+                      const std::string& unit) const {
+    const double v = number(n, key, fallback);
+    if (v < 0) fail(child_path(n.path, key), fmt::format("must be >= 0{}, got {}", unit, v));
+    return v;
+  }
+
+  /// A volume source of smoke and heat; `box` is the fluid domain, for the overlap check.
+  fluid::SmokeSource source(const Node& n, std::size_t index, const BoxSpec& domain) const {
+    expect_object(n, {"name", "box", "smoke", "temperature"});
+    fluid::SmokeSource src;
+    src.name = string(n, "name", fmt::format("source{}", index));
+    if (src.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
+    const Node bn = require(n, "box");
+    const BoxSpec b = box(bn, true);
+    const bool overlaps =
+        (b.lo.array() < domain.hi.array()).all() && (b.hi.array() > domain.lo.array()).all();
+    if (!overlaps)
+      fail(bn.path, fmt::format("the box {}..{} misses the fluid box {}..{}", fmt_vec(b.lo),
+                                fmt_vec(b.hi), fmt_vec(domain.lo), fmt_vec(domain.hi)));
+    src.lo = b.lo;
+    src.hi = b.hi;
+    src.smoke_density = non_negative(n, "smoke", src.smoke_density, " (kg/m^3)");
+    if (has(n, "temperature")) {
+      src.temperature = number(child(n, "temperature"));
+      src.emits_temperature = true;
+    }
+    return src;
+  }
+
+  /// The fluid section; `gravity` is the scene's (for FluidParams::gravity and ::up).
+  FluidSpec fluid(const Node& n, const Vec3& gravity) const {
+    expect_object(
+        n, {"domain", "mesh", "density", "gravity", "buoyancy", "vorticity_confinement", "decay",
+            "reconstruction", "min_dual_fraction", "solver", "sources", "refine"});
     FluidSpec f;
+    fluid::FluidParams& fp = f.params;
     const Node d = require(n, "domain");
     expect_object(d, {"lo", "hi", "default", "patches"});
     const BoxSpec box = bounds(d, true);
@@ -528,13 +606,15 @@ class Parser {
       if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
       for (std::size_t i = 0; i < list.j.size(); ++i) {
         const std::string where = index_path(list.path, i);
-        mesh::DomainPatch pa = patch({list.j[i], where}, i, box);
+        fluid::PatchConditions pc;
+        mesh::DomainPatch pa = patch({list.j[i], where}, i, box, pc);
         for (std::size_t k = 0; k < f.domain.patches.size(); ++k) {
           if (f.domain.patches[k].name == pa.name)
             fail(where + ".name",
                  fmt::format("duplicate patch name '{}' (also {}[{}])", pa.name, list.path, k));
         }
         f.domain.patches.push_back(std::move(pa));
+        fp.patches.push_back(pc);
       }
     }
     if (has(n, "mesh")) {
@@ -555,6 +635,86 @@ class Parser {
       if (z.max_cells < 0)
         fail(child_path(m.path, "max_cells"),
              fmt::format("must be >= 0 (0: no budget), got {}", z.max_cells));
+    }
+
+    // Physics.
+    fp.density = number(n, "density", fp.density);
+    if (fp.density <= 0)
+      fail(child_path(n.path, "density"), fmt::format("must be > 0 (kg/m^3), got {}", fp.density));
+    if (has(n, "gravity")) {
+      const Node g = child(n, "gravity");
+      if (!g.j.is_boolean())
+        fail(g.path,
+             "expected true (the fluid feels the scene's gravity) or false, got " + describe(g.j));
+      f.gravity = g.j.get<bool>();
+    }
+    fp.gravity = f.gravity ? gravity : Vec3::Zero();
+    const double g_norm = gravity.norm();
+    fp.up = g_norm > 0 ? Vec3(-gravity / g_norm) : Vec3(Vec3::UnitZ());
+    if (has(n, "buoyancy")) {
+      const Node b = child(n, "buoyancy");
+      expect_object(b, {"alpha", "beta", "ambient_temperature"});
+      fp.buoyancy_alpha = non_negative(b, "alpha", fp.buoyancy_alpha, " (m^4/(kg s^2))");
+      fp.buoyancy_beta = non_negative(b, "beta", fp.buoyancy_beta, " (m/(s^2 K))");
+      fp.ambient_temperature = number(b, "ambient_temperature", fp.ambient_temperature);
+    }
+    fp.vorticity_confinement =
+        non_negative(n, "vorticity_confinement", fp.vorticity_confinement, "");
+    if (has(n, "decay")) {
+      const Node d2 = child(n, "decay");
+      expect_object(d2, {"smoke", "temperature"});
+      fp.smoke_decay = non_negative(d2, "smoke", fp.smoke_decay, " (1/s)");
+      fp.temperature_decay = non_negative(d2, "temperature", fp.temperature_decay, " (1/s)");
+    }
+    if (has(n, "reconstruction")) {
+      fp.reconstruction = fluid::parse_reconstruction(
+          choice(child(n, "reconstruction"), {"vertex_ls", "whitney"}, "velocity reconstruction"));
+    }
+    fp.min_dual_fraction = number(n, "min_dual_fraction", fp.min_dual_fraction);
+    if (fp.min_dual_fraction <= 0 || fp.min_dual_fraction >= 1)
+      fail(child_path(n.path, "min_dual_fraction"),
+           fmt::format("must be in (0, 1) (a fraction of the face's mean edge), got {}",
+                       fp.min_dual_fraction));
+    if (has(n, "solver")) {
+      const Node o = child(n, "solver");
+      expect_object(o, {"linear", "rel_tol", "max_iterations"});
+      if (has(o, "linear"))
+        fp.solver = parse_solver_kind(choice(child(o, "linear"), solver_names(), "linear solver"));
+      fp.solver_rel_tol = number(o, "rel_tol", fp.solver_rel_tol);
+      if (fp.solver_rel_tol <= 0)
+        fail(child_path(o.path, "rel_tol"), fmt::format("must be > 0, got {}", fp.solver_rel_tol));
+      fp.solver_max_iterations = integer(o, "max_iterations", fp.solver_max_iterations);
+      if (fp.solver_max_iterations < 1)
+        fail(child_path(o.path, "max_iterations"),
+             fmt::format("must be >= 1, got {}", fp.solver_max_iterations));
+    }
+    if (has(n, "sources")) {
+      const Node list = child(n, "sources");
+      if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
+      for (std::size_t i = 0; i < list.j.size(); ++i) {
+        const std::string where = index_path(list.path, i);
+        fluid::SmokeSource src = source({list.j[i], where}, i, box);
+        for (std::size_t k = 0; k < fp.sources.size(); ++k) {
+          if (fp.sources[k].name == src.name)
+            fail(where + ".name",
+                 fmt::format("duplicate source name '{}' (also {}[{}])", src.name, list.path, k));
+        }
+        fp.sources.push_back(std::move(src));
+      }
+    }
+    if (has(n, "refine")) {
+      const Node r = child(n, "refine");
+      expect_object(r, {"size", "density_threshold", "vorticity_threshold"});
+      fluid::RefineParams& rp = fp.refine;
+      rp.size = non_negative(r, "size", rp.size, " (m; 0: off)");
+      if (rp.size > f.sizing.far_size)
+        fail(child_path(r.path, "size"),
+             fmt::format("must be <= fluid.mesh.far_size ({} m), got {} m", f.sizing.far_size,
+                         rp.size));
+      rp.density_threshold =
+          non_negative(r, "density_threshold", rp.density_threshold, " (kg/m^3)");
+      rp.vorticity_threshold =
+          non_negative(r, "vorticity_threshold", rp.vorticity_threshold, " (1/s)");
     }
     return f;
   }
@@ -634,6 +794,11 @@ json resolve(const Scene& s) {
       jb["loads"].push_back(jl);
     }
     jb["initial_velocity"] = to_json(b.initial_velocity);
+    if (b.kinematic) {
+      jb["kinematic"] = {{"velocity", to_json(b.kinematic->velocity)},
+                         {"angular_velocity_deg", to_json(b.kinematic->angular_velocity_deg)}};
+      if (b.kinematic->center) jb["kinematic"]["center"] = to_json(*b.kinematic->center);
+    }
     j["bodies"].push_back(jb);
   }
   j["obstacles"] = json::array();
@@ -651,13 +816,32 @@ json resolve(const Scene& s) {
   }
   if (s.fluid) {
     const mesh::FluidDomain& d = s.fluid->domain;
+    const fluid::FluidParams& fp = s.fluid->params;
     json patches = json::array();
-    for (const mesh::DomainPatch& pa : d.patches) {
-      patches.push_back({{"name", pa.name},
-                         {"kind", mesh::to_string(pa.kind)},
-                         {"side", side_names().at(static_cast<std::size_t>(pa.side))},
-                         {"lo", to_json(pa.lo)},
-                         {"hi", to_json(pa.hi)}});
+    for (std::size_t i = 0; i < d.patches.size(); ++i) {
+      const mesh::DomainPatch& pa = d.patches[i];
+      json jp = {{"name", pa.name},
+                 {"kind", mesh::to_string(pa.kind)},
+                 {"side", side_names().at(static_cast<std::size_t>(pa.side))},
+                 {"lo", to_json(pa.lo)},
+                 {"hi", to_json(pa.hi)}};
+      const fluid::PatchConditions& pc = fp.patches.at(i);
+      if (pa.kind == mesh::FaceKind::Inflow) {
+        jp["speed"] = pc.inflow_speed;
+        jp["smoke"] = pc.smoke_density;
+        if (pc.emits_temperature) jp["temperature"] = pc.temperature;
+      } else if (pa.kind == mesh::FaceKind::Open) {
+        jp["pressure"] = pc.pressure;
+      }
+      patches.push_back(jp);
+    }
+    json sources = json::array();
+    for (const fluid::SmokeSource& src : fp.sources) {
+      json js = {{"name", src.name},
+                 {"box", {{"lo", to_json(src.lo)}, {"hi", to_json(src.hi)}}},
+                 {"smoke", src.smoke_density}};
+      if (src.emits_temperature) js["temperature"] = src.temperature;
+      sources.push_back(js);
     }
     const mesh::Sizing& z = s.fluid->sizing;
     j["fluid"] = {{"domain",
@@ -669,7 +853,26 @@ json resolve(const Scene& s) {
                    {{"surface_size", z.surface_size},
                     {"far_size", z.far_size},
                     {"grading", z.grading},
-                    {"max_cells", z.max_cells}}}};
+                    {"max_cells", z.max_cells}}},
+                  {"density", fp.density},
+                  {"gravity", s.fluid->gravity},
+                  {"buoyancy",
+                   {{"alpha", fp.buoyancy_alpha},
+                    {"beta", fp.buoyancy_beta},
+                    {"ambient_temperature", fp.ambient_temperature}}},
+                  {"vorticity_confinement", fp.vorticity_confinement},
+                  {"decay", {{"smoke", fp.smoke_decay}, {"temperature", fp.temperature_decay}}},
+                  {"reconstruction", fluid::to_string(fp.reconstruction)},
+                  {"min_dual_fraction", fp.min_dual_fraction},
+                  {"solver",
+                   {{"linear", to_string(fp.solver)},
+                    {"rel_tol", fp.solver_rel_tol},
+                    {"max_iterations", fp.solver_max_iterations}}},
+                  {"sources", sources},
+                  {"refine",
+                   {{"size", fp.refine.size},
+                    {"density_threshold", fp.refine.density_threshold},
+                    {"vorticity_threshold", fp.refine.vorticity_threshold}}}};
   }
   return j;
 }
@@ -775,10 +978,15 @@ Scene parse_scene(const json& j, const fs::path& file) {
     }
   }
 
-  const Node bodies = p.require(root, "bodies");
+  // A fluid-only scene (smoke in a box) needs no body; otherwise there is nothing to simulate.
+  const bool has_fluid = Parser::has(root, "fluid");
+  static const json no_bodies = json::array();
+  const Node bodies = has_fluid && !Parser::has(root, "bodies") ? Node{no_bodies, "bodies"}
+                                                                : p.require(root, "bodies");
   if (!bodies.j.is_array())
     p.fail("bodies", "expected an array of bodies, got " + describe(bodies.j));
-  if (bodies.j.empty()) p.fail("bodies", "a scene needs at least one body");
+  if (bodies.j.empty() && !has_fluid)
+    p.fail("bodies", "a scene needs at least one body (or a 'fluid' section)");
   for (std::size_t i = 0; i < bodies.j.size(); ++i) {
     BodySpec b = p.body({bodies.j[i], Parser::index_path("bodies", i)});
     for (std::size_t k = 0; k < s.bodies.size(); ++k) {
@@ -798,7 +1006,7 @@ Scene parse_scene(const json& j, const fs::path& file) {
     }
   }
 
-  if (Parser::has(root, "fluid")) s.fluid = p.fluid(Parser::child(root, "fluid"));
+  if (has_fluid) s.fluid = p.fluid(Parser::child(root, "fluid"), s.gravity);
 
   s.resolved = resolve(s);
   return s;
@@ -1052,6 +1260,18 @@ solid::SolidWorld build_world(const Scene& scene) {
       for (int a = 0; a < 3; ++a) {
         if (!body.is_fixed(3 * v + a)) body.velocity(v, a) = spec.initial_velocity[a];
       }
+    }
+    if (spec.kinematic) {
+      constexpr double deg = M_PI / 180.0;
+      solid::KinematicMotion motion;
+      motion.linear_velocity = spec.kinematic->velocity;
+      motion.angular_velocity = spec.kinematic->angular_velocity_deg * deg;
+      motion.center = spec.kinematic->center.value_or(rest.colwise().mean().transpose());
+      body.kinematic = motion;
+      body.set_kinematic_state(world.time);  // t = 0: d = 0, u = v + ω × (X − c)
+      logger().info("{}: body '{}': {} nodes, {} tets, kinematic, mass {:.4g} kg", file, spec.name,
+                    n, body.num_tets(), body.total_mass());
+      continue;
     }
     logger().info("{}: body '{}': {} nodes, {} tets, {} fixed DOFs, mass {:.4g} kg", file,
                   spec.name, n, body.num_tets(), body.num_fixed_dofs(), body.total_mass());

@@ -17,7 +17,7 @@
 ///   "solver": { "linear": "cholmod", "rel_tol": 1e-8, "max_iterations": 1000 },
 ///   "solid":  { "trapezoid": "paper" | "midpoint" },
 ///   "static": { "load_steps": 1, "rel_tol": 1e-9, "max_iterations": 60 },
-///   "bodies": [ {                                          // required, at least one
+///   "bodies": [ {                              // required, at least one (without "fluid")
 ///       "name": "sheet",                                   // required, unique
 ///       "mesh": { "box": { "lo": [..], "hi": [..], "cells": [nx, ny, nz] } }
 ///             | { "file": "meshes/bar.msh" }               // .msh .node .ele .vtu
@@ -29,7 +29,11 @@
 ///                | { "nodes": [0, 5], "axes": "z" } ],
 ///       "loads": [ { "box": { "lo": [..], "hi": [..] }, "total_force": [0, 0, -1] }
 ///                | { "nodes": [..], ... } ],
-///       "initial_velocity": [0, 0, 0]
+///       "initial_velocity": [0, 0, 0],
+///       "kinematic": { "velocity": [0, 0, 0],              // m/s: moved by the scene, not
+///                      "angular_velocity_deg": [0, 0, 0],  // the FEM (deg/s about the axis
+///                      "center": [cx, cy, cz] }            // through center; default: the
+///                                                          // mean of the rest nodes)
 ///   } ],
 ///   "obstacles": [ { "type": "plane", "point": [0,0,0], "normal": [0,0,1],
 ///                    "restitution": 0.3, "friction": 0.5 }
@@ -39,8 +43,24 @@
 ///     "domain": { "lo": [..], "hi": [..],                   // required, lo < hi (m)
 ///                 "default": "wall" | "inflow" | "open",    // kind of box faces not on a patch
 ///                 "patches": [ { "name": "jet", "kind": "inflow", "side": "-x",
-///                                "lo": [a, b], "hi": [c, d] } ] },
-///     "mesh":   { "surface_size": 0.05, "far_size": 0.2, "grading": 0.5, "max_cells": 0 }
+///                                "lo": [a, b], "hi": [c, d],
+///                                "speed": 0,          // inflow only: m/s into the domain
+///                                "smoke": 0,          // inflow only: emitted smoke (kg/m^3)
+///                                "temperature": 300,  // inflow only: emitted T (K); default:
+///                                                     //   ambient (emits_temperature = false)
+///                                "pressure": 0 } ] }, // open only: prescribed pressure (Pa)
+///     "mesh":   { "surface_size": 0.05, "far_size": 0.2, "grading": 0.5, "max_cells": 0 },
+///     "density": 1.2,                                       // kg/m^3
+///     "gravity": false,          // true: the fluid feels the scene's gravity (liquids)
+///     "buoyancy": { "alpha": 0, "beta": 0, "ambient_temperature": 0 },
+///     "vorticity_confinement": 0,
+///     "decay": { "smoke": 0, "temperature": 0 },            // per second
+///     "reconstruction": "vertex_ls" | "whitney",
+///     "min_dual_fraction": 0.05,
+///     "solver": { "linear": "amg", "rel_tol": 1e-10, "max_iterations": 500 },  // pressure
+///     "sources": [ { "name": "src0", "box": { "lo": [..], "hi": [..] },
+///                    "smoke": 1.0, "temperature": 310 } ],  // temperature: optional
+///     "refine": { "size": 0, "density_threshold": 0.01, "vorticity_threshold": 0 }
 ///   }
 /// }
 /// ```
@@ -53,6 +73,15 @@
 /// and must overlap that face of the box; patch names are unique (default "patch<i>");
 /// 0 < surface_size <= far_size (m), grading > 0, max_cells >= 0 (0: no budget). Whether the
 /// bodies lie inside the box is checked by the run (their positions change every step).
+/// Fluid physics (fluid::FluidParams, units there): speed, smoke >= 0; density > 0;
+/// buoyancy alpha, beta >= 0; vorticity_confinement, decay rates >= 0; 0 < min_dual_fraction
+/// < 1; solver.linear one of solver_names(), rel_tol > 0, max_iterations >= 1; a source box
+/// has lo < hi, overlaps the fluid box and a unique name (default "source<i>"), smoke >= 0;
+/// refine.size >= 0 (0: off) and <= mesh.far_size, thresholds >= 0. FluidParams::up is
+/// −gravity / |gravity| (+z for zero gravity) whatever "gravity" says.
+/// Bodies: a scene with a "fluid" section may have none ("bodies": [] or no key). A kinematic
+/// body has no pins, no loads and no (nonzero) initial_velocity; its material still must be
+/// valid (mass, energies).
 ///
 /// Every error is one line, "<scene file as given>: <json.path>: <problem>", e.g.
 ///   "scene.json: time.dt: expected a number, got string \"abc\""
@@ -69,6 +98,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/types.hpp"
+#include "fluid/params.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/material.hpp"
 #include "solid/obstacles.hpp"
@@ -116,6 +146,15 @@ struct LoadSpec {
   Vec3 total_force = Vec3::Zero();  ///< N, spread evenly over the selected nodes
 };
 
+/// A body moved by the scene instead of by the FEM (becomes a solid::KinematicMotion).
+struct KinematicSpec {
+  Vec3 velocity = Vec3::Zero();              ///< m/s
+  Vec3 angular_velocity_deg = Vec3::Zero();  ///< deg/s, about the axis through `center`
+  /// m; unset: the mean of the body's rest nodes after the transform (known once the mesh
+  /// is built, so build_world computes it and the resolved scene omits it).
+  std::optional<Vec3> center;
+};
+
 struct BodySpec {
   std::string name;
   MeshSpec mesh;
@@ -124,6 +163,7 @@ struct BodySpec {
   std::vector<PinSpec> pins;
   std::vector<LoadSpec> loads;
   Vec3 initial_velocity = Vec3::Zero();
+  std::optional<KinematicSpec> kinematic;  ///< set: a kinematic body
 };
 
 struct TimeSpec {
@@ -156,10 +196,15 @@ struct StaticSpec {
 };
 
 /// The optional fluid of a scene: the box it fills and the size of its mesh, as the remesher
-/// takes them (mesh/remesh.hpp). `sizing.refine` is never set from a scene.
+/// takes them (mesh/remesh.hpp), and its physics. `sizing.refine` is never set from a scene
+/// (`params.refine` says what the run should ask for).
 struct FluidSpec {
   mesh::FluidDomain domain;
   mesh::Sizing sizing;
+  /// Physics and numerics; `params.patches` has one entry per `domain.patches` entry (same
+  /// order), `params.gravity` is the scene's gravity if `gravity` else zero.
+  fluid::FluidParams params;
+  bool gravity = false;  ///< the scene key fluid.gravity
 };
 
 enum class Mode { Dynamic, Static };
@@ -193,7 +238,7 @@ Scene parse_scene(const nlohmann::json& j, const std::filesystem::path& file);
 Scene load_scene(const std::filesystem::path& file, const std::vector<std::string>& overrides = {});
 
 /// Build the bodies (read/generate/tetrahedralise meshes, transform, pins, loads, initial
-/// velocity) and obstacles of a scene.
+/// velocity, kinematic motion with its state at t = 0) and obstacles of a scene.
 /// @throws InputError / MeshError naming the scene file and the body, e.g.
 ///   "scene.json: bodies[1] 'flag': meshes/flag.msh: tet 17 (...) is inverted ...".
 solid::SolidWorld build_world(const Scene& scene);

@@ -590,3 +590,86 @@ TEST_CASE("tetfsi run: a body outside the fluid box is a one-line error naming t
       CHECK(e.path().extension() != ".tmp");
   }
 }
+
+TEST_CASE("tetfsi validate and run: a fluid scene without bodies") {
+  TempDir dir("fluid_only");
+  nlohmann::json s = nlohmann::json::parse(R"({
+    "name": "smoke_box",
+    "time": { "dt": 0.01, "steps": 2 },
+    "fluid": {
+      "domain": { "lo": [0, 0, 0], "hi": [1, 1, 1], "default": "wall",
+                  "patches": [ { "name": "jet", "kind": "inflow", "side": "-z",
+                                 "lo": [0.4, 0.4], "hi": [0.6, 0.6], "speed": 1, "smoke": 1 } ] },
+      "mesh": { "surface_size": 0.25, "far_size": 0.5 },
+      "sources": [ { "box": { "lo": [0.4, 0.4, 0.1], "hi": [0.6, 0.6, 0.2] } } ]
+    }
+  })");
+  write_scene(dir.path, s, "smoke.json");
+  const Result v = run_cli(dir.path, "validate smoke.json");
+  INFO("stderr: " << v.err);
+  CHECK(v.code == 0);
+  CHECK(v.out.find("bodies: none") != std::string::npos);
+  CHECK(v.out.find("fluid physics: density 1.2 kg/m^3, gravity off, reconstruction vertex_ls, "
+                   "pressure solver amg, 1 source") != std::string::npos);
+  CHECK(lines_of(v.out).back() == "ok");
+
+  const Result r =
+      run_cli(dir.path, "run smoke.json --out o --progress off --log-level warn", kFluidLimits);
+  INFO("run stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  CHECK(summary["completed"] == true);
+  CHECK(summary["steps"] == 2);
+  CHECK(summary["bodies"] == nlohmann::json::array());
+  CHECK(summary["fluid"]["remeshes"] == 3);
+  CHECK(summary["energy"]["total"] == 0.0);
+  bool ok = false;
+  const Pvd fluid = parse_pvd(dir.path / "o" / "fluid.pvd", ok);
+  REQUIRE(ok);
+  CHECK(fluid.times.size() == 3);
+  CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 3);
+  const auto resolved = nlohmann::json::parse(read_text(dir.path / "o" / "scene.resolved.json"));
+  CHECK(resolved["bodies"] == nlohmann::json::array());
+  CHECK(resolved["fluid"]["domain"]["patches"][0]["speed"] == 1.0);
+  CHECK(resolved["fluid"]["sources"][0]["name"] == "source0");
+}
+
+TEST_CASE("tetfsi validate and run: a kinematic body follows its motion inside the fluid") {
+  TempDir dir("kinematic");
+  nlohmann::json s = tiny_scene(4);
+  auto& b = s["bodies"][0];
+  b["pins"] = nlohmann::json::array();
+  b["kinematic"] = {{"velocity", {0.5, 0, 0}}, {"angular_velocity_deg", {0, 0, 30}}};
+  s["fluid"] = {{"domain", {{"lo", {-0.5, -0.5, -0.5}}, {"hi", {1.8, 1.5, 1.5}}}},
+                {"mesh", {{"surface_size", 0.25}, {"far_size", 0.5}}}};
+  write_scene(dir.path, s);
+  const Result v = run_cli(dir.path, "validate tiny.json");
+  INFO("stderr: " << v.err);
+  CHECK(v.code == 0);
+  CHECK(v.out.find("body 'block': 27 nodes, 48 tets, mass 1000 kg, kinematic: velocity "
+                   "[0.5, 0, 0] m/s, angular velocity [0, 0, 30] deg/s about "
+                   "[0.5, 0.5, 0.5]") != std::string::npos);
+
+  const Result r =
+      run_cli(dir.path, "run tiny.json --out o --progress off --log-level warn", kFluidLimits);
+  INFO("run stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  // Node displacements are v t + (R(t) − I)(X − c) at t = 0.04 s (c the box centre); the
+  // largest over the 27 grid nodes (z plays no part in a rotation about z):
+  const double t = 0.04, theta = 30.0 * M_PI / 180.0 * t;
+  double expected = 0.0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const double x = 0.5 * i - 0.5, y = 0.5 * j - 0.5;  // X − c
+      const double dx = 0.5 * t + std::cos(theta) * x - std::sin(theta) * y - x;
+      const double dy = std::sin(theta) * x + std::cos(theta) * y - y;
+      expected = std::max(expected, std::hypot(dx, dy));
+    }
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  CHECK(summary["completed"] == true);
+  CHECK(summary["solver_iterations"] == 0);  // nothing was solved
+  CHECK(summary["bodies"][0]["max_displacement"].get<double>() ==
+        doctest::Approx(expected).epsilon(1e-12));
+  CHECK(summary["energy"]["elastic"].get<double>() == doctest::Approx(0.0));
+  CHECK(summary["fluid"]["remeshes"] == 5);
+}

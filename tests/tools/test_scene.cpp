@@ -336,7 +336,7 @@ TEST_CASE("out-of-range values say what the range is") {
   check_edit_rejected([](json& j) { j["bodies"].push_back(j["bodies"][0]); },
                       {"bodies[1].name: duplicate body name 'sheet'"});
   check_edit_rejected([](json& j) { j["bodies"] = json::array(); },
-                      {"scene.json: bodies: a scene needs at least one body"});
+                      {"scene.json: bodies: a scene needs at least one body"});  // no fluid
   check_edit_rejected([](json& j) { j.erase("bodies"); }, {"missing required key 'bodies'"});
   check_edit_rejected(
       [](json& j) { j["bodies"][0]["mesh"]["file"] = "x.msh"; },
@@ -608,6 +608,416 @@ TEST_CASE("fluid section errors name the JSON path and the problem") {
   check_input_error([&] { load_scene(file, {"fluid.mesh.surface_size=nan"}); },
                     {"fluid.mesh.surface_size: expected a number, got string \"nan\""});
   CHECK(load_scene(file, {"fluid.mesh.far_size=0.5"}).fluid->sizing.far_size == 0.5);
+}
+
+namespace {
+
+/// fluid_json() with every physics key given (and an open patch for "pressure").
+json fluid_physics_json() {
+  json j = fluid_json();
+  auto& patches = j["fluid"]["domain"]["patches"];
+  patches[0]["speed"] = 2.0;
+  patches[0]["smoke"] = 0.5;
+  patches[0]["temperature"] = 330.0;
+  patches.push_back(json::parse(R"({ "name": "outlet", "kind": "open", "side": "+x",
+                                     "lo": [-0.5, 0], "hi": [1, 2], "pressure": 5 })"));
+  j["fluid"].update(json::parse(R"({
+    "density": 1000,
+    "gravity": true,
+    "buoyancy": { "alpha": 0.08, "beta": 0.12, "ambient_temperature": 293 },
+    "vorticity_confinement": 0.3,
+    "decay": { "smoke": 0.05, "temperature": 0.1 },
+    "reconstruction": "whitney",
+    "min_dual_fraction": 0.1,
+    "solver": { "linear": "cg_ic", "rel_tol": 1e-8, "max_iterations": 200 },
+    "sources": [ { "name": "candle", "box": { "lo": [0, 0, 0.1], "hi": [0.2, 0.2, 0.3] },
+                   "smoke": 2.0, "temperature": 350 },
+                 { "box": { "lo": [1, 0, 1], "hi": [2, 2, 3] } } ],
+    "refine": { "size": 0.1, "density_threshold": 0.02, "vorticity_threshold": 4 }
+  })"));
+  return j;
+}
+
+void check_physics_rejected(const std::function<void(json&)>& edit,
+                            std::initializer_list<std::string> parts) {
+  json j = fluid_physics_json();
+  edit(j);
+  check_input_error([&] { parse_scene(j, "scene.json"); }, parts);
+}
+
+}  // namespace
+
+TEST_CASE("the fluid physics keys parse into fluid::FluidParams and resolve back") {
+  const Scene s = parse_scene(fluid_physics_json(), "scene.json");
+  REQUIRE(s.fluid);
+  const fluid::FluidParams& p = s.fluid->params;
+  // One PatchConditions per domain patch, in order.
+  REQUIRE(p.patches.size() == 3);
+  REQUIRE(s.fluid->domain.patches.size() == 3);
+  CHECK(p.patches[0].inflow_speed == 2.0);
+  CHECK(p.patches[0].smoke_density == 0.5);
+  CHECK(p.patches[0].temperature == 330.0);
+  CHECK(p.patches[0].emits_temperature);
+  CHECK(p.patches[1].inflow_speed == 0.0);  // the wall
+  CHECK_FALSE(p.patches[1].emits_temperature);
+  CHECK(s.fluid->domain.patches[2].kind == mesh::FaceKind::Open);
+  CHECK(p.patches[2].pressure == 5.0);
+  CHECK(p.density == 1000.0);
+  CHECK(s.fluid->gravity);
+  CHECK(p.gravity == s.gravity);
+  CHECK(p.up == Vec3(0, 0, 1));
+  CHECK(p.buoyancy_alpha == 0.08);
+  CHECK(p.buoyancy_beta == 0.12);
+  CHECK(p.ambient_temperature == 293.0);
+  CHECK(p.vorticity_confinement == 0.3);
+  CHECK(p.smoke_decay == 0.05);
+  CHECK(p.temperature_decay == 0.1);
+  CHECK(p.reconstruction == fluid::Reconstruction::Whitney);
+  CHECK(p.min_dual_fraction == 0.1);
+  CHECK(p.solver == SolverKind::CgIc);
+  CHECK(p.solver_rel_tol == 1e-8);
+  CHECK(p.solver_max_iterations == 200);
+  REQUIRE(p.sources.size() == 2);
+  CHECK(p.sources[0].name == "candle");
+  CHECK(p.sources[0].lo == Vec3(0, 0, 0.1));
+  CHECK(p.sources[0].hi == Vec3(0.2, 0.2, 0.3));
+  CHECK(p.sources[0].smoke_density == 2.0);
+  CHECK(p.sources[0].temperature == 350.0);
+  CHECK(p.sources[0].emits_temperature);
+  CHECK(p.sources[1].name == "source1");  // default name: its index
+  CHECK(p.sources[1].smoke_density == fluid::SmokeSource{}.smoke_density);
+  CHECK_FALSE(p.sources[1].emits_temperature);
+  CHECK(p.refine.size == 0.1);
+  CHECK(p.refine.density_threshold == 0.02);
+  CHECK(p.refine.vorticity_threshold == 4.0);
+  CHECK_FALSE(s.fluid->sizing.refine);  // still never set from a scene
+
+  // "up" is against gravity, whether or not the fluid feels it; +z without gravity.
+  json j = fluid_physics_json();
+  j["gravity"] = {0, -2, 0};
+  j["fluid"]["gravity"] = false;
+  const Scene sideways = parse_scene(j, "scene.json");
+  CHECK(sideways.fluid->params.up == Vec3(0, 1, 0));
+  CHECK(sideways.fluid->params.gravity == Vec3::Zero());
+  CHECK_FALSE(sideways.fluid->gravity);
+  j["gravity"] = {0, 0, 0};
+  CHECK(parse_scene(j, "scene.json").fluid->params.up == Vec3(0, 0, 1));
+
+  // Every solver name is accepted for the pressure solve.
+  for (const std::string& name : solver_names()) {
+    CAPTURE(name);
+    json k = fluid_physics_json();
+    k["fluid"]["solver"]["linear"] = name;
+    CHECK(to_string(parse_scene(k, "scene.json").fluid->params.solver) == name);
+  }
+
+  // The resolved scene holds every key and parses back to the same.
+  const json& r = s.resolved["fluid"];
+  CHECK(r["domain"]["patches"][0]["speed"] == 2.0);
+  CHECK(r["domain"]["patches"][0]["smoke"] == 0.5);
+  CHECK(r["domain"]["patches"][0]["temperature"] == 330.0);
+  CHECK_FALSE(r["domain"]["patches"][1].contains("speed"));  // a wall has no conditions
+  CHECK_FALSE(r["domain"]["patches"][1].contains("pressure"));
+  CHECK(r["domain"]["patches"][2]["pressure"] == 5.0);
+  CHECK_FALSE(r["domain"]["patches"][2].contains("speed"));
+  CHECK(r["density"] == 1000.0);
+  CHECK(r["gravity"] == true);
+  CHECK(r["buoyancy"] == json({{"alpha", 0.08}, {"beta", 0.12}, {"ambient_temperature", 293.0}}));
+  CHECK(r["vorticity_confinement"] == 0.3);
+  CHECK(r["decay"] == json({{"smoke", 0.05}, {"temperature", 0.1}}));
+  CHECK(r["reconstruction"] == "whitney");
+  CHECK(r["min_dual_fraction"] == 0.1);
+  CHECK(r["solver"] == json({{"linear", "cg_ic"}, {"rel_tol", 1e-8}, {"max_iterations", 200}}));
+  REQUIRE(r["sources"].size() == 2);
+  CHECK(r["sources"][0]["name"] == "candle");
+  CHECK(r["sources"][0]["box"]["hi"] == json::array({0.2, 0.2, 0.3}));
+  CHECK(r["sources"][0]["temperature"] == 350.0);
+  CHECK(r["sources"][1]["name"] == "source1");
+  CHECK(r["sources"][1]["smoke"] == 1.0);
+  CHECK_FALSE(r["sources"][1].contains("temperature"));
+  CHECK(r["refine"] ==
+        json({{"size", 0.1}, {"density_threshold", 0.02}, {"vorticity_threshold", 4.0}}));
+  const Scene b = parse_scene(json::parse(s.resolved.dump(2)), "back.json");
+  CHECK(b.resolved == s.resolved);
+  REQUIRE(b.fluid);
+  CHECK(b.fluid->params.patches[0].emits_temperature);
+  CHECK(b.fluid->params.sources[1].name == "source1");
+  CHECK(b.fluid->params.solver == SolverKind::CgIc);
+}
+
+TEST_CASE("the fluid physics keys default to the FluidParams defaults") {
+  // fluid_json(): an inflow, a wall patch and no physics key.
+  const Scene s = parse_scene(fluid_json(), "scene.json");
+  REQUIRE(s.fluid);
+  const fluid::FluidParams& p = s.fluid->params;
+  const fluid::FluidParams d;
+  const fluid::PatchConditions pc;
+  REQUIRE(p.patches.size() == 2);
+  for (const fluid::PatchConditions& c : p.patches) {
+    CHECK(c.inflow_speed == pc.inflow_speed);
+    CHECK(c.smoke_density == pc.smoke_density);
+    CHECK(c.pressure == pc.pressure);
+    CHECK_FALSE(c.emits_temperature);
+  }
+  CHECK(p.density == d.density);
+  CHECK_FALSE(s.fluid->gravity);
+  CHECK(p.gravity == Vec3::Zero());
+  CHECK(p.up == Vec3(0, 0, 1));
+  CHECK(p.buoyancy_alpha == d.buoyancy_alpha);
+  CHECK(p.buoyancy_beta == d.buoyancy_beta);
+  CHECK(p.ambient_temperature == d.ambient_temperature);
+  CHECK(p.vorticity_confinement == d.vorticity_confinement);
+  CHECK(p.smoke_decay == d.smoke_decay);
+  CHECK(p.temperature_decay == d.temperature_decay);
+  CHECK(p.reconstruction == fluid::Reconstruction::VertexLeastSquares);
+  CHECK(p.min_dual_fraction == d.min_dual_fraction);
+  CHECK(p.solver == SolverKind::Amg);
+  CHECK(p.solver_rel_tol == d.solver_rel_tol);
+  CHECK(p.solver_max_iterations == d.solver_max_iterations);
+  CHECK(p.sources.empty());
+  CHECK(p.refine.size == 0.0);
+  CHECK(p.refine.density_threshold == d.refine.density_threshold);
+  CHECK(p.refine.vorticity_threshold == d.refine.vorticity_threshold);
+
+  const json& r = s.resolved["fluid"];
+  CHECK(r["domain"]["patches"][0]["speed"] == 0.0);
+  CHECK(r["domain"]["patches"][0]["smoke"] == 0.0);
+  CHECK_FALSE(r["domain"]["patches"][0].contains("temperature"));  // ambient
+  CHECK(r["density"] == 1.2);
+  CHECK(r["gravity"] == false);
+  CHECK(r["buoyancy"] == json({{"alpha", 0.0}, {"beta", 0.0}, {"ambient_temperature", 0.0}}));
+  CHECK(r["vorticity_confinement"] == 0.0);
+  CHECK(r["decay"] == json({{"smoke", 0.0}, {"temperature", 0.0}}));
+  CHECK(r["reconstruction"] == "vertex_ls");
+  CHECK(r["min_dual_fraction"] == 0.05);
+  CHECK(r["solver"] == json({{"linear", "amg"}, {"rel_tol", 1e-10}, {"max_iterations", 500}}));
+  CHECK(r["sources"] == json::array());
+  CHECK(r["refine"] ==
+        json({{"size", 0.0}, {"density_threshold", 0.01}, {"vorticity_threshold", 0.0}}));
+  CHECK(parse_scene(s.resolved, "back.json").resolved == s.resolved);
+}
+
+TEST_CASE("fluid physics errors are one line naming the JSON path") {
+  // Patch conditions.
+  check_physics_rejected(
+      [](json& j) { j["fluid"]["domain"]["patches"][0]["speed"] = -1; },
+      {"scene.json: fluid.domain.patches[0].speed: must be >= 0 (m/s into the domain), got -1"});
+  check_physics_rejected(
+      [](json& j) { j["fluid"]["domain"]["patches"][2]["speed"] = 1; },
+      {"scene.json: fluid.domain.patches[2].speed: applies only to an inflow patch (this one is "
+       "open)"});
+  check_physics_rejected([](json& j) { j["fluid"]["domain"]["patches"][1]["smoke"] = 1; },
+                         {"fluid.domain.patches[1].smoke: applies only to an inflow patch (this "
+                          "one is wall)"});
+  check_physics_rejected([](json& j) { j["fluid"]["domain"]["patches"][2]["temperature"] = 300; },
+                         {"fluid.domain.patches[2].temperature: applies only to an inflow patch"});
+  check_physics_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["pressure"] = 0; },
+                         {"fluid.domain.patches[0].pressure: applies only to an open patch (this "
+                          "one is inflow)"});
+  check_physics_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["smoke"] = -0.1; },
+                         {"fluid.domain.patches[0].smoke: must be >= 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["temperature"] = "hot"; },
+                         {"fluid.domain.patches[0].temperature: expected a number, got string"});
+  check_physics_rejected([](json& j) { j["fluid"]["domain"]["patches"][0]["sped"] = 1; },
+                         {"fluid.domain.patches[0].sped: unknown key (did you mean 'speed'?)"});
+  // Physics.
+  check_physics_rejected([](json& j) { j["fluid"]["density"] = 0; },
+                         {"scene.json: fluid.density: must be > 0 (kg/m^3), got 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["gravity"] = "yes"; },
+                         {"fluid.gravity: expected true", "got string \"yes\""});
+  check_physics_rejected(
+      [](json& j) {
+        j["fluid"]["gravity"] = json::array({0, 0, -9.81});
+      },
+      {"fluid.gravity: expected true", "got array"});
+  check_physics_rejected([](json& j) { j["fluid"]["buoyancy"]["alpa"] = 0.1; },
+                         {"scene.json: fluid.buoyancy.alpa: unknown key (did you mean 'alpha'?)"});
+  check_physics_rejected([](json& j) { j["fluid"]["buoyancy"]["alpha"] = -0.1; },
+                         {"fluid.buoyancy.alpha: must be >= 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["buoyancy"]["beta"] = -1; },
+                         {"fluid.buoyancy.beta: must be >= 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["buoyancy"] = 1; },
+                         {"fluid.buoyancy: expected an object, got number 1"});
+  check_physics_rejected([](json& j) { j["fluid"]["vorticity_confinement"] = -0.5; },
+                         {"fluid.vorticity_confinement: must be >= 0, got -0.5"});
+  check_physics_rejected([](json& j) { j["fluid"]["decay"]["smoke"] = -1; },
+                         {"fluid.decay.smoke: must be >= 0 (1/s)"});
+  check_physics_rejected([](json& j) { j["fluid"]["decay"]["temprature"] = 1; },
+                         {"fluid.decay.temprature: unknown key (did you mean 'temperature'?)"});
+  check_physics_rejected(
+      [](json& j) { j["fluid"]["reconstruction"] = "whitny"; },
+      {"scene.json: fluid.reconstruction: unknown velocity reconstruction 'whitny' (did you mean "
+       "'whitney'?)"});
+  check_physics_rejected(
+      [](json& j) { j["fluid"]["reconstruction"] = "spline"; },
+      {"fluid.reconstruction: unknown velocity reconstruction 'spline'", "vertex_ls", "whitney"});
+  for (double bad : {0.0, 1.0, -0.1, 2.0}) {
+    CAPTURE(bad);
+    check_physics_rejected([&](json& j) { j["fluid"]["min_dual_fraction"] = bad; },
+                           {"fluid.min_dual_fraction: must be in (0, 1)"});
+  }
+  check_physics_rejected([](json& j) { j["fluid"]["solver"]["linear"] = "amgg"; },
+                         {"fluid.solver.linear: unknown linear solver 'amgg' (did you mean"});
+  check_physics_rejected([](json& j) { j["fluid"]["solver"]["rel_tol"] = 0; },
+                         {"fluid.solver.rel_tol: must be > 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["solver"]["max_iterations"] = 0; },
+                         {"fluid.solver.max_iterations: must be >= 1"});
+  check_physics_rejected([](json& j) { j["fluid"]["vorticity_confinment"] = 1; },
+                         {"fluid.vorticity_confinment: unknown key (did you mean "
+                          "'vorticity_confinement'?)"});
+  check_physics_rejected([](json& j) { j["fluid"]["viscosity"] = 1; },
+                         {"fluid.viscosity: unknown key (valid keys here:", "buoyancy"});
+  // Sources.
+  check_physics_rejected([](json& j) { j["fluid"]["sources"] = json::object(); },
+                         {"fluid.sources: expected an array"});
+  check_physics_rejected([](json& j) { j["fluid"]["sources"][0].erase("box"); },
+                         {"fluid.sources[0]: missing required key 'box'"});
+  check_physics_rejected([](json& j) { j["fluid"]["sources"][0]["box"]["hi"][2] = 0.1; },
+                         {"fluid.sources[0].box: lo must be < hi", "axis z"});
+  check_physics_rejected(
+      [](json& j) {
+        j["fluid"]["sources"][1]["box"] = {{"lo", {5, 5, 5}}, {"hi", {6, 6, 6}}};
+      },
+      {"fluid.sources[1].box: the box [5, 5, 5]..[6, 6, 6] misses the fluid box "
+       "[-0.5, -0.5, 0]..[1.5, 1, 2]"});
+  check_physics_rejected([](json& j) { j["fluid"]["sources"][1]["name"] = "candle"; },
+                         {"fluid.sources[1].name: duplicate source name 'candle' (also "
+                          "fluid.sources[0])"});
+  check_physics_rejected([](json& j) { j["fluid"]["sources"][0]["smoke"] = -1; },
+                         {"fluid.sources[0].smoke: must be >= 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["sources"][0]["density"] = 1; },
+                         {"fluid.sources[0].density: unknown key"});
+  // Refinement.
+  check_physics_rejected(
+      [](json& j) { j["fluid"]["refine"]["size"] = 0.5; },
+      {"scene.json: fluid.refine.size: must be <= fluid.mesh.far_size (0.3 m), got 0.5 m"});
+  check_physics_rejected([](json& j) { j["fluid"]["refine"]["size"] = -0.1; },
+                         {"fluid.refine.size: must be >= 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["refine"]["density_threshold"] = -1; },
+                         {"fluid.refine.density_threshold: must be >= 0"});
+  check_physics_rejected([](json& j) { j["fluid"]["refine"]["sise"] = 0.1; },
+                         {"fluid.refine.sise: unknown key (did you mean 'size'?)"});
+  // refine.size is checked against the far_size the scene gives, default included.
+  json j = fluid_physics_json();
+  j["fluid"].erase("mesh");
+  j["fluid"]["refine"]["size"] = mesh::Sizing{}.far_size;
+  CHECK(parse_scene(j, "scene.json").fluid->params.refine.size == mesh::Sizing{}.far_size);
+}
+
+TEST_CASE("a scene with a fluid may have no body; without one it needs a body") {
+  json j = fluid_physics_json();
+  j["bodies"] = json::array();
+  const Scene empty = parse_scene(j, "scene.json");
+  CHECK(empty.bodies.empty());
+  CHECK(empty.resolved["bodies"] == json::array());
+  CHECK(parse_scene(empty.resolved, "back.json").resolved == empty.resolved);
+  CHECK(build_world(empty).bodies.empty());
+  j.erase("bodies");
+  CHECK(parse_scene(j, "scene.json").bodies.empty());
+  CHECK(parse_scene(j, "scene.json").resolved == empty.resolved);
+
+  check_edit_rejected([](json& j) { j["bodies"] = json::array(); },
+                      {"scene.json: bodies: a scene needs at least one body (or a 'fluid' "
+                       "section)"});
+  check_edit_rejected([](json& j) { j.erase("bodies"); },
+                      {"scene.json: (top level): missing required key 'bodies'"});
+  // With a fluid, "bodies" must still be an array when given.
+  j["bodies"] = 3;
+  check_input_error([&] { parse_scene(j, "scene.json"); },
+                    {"scene.json: bodies: expected an array of bodies, got number 3"});
+}
+
+TEST_CASE("kinematic bodies: keys, defaults, resolved scene, errors and build_world") {
+  json j = sheet_json();
+  auto& body = j["bodies"][0];
+  body["pins"] = json::array();
+  body["loads"] = json::array();
+  body.erase("initial_velocity");
+  body["kinematic"] = {{"velocity", {0.1, 0, 0}}, {"angular_velocity_deg", {0, 0, 90}}};
+  const Scene s = parse_scene(j, "scene.json");
+  REQUIRE(s.bodies[0].kinematic);
+  CHECK(s.bodies[0].kinematic->velocity == Vec3(0.1, 0, 0));
+  CHECK(s.bodies[0].kinematic->angular_velocity_deg == Vec3(0, 0, 90));
+  CHECK_FALSE(s.bodies[0].kinematic->center);
+  const json& r = s.resolved["bodies"][0]["kinematic"];
+  CHECK(r["velocity"] == json::array({0.1, 0.0, 0.0}));
+  CHECK(r["angular_velocity_deg"] == json::array({0.0, 0.0, 90.0}));
+  CHECK_FALSE(r.contains("center"));  // the rest centroid, known once the mesh is built
+  CHECK(parse_scene(s.resolved, "back.json").resolved == s.resolved);
+  CHECK_FALSE(parse_scene(sheet_json(), "scene.json").bodies[0].kinematic);
+  CHECK_FALSE(parse_scene(sheet_json(), "scene.json").resolved["bodies"][0].contains("kinematic"));
+
+  // build_world: degrees become rad/s, the centre defaults to the mean of the rest nodes, and
+  // the state at t = 0 is on the path (d = 0, u = v + ω × (X − c)).
+  const solid::SolidWorld w = build_world(s);
+  const solid::SolidBody& b = w.bodies[0];
+  REQUIRE(b.is_kinematic());
+  CHECK(b.num_fixed_dofs() == 0);
+  CHECK(b.kinematic->linear_velocity == Vec3(0.1, 0, 0));
+  CHECK((b.kinematic->angular_velocity - Vec3(0, 0, M_PI / 2)).norm() < 1e-15);
+  const Vec3 centroid = b.rest_positions().colwise().mean().transpose();
+  CHECK((b.kinematic->center - centroid).norm() < 1e-15);
+  CHECK((centroid - Vec3(0.5, 0.25, 1.01)).norm() < 1e-12);
+  CHECK(b.displacement.isZero(0.0));
+  CHECK((b.velocity - b.kinematic->velocity(b.rest_positions(), 0.0)).norm() == 0.0);
+  // An explicit centre; every key is optional.
+  j["bodies"][0]["kinematic"] = {{"center", {1, 2, 3}}};
+  const solid::SolidWorld w2 = build_world(parse_scene(j, "scene.json"));
+  CHECK(w2.bodies[0].kinematic->center == Vec3(1, 2, 3));
+  CHECK(w2.bodies[0].kinematic->linear_velocity == Vec3::Zero());
+  CHECK(w2.bodies[0].velocity.isZero(0.0));
+  CHECK(parse_scene(j, "scene.json").resolved["bodies"][0]["kinematic"]["center"] ==
+        json::array({1.0, 2.0, 3.0}));
+
+  // Errors: pins, loads or an initial velocity on a kinematic body; unknown keys; types.
+  const json kin = {{"velocity", {0, 0, 1}}};
+  check_edit_rejected([&](json& e) { e["bodies"][0]["kinematic"] = kin; },
+                      {"scene.json: bodies[0].pins: body 'sheet' is kinematic (moved by its "
+                       "'kinematic' motion): it cannot have pins"});
+  check_edit_rejected(
+      [&](json& e) {
+        e["bodies"][0]["kinematic"] = kin;
+        e["bodies"][0]["pins"] = json::array();
+      },
+      {"scene.json: bodies[0].loads: body 'sheet' is kinematic", "cannot have loads"});
+  check_edit_rejected(
+      [&](json& e) {
+        e["bodies"][0]["kinematic"] = kin;
+        e["bodies"][0]["pins"] = json::array();
+        e["bodies"][0]["loads"] = json::array();
+      },
+      {"scene.json: bodies[0].initial_velocity: body 'sheet' is kinematic",
+       "give kinematic.velocity"});
+  check_input_error(
+      [&] {
+        json e = j;
+        e["bodies"][0]["kinematic"] = {{"angular_velocity", {0, 0, 1}}};
+        parse_scene(e, "scene.json");
+      },
+      {"scene.json: bodies[0].kinematic.angular_velocity: unknown key (did you mean "
+       "'angular_velocity_deg'?)"});
+  check_input_error(
+      [&] {
+        json e = j;
+        e["bodies"][0]["kinematic"] = {{"velocity", {0, 1}}};
+        parse_scene(e, "scene.json");
+      },
+      {"bodies[0].kinematic.velocity: expected an array of 3 numbers"});
+  check_input_error(
+      [&] {
+        json e = j;
+        e["bodies"][0]["kinematic"] = true;
+        parse_scene(e, "scene.json");
+      },
+      {"bodies[0].kinematic: expected an object, got boolean true"});
+  // Its material must still be valid (mass and energies use it).
+  check_input_error(
+      [&] {
+        json e = j;
+        e["bodies"][0]["material"]["density"] = -1;
+        parse_scene(e, "scene.json");
+      },
+      {"bodies[0].material.density: must be > 0"});
 }
 
 TEST_CASE("the shipped scenes parse") {
