@@ -552,6 +552,9 @@ class Parser {
       pc.emits_temperature = true;
     }
     pc.pressure = number(n, "pressure", pc.pressure);
+    // The nominal area: the rectangle clipped to the box side. The fluid scales the inflow so
+    // that the flux is speed × this area whatever faces the mesh puts on the patch.
+    pc.area = (pa.hi.cwiseMin(face_hi) - pa.lo.cwiseMax(face_lo)).prod();
     return pa;
   }
 
@@ -671,9 +674,9 @@ class Parser {
           choice(child(n, "reconstruction"), {"vertex_ls", "whitney"}, "velocity reconstruction"));
     }
     fp.min_dual_fraction = number(n, "min_dual_fraction", fp.min_dual_fraction);
-    if (fp.min_dual_fraction <= 0 || fp.min_dual_fraction >= 1)
+    if (fp.min_dual_fraction <= 0 || fp.min_dual_fraction > 0.1)
       fail(child_path(n.path, "min_dual_fraction"),
-           fmt::format("must be in (0, 1) (a fraction of the face's mean edge), got {}",
+           fmt::format("must be in (0, 0.1] (a fraction of the face's mean edge; default 1e-6), got {}",
                        fp.min_dual_fraction));
     if (has(n, "solver")) {
       const Node o = child(n, "solver");

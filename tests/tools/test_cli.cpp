@@ -609,7 +609,7 @@ TEST_CASE("tetfsi validate and run: a fluid scene without bodies") {
   INFO("stderr: " << v.err);
   CHECK(v.code == 0);
   CHECK(v.out.find("bodies: none") != std::string::npos);
-  CHECK(v.out.find("fluid physics: density 1.2 kg/m^3, gravity off, reconstruction vertex_ls, "
+  CHECK(v.out.find("fluid physics: density 1.2 kg/m^3, gravity off, reconstruction whitney, "
                    "pressure solver amg, 1 source") != std::string::npos);
   CHECK(lines_of(v.out).back() == "ok");
 

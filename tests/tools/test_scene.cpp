@@ -769,7 +769,7 @@ TEST_CASE("the fluid physics keys default to the FluidParams defaults") {
   CHECK(p.vorticity_confinement == d.vorticity_confinement);
   CHECK(p.smoke_decay == d.smoke_decay);
   CHECK(p.temperature_decay == d.temperature_decay);
-  CHECK(p.reconstruction == fluid::Reconstruction::VertexLeastSquares);
+  CHECK(p.reconstruction == fluid::Reconstruction::Whitney);
   CHECK(p.min_dual_fraction == d.min_dual_fraction);
   CHECK(p.solver == SolverKind::Amg);
   CHECK(p.solver_rel_tol == d.solver_rel_tol);
@@ -788,8 +788,8 @@ TEST_CASE("the fluid physics keys default to the FluidParams defaults") {
   CHECK(r["buoyancy"] == json({{"alpha", 0.0}, {"beta", 0.0}, {"ambient_temperature", 0.0}}));
   CHECK(r["vorticity_confinement"] == 0.0);
   CHECK(r["decay"] == json({{"smoke", 0.0}, {"temperature", 0.0}}));
-  CHECK(r["reconstruction"] == "vertex_ls");
-  CHECK(r["min_dual_fraction"] == 0.05);
+  CHECK(r["reconstruction"] == "whitney");
+  CHECK(r["min_dual_fraction"] == 1e-6);
   CHECK(r["solver"] == json({{"linear", "amg"}, {"rel_tol", 1e-10}, {"max_iterations", 500}}));
   CHECK(r["sources"] == json::array());
   CHECK(r["refine"] ==
@@ -851,10 +851,10 @@ TEST_CASE("fluid physics errors are one line naming the JSON path") {
   check_physics_rejected(
       [](json& j) { j["fluid"]["reconstruction"] = "spline"; },
       {"fluid.reconstruction: unknown velocity reconstruction 'spline'", "vertex_ls", "whitney"});
-  for (double bad : {0.0, 1.0, -0.1, 2.0}) {
+  for (double bad : {0.0, 0.2, 1.0, -0.1, 2.0}) {
     CAPTURE(bad);
     check_physics_rejected([&](json& j) { j["fluid"]["min_dual_fraction"] = bad; },
-                           {"fluid.min_dual_fraction: must be in (0, 1)"});
+                           {"fluid.min_dual_fraction: must be in (0, 0.1]"});
   }
   check_physics_rejected([](json& j) { j["fluid"]["solver"]["linear"] = "amgg"; },
                          {"fluid.solver.linear: unknown linear solver 'amgg' (did you mean"});
