@@ -5,6 +5,7 @@
 ///   tetfsi validate SCENE [--set key.path=value ...]
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
 ///   tetfsi bench remesh [--json FILE] [--max-cells N]
+///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
@@ -25,6 +26,7 @@
 #include "core/log.hpp"
 #include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
+#include "tools/bench_step.hpp"
 #include "tools/output.hpp"
 #include "tools/process_env.hpp"
 #include "tools/quality_cmd.hpp"
@@ -79,6 +81,7 @@ int main(int argc, char** argv) {
       "  tetfsi quality out/sheet_sag/sheet/sheet_000050.vtu --json q.json --png q.png\n"
       "  tetfsi run data/scenes/remesh_sheet.json -o out/rs   # the fluid mesh follows the sheet\n"
       "  tetfsi bench remesh --json remesh.json\n"
+      "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
       "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
@@ -181,6 +184,33 @@ int main(int argc, char** argv) {
       ->check(at_least_one)
       ->capture_default_str();
 
+  CLI::App* bench_step_cmd = bench->add_subcommand(
+      "step",
+      "time whole steps of a fluid scene at three mesh sizes against the floor: the bare CGAL "
+      "Delaunay of the same vertices + one AMG pressure solve");
+  std::string bench_step_scene;
+  std::string bench_step_json;
+  int bench_step_steps = 3;
+  std::vector<double> bench_step_sizes;
+  bench_step_cmd->add_option("SCENE", bench_step_scene, "fluid scene file (JSON)")
+      ->required()
+      ->type_name("FILE");
+  bench_step_cmd->add_option("--json", bench_step_json, "also write the results to this JSON file")
+      ->type_name("FILE");
+  bench_step_cmd
+      ->add_option("--steps", bench_step_steps,
+                   "steps per size; the first is a warm-up and is not in the figures (>= 2)")
+      ->type_name("N")
+      ->check(CLI::Range(2, 1000000))
+      ->capture_default_str();
+  bench_step_cmd
+      ->add_option("--sizes", bench_step_sizes,
+                   "comma-separated factors on the scene's fluid mesh sizes (default: chosen for "
+                   "about 30k, 100k and 250k cells)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
+      ->type_name("A,B,C");
+
   // ---- quality ----
   CLI::App* quality = app.add_subcommand(
       "quality",
@@ -244,6 +274,13 @@ int main(int argc, char** argv) {
     }
     if (*bench_remesh_cmd) {
       return tools::bench_remesh(bench_remesh_json, bench_remesh_max, std::cout);
+    }
+    if (*bench_step_cmd) {
+      tools::BenchStepOptions o;
+      o.json_path = bench_step_json;
+      o.steps = bench_step_steps;
+      o.scales = bench_step_sizes;
+      return tools::bench_step(bench_step_scene, o, std::cout);
     }
     if (*quality) {
       return tools::quality_command(quality_file, quality_json, quality_png, std::cout);
