@@ -85,44 +85,58 @@ MatX3 cell_vorticity(const TetMesh& m, const MatX3& U) {
 }
 
 VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kind)
-    : m_mesh(&m), m_u(&u), m_kind(kind) {
+    : m_mesh(&m), m_kind(kind) {
   TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(),
                m.num_faces());
   if (kind == Reconstruction::VertexLeastSquares) {
-    m_vertex = vertex_least_squares(m, u);
-  } else {
-    const Index nv = m.num_vertices();
-    m_vertex = MatX3::Zero(nv, 3);
-    VecX w = VecX::Zero(nv);
-    for (Index t = 0; t < m.num_tets(); ++t)
-      for (int i = 0; i < 4; ++i) {
-        Vec4 b = Vec4::Zero();
-        b[i] = 1.0;
-        m_vertex.row(m.tets(t, i)) += m.volumes[t] * at(t, b).transpose();
-        w[m.tets(t, i)] += m.volumes[t];
-      }
-    for (Index v = 0; v < nv; ++v)
-      if (w[v] > 0) m_vertex.row(v) /= w[v];
+    m_values = vertex_least_squares(m, u);
+    return;
+  }
+  const Index nt = m.num_tets();
+  m_values.resize(4 * static_cast<Index>(nt), 3);
+  for (Index t = 0; t < nt; ++t) {
+    Vec3 x[4];
+    double phi[4];
+    for (int k = 0; k < 4; ++k) {
+      x[k] = m.vertices.row(m.tets(t, k)).transpose();
+      const Index f = m.tet_faces(t, k);
+      phi[k] = m.tet_face_signs(t, k) * m.face_areas[f] * u[f];
+    }
+    // [Whitney / RT0] u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k, at x = x_i.
+    const double s = 1.0 / (3.0 * m.volumes[t]);
+    for (int i = 0; i < 4; ++i) {
+      Vec3 v = Vec3::Zero();
+      for (int k = 0; k < 4; ++k)
+        if (k != i) v += phi[k] * (x[i] - x[k]);
+      m_values.row(4 * t + i) = (s * v).transpose();
+    }
   }
 }
 
 Vec3 VelocityField::at(Index t, const Vec4& bary) const {
-  const TetMesh& m = *m_mesh;
   if (m_kind == Reconstruction::VertexLeastSquares) {
+    const TetMesh& m = *m_mesh;
     Vec3 v = Vec3::Zero();
-    for (int i = 0; i < 4; ++i) v += bary[i] * m_vertex.row(m.tets(t, i)).transpose();
+    for (int i = 0; i < 4; ++i) v += bary[i] * m_values.row(m.tets(t, i)).transpose();
     return v;
   }
-  Vec3 x = Vec3::Zero();
-  for (int i = 0; i < 4; ++i) x += bary[i] * m.vertices.row(m.tets(t, i)).transpose();
-  // [Whitney / RT0] u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k.
-  Vec3 v = Vec3::Zero();
-  for (int k = 0; k < 4; ++k) {
-    const Index f = m.tet_faces(t, k);
-    const double phi = m.tet_face_signs(t, k) * m.face_areas[f] * (*m_u)[f];
-    v += phi * (x - m.vertices.row(m.tets(t, k)).transpose());
-  }
-  return v / (3.0 * m.volumes[t]);
+  return (m_values.block<4, 3>(4 * t, 0).transpose() * bary).eval();
+}
+
+MatX3 VelocityField::vertex_velocities() const {
+  if (m_kind == Reconstruction::VertexLeastSquares) return m_values;
+  const TetMesh& m = *m_mesh;
+  const Index nv = m.num_vertices();
+  MatX3 U = MatX3::Zero(nv, 3);
+  VecX w = VecX::Zero(nv);
+  for (Index t = 0; t < m.num_tets(); ++t)
+    for (int i = 0; i < 4; ++i) {
+      U.row(m.tets(t, i)) += m.volumes[t] * m_values.row(4 * t + i);
+      w[m.tets(t, i)] += m.volumes[t];
+    }
+  for (Index v = 0; v < nv; ++v)
+    if (w[v] > 0) U.row(v) /= w[v];
+  return U;
 }
 
 MatX3 VelocityField::cell_velocities() const {

@@ -26,14 +26,15 @@ class VelocityField {
   MatX3 cell_velocities() const;
   /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
   /// volume-weighted mean of the adjacent tets' RT0 vertex values (Whitney).
-  const MatX3& vertex_velocities() const { return m_vertex; }
+  MatX3 vertex_velocities() const;
   Reconstruction kind() const { return m_kind; }
 
  private:
   const mesh::TetMesh* m_mesh;
-  const VecX* m_u;
   Reconstruction m_kind;
-  MatX3 m_vertex;
+  /// VertexLeastSquares: #V × 3 vertex values; Whitney: 4#T × 3, the RT0 field of tet t at
+  /// its corner i in row 4t + i (the field is affine in each tet, so u = Σ λ_i u_ti).
+  MatX3 m_values;
 };
 
 /// Per-vertex least-squares velocities (#V × 3), see the file comment.

@@ -21,6 +21,32 @@ Vec4 bary_of(const TetMesh& m, Index t, const Vec3& x) {
   return Vec4(1.0 - l.sum(), l[0], l[1], l[2]);
 }
 
+/// Per-tet inverse edge matrices of a mesh, for fast barycentric coordinates.
+struct BaryCache {
+  const TetMesh* m = nullptr;
+  std::vector<Mat3> inv;  ///< E⁻¹ with E = [x1 − x0, x2 − x0, x3 − x0]
+  explicit BaryCache(const TetMesh& mesh) : m(&mesh), inv(static_cast<size_t>(mesh.num_tets())) {
+    for (Index t = 0; t < mesh.num_tets(); ++t) {
+      const Vec3 x0 = mesh.vertices.row(mesh.tets(t, 0)).transpose();
+      Mat3 E;
+      for (int i = 0; i < 3; ++i)
+        E.col(i) = mesh.vertices.row(mesh.tets(t, i + 1)).transpose() - x0;
+      inv[t] = E.inverse();
+    }
+  }
+  Vec4 operator()(Index t, const Vec3& x) const {
+    const Vec3 l = inv[t] * (x - m->vertices.row(m->tets(t, 0)).transpose());
+    return Vec4(1.0 - l.sum(), l[0], l[1], l[2]);
+  }
+};
+
+thread_local const BaryCache* t_bary = nullptr;  ///< set by transfer() for walk_segment
+
+Vec4 bary_in(const TetMesh& m, Index t, const Vec3& x) {
+  if (t_bary && t_bary->m == &m) return (*t_bary)(t, x);
+  return bary_of(m, t, x);
+}
+
 }  // namespace
 
 Vec3 position(const TetMesh& m, const TracePoint& p) {
@@ -36,7 +62,7 @@ TracePoint walk_segment(const TetMesh& m, const TracePoint& from, const Vec3& x1
   const int max_steps = 10000;
   int prev_face = -1;
   for (int step = 0; step < max_steps; ++step) {
-    const Vec4 b1 = bary_of(m, cur.tet, x1);
+    const Vec4 b1 = bary_in(m, cur.tet, x1);
     if (b1.minCoeff() >= -eps) {
       cur.bary = b1;
       return cur;
@@ -75,7 +101,7 @@ TracePoint walk_segment(const TetMesh& m, const TracePoint& from, const Vec3& x1
     }();
     prev_face = m.tet_faces(cur.tet, k_best);
     cur.tet = n;
-    b0 = bary_of(m, n, xe).cwiseMax(0.0);
+    b0 = bary_in(m, n, xe).cwiseMax(0.0);
     b0 /= b0.sum();
   }
   cur.bary = b0;  // the step limit (never seen): stay where the walk got to
@@ -89,6 +115,11 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
                in.old_u->size(), om.num_faces());
   const VelocityField field(om, *in.old_u, in.reconstruction);
   const mesh::PointLocator locator(om);
+  const BaryCache cache(om);
+  t_bary = &cache;
+  struct Reset {
+    ~Reset() { t_bary = nullptr; }
+  } reset;
   TransferOutput out;
   const Index nf = nm.num_faces(), nt = nm.num_tets();
   out.u.resize(nf);

@@ -331,7 +331,8 @@ void write_body_vtu(const fs::path& path, const solid::SolidBody& body, const Ve
 
 // ---- fluid mesh and interface ----------------------------------------------------------
 
-void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression compression) {
+void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression compression,
+                     const FluidFrameFields* fields) {
   install_vtk_output_window();
   const Index nv = m.num_vertices();
   const Index nt = m.num_tets();
@@ -364,6 +365,25 @@ void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression c
     touches->SetValue(t, any ? 1 : 0);
   }
   cd->AddArray(touches);
+
+  if (fields) {
+    const FluidFrameFields& f = *fields;
+    auto cell_scalar = [&](const char* name, const VecX& v) {
+      TETFSI_CHECK(v.size() == nt, "fluid field '{}' has {} values for {} cells", name, v.size(),
+                   nt);
+      cd->AddArray(scalar_array(name, v));
+    };
+    cell_scalar("pressure", f.pressure);
+    cell_scalar("smoke_density", f.density);
+    cell_scalar("temperature", f.temperature);
+    cell_scalar("vorticity", f.vorticity);
+    cell_scalar("divergence", f.divergence);
+    TETFSI_CHECK(f.cell_velocity.rows() == nt && f.vertex_velocity.rows() == nv,
+                 "fluid velocity fields have {} / {} rows for {} cells / {} vertices",
+                 f.cell_velocity.rows(), f.vertex_velocity.rows(), nt, nv);
+    cd->AddArray(vector_array("velocity", f.cell_velocity.data(), nt));
+    grid->GetPointData()->AddArray(vector_array("velocity", f.vertex_velocity.data(), nv));
+  }
 
   vtkNew<vtkXMLUnstructuredGridWriter> writer;
   write_xml_atomic(writer, grid, path, compression);
@@ -458,8 +478,9 @@ void PvdWriter::add(double time, const std::string& relative_file) {
 
 const std::vector<std::string>& StatsWriter::phase_columns(bool fluid) {
   static const std::vector<std::string> p = {"assemble", "solve", "update", "output", "total"};
-  static const std::vector<std::string> pf = {"assemble", "solve",  "update",
-                                              "remesh",   "output", "total"};
+  static const std::vector<std::string> pf = {
+      "assemble", "solve",          "update",         "remesh", "transfer",
+      "forces",   "pressure_assembly", "pressure_solve", "output", "total"};
   return fluid ? pf : p;
 }
 
@@ -477,6 +498,10 @@ std::vector<std::string> make_columns(bool fluid) {
       v.emplace_back(s);
     for (const auto& [name, value] : mesh::quality_columns(mesh::QualitySummary{}))
       v.push_back(name);
+    for (const char* s : {"pressure_iterations", "pressure_residual", "divergence_before",
+                          "divergence", "fluid_kinetic_energy", "smoke_mass", "inflow_flux",
+                          "outflow_flux", "solid_flux", "max_speed", "cfl", "traces_clamped"})
+      v.emplace_back(s);
   }
   return v;
 }
@@ -528,8 +553,13 @@ void StatsWriter::write(const StepStats& r) {
       line += fmt::format(",{},{},{},{},{:.6g}", f.cells, f.vertices, f.steiner_points,
                           f.recovery_rounds, f.remesh_s);
       for (const auto& [name, value] : f.quality) line += fmt::format(",{:.17g}", value);
+      line += fmt::format(",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
+                          "{:.17g},{:.6g},{}",
+                          f.pressure_iterations, f.pressure_residual, f.divergence_before,
+                          f.divergence, f.fluid_kinetic_energy, f.smoke_mass, f.inflow_flux,
+                          f.outflow_flux, f.solid_flux, f.max_speed, f.cfl, f.traces_clamped);
     } else {
-      for (size_t k = 0; k < 5 + nq; ++k) line += ",nan";
+      for (size_t k = 0; k < 5 + nq + 12; ++k) line += ",nan";
     }
   }
   line += '\n';
@@ -607,7 +637,8 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
 }
 
 void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
-                               const mesh::TetMesh* fluid) {
+                               const mesh::TetMesh* fluid,
+                               const FluidFrameFields* fluid_fields) {
   TETFSI_CHECK(world.bodies.size() == m_pvd.size(), "world has {} bodies, output has {}",
                world.bodies.size(), m_pvd.size());
   for (size_t i = 0; i < world.bodies.size(); ++i) {
@@ -618,7 +649,7 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
   }
   if (m_fluid_pvd && fluid) {
     const std::string rel = fmt::format("fluid/fluid_{:06d}.vtu", step);
-    write_fluid_vtu(m_out / rel, *fluid, m_compression);
+    write_fluid_vtu(m_out / rel, *fluid, m_compression, fluid_fields);
     m_fluid_pvd->add(time, rel);
     const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
     write_interface_vtp(m_out / rel_i, *fluid, m_compression);

@@ -22,6 +22,7 @@
 /// no fsync, so not against power loss.) Nothing that tetfsi did not write is ever deleted.
 ///
 /// VTK stays inside output.cpp; this header only sees plain types.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -79,8 +80,21 @@ void write_body_vtu(const std::filesystem::path& path, const solid::SolidBody& b
 ///
 /// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
 /// @throws InputError naming the file if it cannot be written.
+/// The fluid's fields on the mesh of a frame (fluid/simulation.hpp), each sized for it.
+struct FluidFrameFields {
+  VecX pressure;          ///< #T, Pa at the circumcentres
+  VecX density;           ///< #T smoke density (kg/m³)
+  VecX temperature;       ///< #T (K)
+  VecX vorticity;         ///< #T |curl u| (1/s)
+  VecX divergence;        ///< #T (D u)_t (1/s)
+  MatX3 cell_velocity;    ///< #T × 3 reconstructed at the centroids (m/s)
+  MatX3 vertex_velocity;  ///< #V × 3 reconstructed at the vertices (m/s)
+};
+
+/// With `fields`, also: cell data `pressure`, `smoke_density`, `temperature`, `vorticity`,
+/// `divergence` and `velocity` (3 components), point data `velocity` (3 components).
 void write_fluid_vtu(const std::filesystem::path& path, const mesh::TetMesh& fluid,
-                     Compression compression);
+                     Compression compression, const FluidFrameFields* fields = nullptr);
 
 /// Write the solid-interface faces of a fluid mesh (TetMesh::face_kind == FaceKind::Solid)
 /// as an XML poly data file of triangles (appended raw binary), in face order.
@@ -139,7 +153,8 @@ class PvdWriter {
   std::vector<PvdEntry> m_entries;
 };
 
-/// The fluid part of a stats.csv row: the mesh built after the step.
+/// The fluid part of a stats.csv row: the mesh built after the step and the fluid's step
+/// (fluid::FluidStepReport; NaN before the fluid has taken a step).
 struct FluidStepStats {
   Index cells = 0;           ///< fluid tets
   Index vertices = 0;        ///< fluid mesh vertices
@@ -148,6 +163,19 @@ struct FluidStepStats {
   double remesh_s = 0.0;     ///< RemeshReport::seconds_total (s)
   /// mesh::quality_columns(mesh::summarize_quality(mesh)): (name, value) in that fixed order.
   std::vector<std::pair<std::string, double>> quality;
+  // ---- the fluid step (columns after the quality columns) ----
+  int pressure_iterations = 0;        ///< iterations of the pressure solve
+  double pressure_residual = NAN;     ///< its relative residual
+  double divergence_before = NAN;     ///< max |D u*| before the projection (1/s)
+  double divergence = NAN;            ///< max |D u| after it (1/s)
+  double fluid_kinetic_energy = NAN;  ///< J
+  double smoke_mass = NAN;            ///< kg
+  double inflow_flux = NAN;           ///< m³/s into the box through inflow patches
+  double outflow_flux = NAN;          ///< m³/s out through open faces
+  double solid_flux = NAN;            ///< m³/s into the solids (0 for rigid motion)
+  double max_speed = NAN;             ///< max |u_f| (m/s)
+  double cfl = NAN;                   ///< max h |u| / cell size
+  Index traces_clamped = 0;           ///< back-traces stopped at the fluid boundary
 };
 
 /// One row of stats.csv.
@@ -185,12 +213,15 @@ class StatsWriter {
   /// The column names in order: step, time, dt, the phases of `phase_columns(fluid)`,
   /// solver_iterations, solver_residual, contacts, kinetic_energy, elastic_energy,
   /// gravity_potential, total_energy; with `fluid` then fluid_cells, fluid_vertices,
-  /// steiner_points, recovery_rounds, remesh_s and the names of mesh::quality_columns
-  /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...).
+  /// steiner_points, recovery_rounds, remesh_s, the names of mesh::quality_columns
+  /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...), then pressure_iterations,
+  /// pressure_residual, divergence_before, divergence, fluid_kinetic_energy, smoke_mass,
+  /// inflow_flux, outflow_flux, solid_flux, max_speed, cfl, traces_clamped.
   static const std::vector<std::string>& columns(bool fluid = false);
   /// The timed phases that get a column (seconds): assemble, solve, update, output (frames,
-  /// and in fluid scenes the quality summary of the fluid mesh), total; with `fluid`, remesh
-  /// (gathering the solid surfaces and mesh::remesh) after update.
+  /// and in fluid scenes the quality summary of the fluid mesh), total; with `fluid`, after
+  /// update: remesh (gathering the solid surfaces and mesh::remesh), transfer (advection onto
+  /// the new mesh), forces (and sources), pressure_assembly, pressure_solve.
   static const std::vector<std::string>& phase_columns(bool fluid = false);
 
   bool has_fluid() const { return m_fluid; }
@@ -221,7 +252,8 @@ class OutputWriter {
   /// mesh and its interface faces (fluid.pvd, interface.pvd) if `fluid` is given; without it
   /// (no mesh could be built) the frame has bodies only.
   void write_frame(const solid::SolidWorld& world, int step, double time,
-                   const mesh::TetMesh* fluid = nullptr);
+                   const mesh::TetMesh* fluid = nullptr,
+                   const FluidFrameFields* fluid_fields = nullptr);
   /// Append a row to stats.csv.
   void write_stats(const StepStats& row) { m_stats.write(row); }
   /// Write `summary.json` (pretty JSON text, atomically).

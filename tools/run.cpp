@@ -160,128 +160,17 @@ std::string fmt_vec(const Vec3& v) {
   return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
 }
 
-/// The fluid mesh of a fluid scene, rebuilt around the bodies' current boundaries. Each
-/// body's boundary (SolidBody::boundary_triangles of its rest mesh) is compacted once to
-/// the nodes it uses; every rebuild only gathers their positions X + d.
-class FluidRemesher {
- public:
-  FluidRemesher(const FluidSpec& spec, const solid::SolidWorld& world) : m_spec(spec) {
-    for (const solid::SolidBody& b : world.bodies) {
-      Boundary bd;
-      const MatX3i& tris = b.boundary_triangles();
-      VecXi local = VecXi::Constant(b.num_nodes(), -1);
-      std::vector<Index> nodes;
-      bd.triangles.resize(tris.rows(), 3);
-      for (Index t = 0; t < tris.rows(); ++t) {
-        for (int k = 0; k < 3; ++k) {
-          const Index v = tris(t, k);
-          if (local[v] < 0) {
-            local[v] = static_cast<Index>(nodes.size());
-            nodes.push_back(v);
-          }
-          bd.triangles(t, k) = local[v];
-        }
-      }
-      bd.nodes = Eigen::Map<const VecXi>(nodes.data(), static_cast<Index>(nodes.size()));
-      m_bodies.push_back(std::move(bd));
-      m_legend += fmt::format("{}body {} is '{}'", m_legend.empty() ? "" : ", ",
-                              m_bodies.size() - 1, b.name());
-    }
+
+/// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
+void write_frame(OutputWriter& out, const solid::SolidWorld& world, int step, double t,
+                 const FluidDriver* fluid) {
+  if (fluid && fluid->mesh()) {
+    const FluidFrameFields fields = fluid->frame_fields();
+    out.write_frame(world, step, t, fluid->mesh(), &fields);
+  } else {
+    out.write_frame(world, step, t, nullptr);
   }
-
-  /// Build the fluid mesh around the world's current state and summarise its quality. The
-  /// time of the surfaces and mesh::remesh goes to phase "remesh" of `phases`, that of the
-  /// quality summary to "output". On success the new mesh replaces the old one; on failure
-  /// the old one stays (it matches the last good state).
-  /// @throws MeshError naming the body if a body is not strictly inside the fluid box, or
-  ///   with the remesher's reason (body indices explained by name; any std::exception from
-  ///   the remesher becomes a MeshError).
-  void rebuild(const solid::SolidWorld& world, PhaseTimes& phases) {
-    ScopedTimer timer(phases, "remesh");
-    std::vector<mesh::SolidSurface> solids(world.bodies.size());
-    for (size_t i = 0; i < world.bodies.size(); ++i) {
-      const solid::SolidBody& b = world.bodies[i];
-      const Boundary& bd = m_bodies[i];
-      mesh::SolidSurface& s = solids[i];
-      s.body = static_cast<int>(i);
-      s.triangles = bd.triangles;
-      s.vertices.resize(bd.nodes.size(), 3);
-      for (Index k = 0; k < bd.nodes.size(); ++k) {
-        const Index v = bd.nodes[k];
-        s.vertices.row(k) = b.rest_positions().row(v) + b.displacement.row(v);
-      }
-      check_inside(b, i, s.vertices, bd.nodes);
-    }
-    mesh::RemeshReport report;
-    mesh::TetMesh m;
-    try {
-      m = mesh::remesh(m_spec.domain, solids, m_spec.sizing, &report);
-    } catch (const std::exception& e) {
-      // tetfsi errors, and also what CGAL or the allocator may throw (std::logic_error,
-      // std::bad_alloc): the run stops like on any failed step instead of losing its summary.
-      std::string why = e.what();
-      if (why.rfind("remesh: ", 0) == 0) why = why.substr(8);
-      throw MeshError(fmt::format("fluid remesh: {} ({})", why, m_legend));
-    }
-    const double seconds = timer.stop();
-
-    ScopedTimer quality_timer(phases, "output");
-    const mesh::QualitySummary q = mesh::summarize_quality(m);
-    m_mesh = std::move(m);
-    m_stats.cells = m_mesh->num_tets();
-    m_stats.vertices = m_mesh->num_vertices();
-    m_stats.steiner_points = report.steiner_points;
-    m_stats.recovery_rounds = report.recovery_rounds;
-    m_stats.remesh_s = report.seconds_total;
-    m_stats.quality = mesh::quality_columns(q);
-    FluidSummary& f = m_summary;
-    if (std::isfinite(q.min_dihedral_deg))
-      f.min_dihedral_deg =
-          f.remeshes == 0 ? q.min_dihedral_deg : std::min(f.min_dihedral_deg, q.min_dihedral_deg);
-    f.max_slivers = std::max(f.max_slivers, q.slivers);
-    f.remeshes += 1;
-    f.remesh_s += seconds;
-    f.max_remesh_s = std::max(f.max_remesh_s, seconds);
-    f.cells = m_stats.cells;
-    f.vertices = m_stats.vertices;
-  }
-
-  /// The figures of the current mesh for a stats row.
-  const FluidStepStats& stats() const { return m_stats; }
-  const mesh::TetMesh* mesh() const { return m_mesh ? &*m_mesh : nullptr; }
-  const FluidSummary& summary() const { return m_summary; }
-
- private:
-  struct Boundary {
-    VecXi nodes;       ///< body node of each compact surface vertex
-    MatX3i triangles;  ///< boundary triangles in compact numbering
-  };
-
-  /// Every boundary node strictly inside the fluid box, or a MeshError naming the body.
-  void check_inside(const solid::SolidBody& b, size_t index, const MatX3& x,
-                    const VecXi& nodes) const {
-    const Vec3& lo = m_spec.domain.lo;
-    const Vec3& hi = m_spec.domain.hi;
-    for (Index k = 0; k < x.rows(); ++k) {
-      const Vec3 p = x.row(k).transpose();
-      if ((p.array() > lo.array()).all() && (p.array() < hi.array()).all()) continue;
-      const Vec3 blo = x.colwise().minCoeff().transpose();
-      const Vec3 bhi = x.colwise().maxCoeff().transpose();
-      throw MeshError(fmt::format(
-          "body '{}' (bodies[{}]) is not strictly inside the fluid box {}..{}: node {} is at {} "
-          "and the body spans {}..{}; enlarge fluid.domain or keep the body inside",
-          b.name(), index, fmt_vec(lo), fmt_vec(hi), nodes[k], fmt_vec(p), fmt_vec(blo),
-          fmt_vec(bhi)));
-    }
-  }
-
-  FluidSpec m_spec;
-  std::vector<Boundary> m_bodies;
-  std::string m_legend;  ///< "body 0 is 'sheet', body 1 is 'flag'"
-  std::optional<mesh::TetMesh> m_mesh;
-  FluidStepStats m_stats;
-  FluidSummary m_summary;
-};
+}
 
 /// The scene with the command-line step/end-time overrides applied (also in `resolved`, so
 /// that scene.resolved.json reproduces the run).
@@ -318,7 +207,7 @@ Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
   return s;
 }
 
-void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fluid,
+void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid,
                  OutputWriter& out, const RunOptions& opt, RunResult& r) {
   const double dt = scene.time.dt;
   const int n = scene.time.num_steps();
@@ -334,7 +223,7 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fl
   auto write_last_good_frame = [&](int done) {
     if (done <= last_frame) return;
     try {
-      out.write_frame(world, done, done * dt, fluid ? fluid->mesh() : nullptr);
+      write_frame(out, world, done, done * dt, fluid);
     } catch (const Error& e) {
       logger().warn("could not write the frame of step {}: {}", done, e.what());
     }
@@ -362,12 +251,12 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fl
       r.solver_iterations += rep.iterations;
       if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
       if (fluid) {
-        fluid->rebuild(world, row.phases);
+        fluid->step(world, dt, row.phases);
         row.fluid = fluid->stats();
       }
       if (step % every == 0 || step == n) {
         ScopedTimer timer(row.phases, "output");
-        out.write_frame(world, step, t, fluid ? fluid->mesh() : nullptr);
+        write_frame(out, world, step, t, fluid);
         last_frame = step;
       }
       fill_energies(world, row);
@@ -391,7 +280,7 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fl
   r.completed = true;
 }
 
-void run_static(const Scene& scene, solid::SolidWorld& world, FluidRemesher* fluid,
+void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid,
                 OutputWriter& out, RunResult& r) {
   r.steps_planned = 1;
   r.dt = 1.0;
@@ -425,12 +314,12 @@ void run_static(const Scene& scene, solid::SolidWorld& world, FluidRemesher* flu
       }
     }
     if (fluid) {
-      fluid->rebuild(world, row.phases);
+      fluid->rebuild_at_rest(world, row.phases);
       row.fluid = fluid->stats();
     }
     {
       ScopedTimer timer(row.phases, "output");
-      out.write_frame(world, 1, 1.0, fluid ? fluid->mesh() : nullptr);
+      write_frame(out, world, 1, 1.0, fluid);
     }
   } catch (const Error& e) {
     initial.restore(world);
@@ -465,7 +354,7 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world.bodies.size(),
                 world.bodies.size() == 1 ? "y" : "ies", r.build_s);
 
-  std::optional<FluidRemesher> fluid;
+  std::optional<FluidDriver> fluid;
   if (scene.fluid) fluid.emplace(*scene.fluid, world);
 
   t = now_seconds();
@@ -474,13 +363,13 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   if (fluid) {
     PhaseTimes unused;  // step 0 has no stats row
     try {
-      fluid->rebuild(world, unused);
+      fluid->start(world, unused);
     } catch (const Error& e) {
       initial_ok = false;
       r.error = one_line(fmt::format("step 0 (t = 0 s) failed: {}", e.what()));
     }
   }
-  out.write_frame(world, 0, 0.0, fluid ? fluid->mesh() : nullptr);
+  write_frame(out, world, 0, 0.0, fluid ? &*fluid : nullptr);
   if (!initial_ok) {
     r.steps_planned = scene.mode == Mode::Static ? 1 : scene.time.num_steps();
     r.dt = scene.mode == Mode::Static ? 1.0 : scene.time.dt;
@@ -539,7 +428,15 @@ std::string summary_json(const RunResult& r) {
                   {"cells", f.cells},
                   {"vertices", f.vertices},
                   {"min_dihedral_deg", f.min_dihedral_deg},
-                  {"max_slivers", f.max_slivers}};
+                  {"max_slivers", f.max_slivers},
+                  {"fluid_steps", f.fluid_steps},
+                  {"fluid_seconds", f.fluid_s},
+                  {"pressure_iterations", f.pressure_iterations},
+                  {"unconverged_pressure_solves", f.unconverged_pressure_solves},
+                  {"max_divergence", f.max_divergence},
+                  {"max_cfl", f.max_cfl},
+                  {"smoke_mass", f.smoke_mass},
+                  {"kinetic_energy", f.fluid_kinetic_energy}};
   }
   return j.dump(2) + "\n";
 }
@@ -571,6 +468,17 @@ void print_summary(const RunResult& r, std::ostream& out) {
         "vertices; min dihedral {:.3g} deg, at most {} slivers\n",
         f.remeshes, f.ms_per_remesh(), 1e3 * f.max_remesh_s, f.cells, f.vertices,
         f.min_dihedral_deg, f.max_slivers);
+    if (f.fluid_steps > 0)
+      out << fmt::format(
+          "fluid flow: {} steps, {:.3g} ms each (transfer + forces + pressure), {:.3g} pressure "
+          "iterations per step, max divergence {:.3g} 1/s, max CFL {:.3g}; smoke mass {:.6g} "
+          "kg, kinetic energy {:.6g} J{}\n",
+          f.fluid_steps, 1e3 * f.fluid_s / f.fluid_steps,
+          static_cast<double>(f.pressure_iterations) / f.fluid_steps, f.max_divergence,
+          f.max_cfl, f.smoke_mass, f.fluid_kinetic_energy,
+          f.unconverged_pressure_solves > 0
+              ? fmt::format("; {} unconverged pressure solves", f.unconverged_pressure_solves)
+              : std::string());
   }
   if (r.unconverged_steps > 0)
     out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",

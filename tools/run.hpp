@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "solid/world.hpp"
+#include "tools/fluid_driver.hpp"
 #include "tools/scene.hpp"
 
 namespace tetfsi::tools {
@@ -43,16 +44,6 @@ struct BodySummary {
   double max_displacement = 0.0;  ///< max over nodes of |d| (m)
 };
 
-/// The fluid mesh over a run (fluid scenes only).
-struct FluidSummary {
-  int remeshes = 0;               ///< fluid meshes built (step 0 and after every step)
-  double remesh_s = 0.0;          ///< wall seconds in the remesh phase, summed
-  double max_remesh_s = 0.0;      ///< the slowest one (s)
-  Index cells = 0, vertices = 0;  ///< of the last mesh
-  double min_dihedral_deg = 0.0;  ///< smallest dihedral angle over every mesh (degrees)
-  Index max_slivers = 0;          ///< most cells with min dihedral < 5° in one mesh
-  double ms_per_remesh() const { return remeshes > 0 ? 1e3 * remesh_s / remeshes : 0.0; }
-};
 
 struct RunResult {
   bool completed = false;    ///< every step ran; false if a step failed (see `error`)

@@ -596,6 +596,12 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
     f.recovery_rounds = 2;
     f.remesh_s = 0.125;
     f.quality = quality;
+    f.pressure_iterations = 17;
+    f.divergence = 2.5e-9;
+    f.inflow_flux = 0.08;
+    f.outflow_flux = 0.0799;
+    f.smoke_mass = 0.5;
+    r.phases.add("pressure_solve", 0.5);
     r.fluid = f;
     s.write(r);
     r.step = 2;
@@ -605,16 +611,22 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
   const auto lines = read_lines(p);
   REQUIRE(lines.size() == 3);
   const auto& cols = StatsWriter::columns(true);
-  CHECK(cols.size() == StatsWriter::columns().size() + 1 + 5 + quality.size());
+  // + the phases remesh, transfer, forces, pressure_assembly, pressure_solve; 5 mesh columns,
+  // the quality columns and 12 fluid-step columns
+  CHECK(cols.size() == StatsWriter::columns().size() + 5 + 5 + quality.size() + 12);
   std::vector<std::string> header;
   {
     std::stringstream ss(lines[0]);
     for (std::string c; std::getline(ss, c, ',');) header.push_back(c);
   }
   CHECK(header == cols);
-  CHECK(lines[0].rfind("step,time,dt,assemble,solve,update,remesh,output,total,", 0) == 0);
+  CHECK(lines[0].rfind("step,time,dt,assemble,solve,update,remesh,transfer,forces,"
+                       "pressure_assembly,pressure_solve,output,total,",
+                       0) == 0);
   for (const char* c : {"fluid_cells", "fluid_vertices", "steiner_points", "recovery_rounds",
-                        "remesh_s", "q_min_dihedral_deg", "q_slivers", "q_max_radius_edge"})
+                        "remesh_s", "q_min_dihedral_deg", "q_slivers", "q_max_radius_edge",
+                        "pressure_iterations", "divergence", "fluid_kinetic_energy", "smoke_mass",
+                        "inflow_flux", "outflow_flux", "cfl", "traces_clamped"})
     CHECK(std::find(cols.begin(), cols.end(), c) != cols.end());
   std::vector<std::string> row;
   {
@@ -633,6 +645,12 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
   CHECK(value("steiner_points") == 7);
   CHECK(value("recovery_rounds") == 2);
   CHECK(value("remesh_s") == 0.125);
+  CHECK(value("pressure_solve") == 0.5);
+  CHECK(value("pressure_iterations") == 17);
+  CHECK(value("divergence") == 2.5e-9);
+  CHECK(value("inflow_flux") == 0.08);
+  CHECK(value("outflow_flux") == 0.0799);
+  CHECK(value("smoke_mass") == 0.5);
   for (const auto& [name, v] : quality) {
     CAPTURE(name);
     if (std::isfinite(v)) CHECK(value(name) == v);  // 17 digits: bit-identical
