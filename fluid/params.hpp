@@ -90,7 +90,7 @@ struct FluidParams {
   /// The pressure solve: `amg` (hypre BoomerAMG + CG) by default; `cholmod`, `cg_ic`,
   /// `bicgstab_ilut` or `umfpack` selectable.
   SolverKind solver = SolverKind::Amg;
-  double solver_rel_tol = 1e-10;
+  double solver_rel_tol = 1e-8;
   int solver_max_iterations = 500;
   std::vector<PatchConditions> patches;  ///< one per mesh::FluidDomain::patches entry
   std::vector<SmokeSource> sources;

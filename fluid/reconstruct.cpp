@@ -1,6 +1,8 @@
 #include "fluid/reconstruct.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
@@ -84,6 +86,10 @@ MatX3 cell_vorticity(const TetMesh& m, const MatX3& U) {
   return w;
 }
 
+namespace {
+constexpr double kFlatCellFraction = 0.02;
+}  // namespace
+
 VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kind)
     : m_mesh(&m), m_kind(kind) {
   TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(),
@@ -94,8 +100,20 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
   }
   const Index nt = m.num_tets();
   m_values.resize(4 * static_cast<Index>(nt), 3);
+  MatX3 ls;  // vertex least-squares values, for the flat cells (computed if there are any)
   for (Index t = 0; t < nt; ++t) {
     Vec3 x[4];
+    double emax2 = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j)
+        emax2 = std::max(emax2, (m.vertices.row(m.tets(t, i)) - m.vertices.row(m.tets(t, j))).squaredNorm());
+    // A flat cell (volume below 2 % of the regular tet's on its longest edge) amplifies the
+    // round-off of its face fluxes by 1/V: it takes the vertex least-squares values instead.
+    if (m.volumes[t] < kFlatCellFraction * emax2 * std::sqrt(emax2) / (6.0 * std::sqrt(2.0))) {
+      if (ls.rows() == 0) ls = vertex_least_squares(m, u);
+      for (int i = 0; i < 4; ++i) m_values.row(4 * t + i) = ls.row(m.tets(t, i));
+      continue;
+    }
     double phi[4];
     for (int k = 0; k < 4; ++k) {
       x[k] = m.vertices.row(m.tets(t, k)).transpose();

@@ -6,7 +6,10 @@
 ///    values), then u(x) = Σ_i λ_i U_i inside a tet. Continuous; exact for uniform flow.
 ///  - Whitney (RT0): in tet t with vertices x_i and outward fluxes Φ_k = s_tk A_k u_k through
 ///    the face opposite x_k, u(x) = Σ_k Φ_k (x − x_k) / (3 V_t). Reproduces every face flux
-///    exactly and uniform flow exactly; discontinuous between tets.
+///    exactly and uniform flow exactly; discontinuous between tets. A flat cell (volume below
+///    2 % of the regular tet on its longest edge — the slivers a remesh can leave against a
+///    solid) would amplify round-off in its fluxes by 1/V; it takes the vertex
+///    least-squares values instead (also exact for uniform flow).
 /// Which one the fluid uses is FluidParams::reconstruction; the tests measure both.
 #include "core/types.hpp"
 #include "fluid/params.hpp"
