@@ -24,9 +24,16 @@ MatX3 buoyancy(const FluidParams& p, const VecX& density, const VecX& temperatur
 }
 
 VecX cell_sizes(const TetMesh& m) {
-  // Regular tet of edge e: V = e³ / (6√2).
+  // The mean of the 6 edges: unlike the cube root of the volume it does not vanish for the
+  // flat cells a remesh can leave against a solid.
   VecX e(m.num_tets());
-  for (Index t = 0; t < m.num_tets(); ++t) e[t] = std::cbrt(m.volumes[t] * 6.0 * std::sqrt(2.0));
+  for (Index t = 0; t < m.num_tets(); ++t) {
+    double s = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j)
+        s += (m.vertices.row(m.tets(t, i)) - m.vertices.row(m.tets(t, j))).norm();
+    e[t] = s / 6.0;
+  }
   return e;
 }
 

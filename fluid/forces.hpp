@@ -13,7 +13,7 @@ namespace tetfsi::fluid {
 MatX3 buoyancy(const FluidParams& p, const VecX& density, const VecX& temperature);
 
 /// Per-cell vorticity confinement acceleration (#T × 3, m/s²): ε Δx (N × ω) with
-/// N = ∇|ω| / |∇|ω||, Δx the cell's size (edge of the regular tet of its volume); |ω| is
+/// N = ∇|ω| / |∇|ω||, Δx the cell's size (cell_sizes); |ω| is
 /// averaged to the vertices and differentiated per tet.
 /// @param vertex_velocity #V × 3 reconstructed velocities
 MatX3 vorticity_confinement(const mesh::TetMesh& m, const MatX3& vertex_velocity, double epsilon);
@@ -22,7 +22,7 @@ MatX3 vorticity_confinement(const mesh::TetMesh& m, const MatX3& vertex_velocity
 /// (prescribed-velocity faces are left alone).
 void add_cell_acceleration(const mesh::TetMesh& m, const MatX3& accel, double h, VecX& u);
 
-/// Edge of the regular tet with the volume of each cell (#T, m).
+/// Mean edge length of each cell (#T, m).
 VecX cell_sizes(const mesh::TetMesh& m);
 
 }  // namespace tetfsi::fluid

@@ -126,17 +126,31 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   out.density.resize(nt);
   out.temperature.resize(nt);
 
-  Index hint = -1;
-  // Locate x in the old fluid; a point outside it (in the old solid, or a new region) starts
-  // from the nearest old fluid point.
+  // Locate x in the old fluid: walk from the previous query's point (consecutive faces and
+  // cells are close); if that walk is stopped by the boundary, ask the locator whether x is
+  // inside after all (e.g. behind a thin solid); if it is not (x lies where a solid was, or
+  // a new region opened), start from the boundary point where the walk stopped — the fluid
+  // next to x on the way from its neighbours — or, for a first query, the nearest tet.
+  TracePoint prev;
   auto start_at = [&](const Vec3& x) {
-    const mesh::Location loc = locator.locate(x, hint);
     TracePoint p;
-    p.tet = loc.tet;
-    p.bary = loc.bary;
-    if (!loc.inside) ++out.start_outside;
-    hint = loc.tet;
-    return p;
+    if (prev.tet >= 0) {
+      p = walk_segment(om, TracePoint{prev.tet, prev.bary, false}, x);
+      if (!p.clamped) {
+        prev = p;
+        return p;
+      }
+    }
+    const mesh::Location loc = locator.locate(x, prev.tet, /*nearest_if_outside=*/prev.tet < 0);
+    if (loc.inside || prev.tet < 0) {
+      if (!loc.inside) ++out.start_outside;
+      p = TracePoint{loc.tet, loc.bary, false};
+      prev = p;
+      return p;
+    }
+    ++out.start_outside;
+    p.clamped = false;
+    return p;  // the walk's boundary point; prev stays inside the fluid
   };
   // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
   auto trace_back = [&](const Vec3& x, const TracePoint& p0) {
@@ -161,7 +175,7 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   if (scalars) {
     const VecX dv = in.old_density ? cell_to_vertex(om, *in.old_density) : VecX();
     const VecX tv = in.old_temperature ? cell_to_vertex(om, *in.old_temperature) : VecX();
-    hint = -1;
+    prev = TracePoint{};
     for (Index t = 0; t < nt; ++t) {
       Vec3 x = Vec3::Zero();
       for (int i = 0; i < 4; ++i) x += 0.25 * nm.vertices.row(nm.tets(t, i)).transpose();

@@ -291,7 +291,7 @@ PointLocator::~PointLocator() = default;
 PointLocator::PointLocator(PointLocator&&) noexcept = default;
 PointLocator& PointLocator::operator=(PointLocator&&) noexcept = default;
 
-Location PointLocator::locate(const Vec3& p, Index hint) const {
+Location PointLocator::locate(const Vec3& p, Index hint, bool nearest_if_outside) const {
   const Impl& s = *m_impl;
   const TetMesh& m = *s.mesh;
   if (m.num_tets() == 0) return {};
@@ -311,6 +311,7 @@ Location PointLocator::locate(const Vec3& p, Index hint) const {
     if (ok) return l;
   }
   s.outside.fetch_add(1, std::memory_order_relaxed);
+  if (!nearest_if_outside) return Location{};
   return s.nearest(p);
 }
 

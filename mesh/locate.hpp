@@ -37,7 +37,10 @@ class PointLocator {
   /// starts from a tet of p's grid bucket. Measured on a 1M-tet jittered box, one thread:
   /// ~20 M queries/s for perturbed face centroids hinted by their tet, ~1.2 M/s for random
   /// points without a hint, ~0.4 M/s for points outside; construction 0.09 s.
-  Location locate(const Vec3& p, Index hint = -1) const;
+  /// With `nearest_if_outside` = false a point outside the mesh returns at once with
+  /// tet = −1, inside = false (the nearest-tet search is the slow part: ~0.4 M/s at best, far
+  /// less inside a large hole such as where a solid was).
+  Location locate(const Vec3& p, Index hint = -1, bool nearest_if_outside = true) const;
 
   /// Statistics since construction, for benchmarks: `walks` that arrived and their total
   /// `walk_steps` (tets crossed), `fallbacks` = scans of the grid bucket after a walk that

@@ -924,6 +924,7 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   Lattice lat;
   std::vector<char> keep;
   std::unique_ptr<RefinedSurface> surf;
+  double last_estimate = -1.0;
   for (int attempt = 0;; ++attempt) {
     surf = std::make_unique<RefinedSurface>(set);
     refine_surface(*surf, size, 40);
@@ -933,12 +934,16 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     // A BCC lattice has 6 tets per vertex; near surfaces a little more.
     const double estimate = 6.3 * static_cast<double>(kept + surf->points.size());
     if (sizing.max_cells <= 0 || estimate <= sizing.max_cells || attempt == 6) break;
-    const double f = 1.02 * std::cbrt(estimate / sizing.max_cells);
+    double f = 1.02 * std::cbrt(estimate / sizing.max_cells);
+    // The octree's levels are a factor 2 apart: a scale that changed nothing must grow more.
+    if (last_estimate > 0 && estimate >= 0.99 * last_estimate) f = std::max(f, 1.26);
+    last_estimate = estimate;
     size.scale *= f;
-    logger().info(
+    logger().debug(
         "remesh: about {:.0f} cells would exceed the budget of {}: sizes scaled by {:.3g}",
         estimate, sizing.max_cells, size.scale);
   }
+  report.size_scale = size.scale;
   std::vector<Vec3> pts;
   std::vector<Vec3> dt_pts;     // the same points in the Delaunay's coordinates (see Lattice)
   std::vector<double> pt_size;  // lattice points: their local spacing (m)

@@ -91,6 +91,7 @@ struct RemeshReport {
   /// its centroid, so those two triangles are tiled only together (0 in every test).
   Index straddling_faces = 0;
   int recovery_rounds = 0;  ///< rounds that added Steiner points after the Delaunay
+  double size_scale = 1.0;  ///< factor the cell budget (Sizing::max_cells) scaled all sizes by
   double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0, seconds_classify = 0,
          seconds_build = 0, seconds_total = 0;
 };

@@ -55,9 +55,9 @@
 ///     "buoyancy": { "alpha": 0, "beta": 0, "ambient_temperature": 0 },
 ///     "vorticity_confinement": 0,
 ///     "decay": { "smoke": 0, "temperature": 0 },            // per second
-///     "reconstruction": "vertex_ls" | "whitney",
-///     "min_dual_fraction": 0.05,
-///     "solver": { "linear": "amg", "rel_tol": 1e-10, "max_iterations": 500 },  // pressure
+///     "reconstruction": "whitney" | "vertex_ls",
+///     "min_dual_fraction": 1e-6,
+///     "solver": { "linear": "amg", "rel_tol": 1e-8, "max_iterations": 500 },  // pressure
 ///     "sources": [ { "name": "src0", "box": { "lo": [..], "hi": [..] },
 ///                    "smoke": 1.0, "temperature": 310 } ],  // temperature: optional
 ///     "refine": { "size": 0, "density_threshold": 0.01, "vorticity_threshold": 0 }
@@ -75,7 +75,7 @@
 /// bodies lie inside the box is checked by the run (their positions change every step).
 /// Fluid physics (fluid::FluidParams, units there): speed, smoke >= 0; density > 0;
 /// buoyancy alpha, beta >= 0; vorticity_confinement, decay rates >= 0; 0 < min_dual_fraction
-/// < 1; solver.linear one of solver_names(), rel_tol > 0, max_iterations >= 1; a source box
+/// <= 0.1; solver.linear one of solver_names(), rel_tol > 0, max_iterations >= 1; a source box
 /// has lo < hi, overlaps the fluid box and a unique name (default "source<i>"), smoke >= 0;
 /// refine.size >= 0 (0: off) and <= mesh.far_size, thresholds >= 0. FluidParams::up is
 /// −gravity / |gravity| (+z for zero gravity) whatever "gravity" says.
