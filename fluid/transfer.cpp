@@ -126,70 +126,73 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   out.density.resize(nt);
   out.temperature.resize(nt);
 
-  // Locate x in the old fluid: walk from the previous query's point (consecutive faces and
-  // cells are close); if that walk is stopped by the boundary, ask the locator whether x is
-  // inside after all (e.g. behind a thin solid); if it is not (x lies where a solid was, or
-  // a new region opened), start from the boundary point where the walk stopped — the fluid
-  // next to x on the way from its neighbours — or, for a first query, the nearest tet.
-  TracePoint prev;
-  auto start_at = [&](const Vec3& x) {
+  // Locate x in the old fluid: walk there from a nearby point already located (`from`: the
+  // previous cell's point, or a face's cell); if that walk is stopped by the boundary, ask
+  // the locator whether x is inside after all (e.g. behind a thin solid); if it is not (x lies
+  // where a solid was, or a new region opened), start from the boundary point where the walk
+  // stopped — the fluid next to x on the way from its neighbours — or, without a `from`, the
+  // nearest tet. `inside` tells whether the result is x itself.
+  auto start_at = [&](const Vec3& x, const TracePoint& from, bool& inside) {
     TracePoint p;
-    if (prev.tet >= 0) {
-      p = walk_segment(om, TracePoint{prev.tet, prev.bary, false}, x);
-      if (!p.clamped) {
-        prev = p;
-        return p;
-      }
+    inside = true;
+    if (from.tet >= 0) {
+      p = walk_segment(om, TracePoint{from.tet, from.bary, false}, x);
+      if (!p.clamped) return p;
     }
-    const mesh::Location loc = locator.locate(x, prev.tet, /*nearest_if_outside=*/prev.tet < 0);
-    if (loc.inside || prev.tet < 0) {
+    const mesh::Location loc = locator.locate(x, from.tet, /*nearest_if_outside=*/from.tet < 0);
+    if (loc.inside || from.tet < 0) {
+      inside = loc.inside;
       if (!loc.inside) ++out.start_outside;
-      p = TracePoint{loc.tet, loc.bary, false};
-      prev = p;
-      return p;
+      return TracePoint{loc.tet, loc.bary, false};
     }
     ++out.start_outside;
+    inside = false;
     p.clamped = false;
-    return p;  // the walk's boundary point; prev stays inside the fluid
+    return p;  // the walk's boundary point
   };
   // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
-  auto trace_back = [&](const Vec3& x, const TracePoint& p0) {
+  auto trace_back = [&](const TracePoint& p0) {
     const Vec3 u0 = field.at(p0.tet, p0.bary);
     const Vec3 x0 = position(om, p0);
     const TracePoint pm = walk_segment(om, p0, x0 - 0.5 * h * u0);
     const Vec3 um = field.at(pm.tet, pm.bary);
-    TracePoint pb = walk_segment(om, p0, x0 - h * um);
+    // x_back lies beyond x_mid along about the same path: walk on from there.
+    TracePoint pb = walk_segment(om, pm.clamped ? p0 : pm, x0 - h * um);
     if (pm.clamped || pb.clamped) ++out.clamped;
-    (void)x;
     return pb;
   };
 
+  // Cells first, each located from the previous one (the cells of a CGAL mesh come in
+  // spatially sorted order); then each face from its first cell's point, a fraction of a
+  // cell away.
+  std::vector<TracePoint> cell_start(static_cast<size_t>(nt));
+  const VecX dv = in.old_density ? cell_to_vertex(om, *in.old_density) : VecX();
+  const VecX tv = in.old_temperature ? cell_to_vertex(om, *in.old_temperature) : VecX();
+  TracePoint prev;
+  for (Index t = 0; t < nt; ++t) {
+    Vec3 x = Vec3::Zero();
+    for (int i = 0; i < 4; ++i) x += 0.25 * nm.vertices.row(nm.tets(t, i)).transpose();
+    bool inside = false;
+    const TracePoint p0 = start_at(x, prev, inside);
+    if (inside) prev = p0;
+    cell_start[t] = inside ? p0 : prev;  // a face of this cell starts from a point inside
+    if (!dv.size() && !tv.size()) continue;
+    const TracePoint pb = trace_back(p0);
+    double d = 0.0, T = 0.0;
+    for (int i = 0; i < 4; ++i) {
+      const Index v = om.tets(pb.tet, i);
+      if (dv.size()) d += pb.bary[i] * dv[v];
+      if (tv.size()) T += pb.bary[i] * tv[v];
+    }
+    out.density[t] = d;
+    out.temperature[t] = T;
+  }
   for (Index f = 0; f < nf; ++f) {
     const Vec3 x = nm.face_centroids.row(f).transpose();
-    const TracePoint p0 = start_at(x);
-    const TracePoint pb = trace_back(x, p0);
+    bool inside = false;
+    const TracePoint p0 = start_at(x, cell_start[nm.face_tets(f, 0)], inside);
+    const TracePoint pb = trace_back(p0);
     out.u[f] = nm.face_normals.row(f).dot(field.at(pb.tet, pb.bary).transpose());
-  }
-
-  const bool scalars = in.old_density || in.old_temperature;
-  if (scalars) {
-    const VecX dv = in.old_density ? cell_to_vertex(om, *in.old_density) : VecX();
-    const VecX tv = in.old_temperature ? cell_to_vertex(om, *in.old_temperature) : VecX();
-    prev = TracePoint{};
-    for (Index t = 0; t < nt; ++t) {
-      Vec3 x = Vec3::Zero();
-      for (int i = 0; i < 4; ++i) x += 0.25 * nm.vertices.row(nm.tets(t, i)).transpose();
-      const TracePoint p0 = start_at(x);
-      const TracePoint pb = trace_back(x, p0);
-      double d = 0.0, T = 0.0;
-      for (int i = 0; i < 4; ++i) {
-        const Index v = om.tets(pb.tet, i);
-        if (dv.size()) d += pb.bary[i] * dv[v];
-        if (tv.size()) T += pb.bary[i] * tv[v];
-      }
-      out.density[t] = d;
-      out.temperature[t] = T;
-    }
   }
   if (!in.old_density) out.density.setZero();
   if (!in.old_temperature) out.temperature.setZero();
