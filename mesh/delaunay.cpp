@@ -4,6 +4,7 @@
 #include "mesh/delaunay.hpp"
 
 #include <algorithm>
+#include <array>
 #include <numeric>
 
 #include <CGAL/Delaunay_triangulation_3.h>
@@ -130,11 +131,25 @@ void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
     if (id >= 0 && static_cast<std::size_t>(id) < d.handles.size() &&
         d.handles[id] != DT::Vertex_handle())
       d.dt.finite_incident_cells(d.handles[id], std::back_inserter(cells));
-  std::sort(cells.begin(), cells.end());
-  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
-  tets.resize(static_cast<Index>(cells.size()), 4);
-  for (std::size_t t = 0; t < cells.size(); ++t)
-    for (int k = 0; k < 4; ++k) tets(static_cast<Index>(t), k) = cells[t]->vertex(k)->info();
+  // Order by the cells' sorted vertex ids, not by handle (an address): the remesher acts on
+  // these cells in this order, and the same input must give the same mesh in every run.
+  std::vector<std::pair<std::array<int, 4>, DT::Cell_handle>> keyed;
+  keyed.reserve(cells.size());
+  for (const DT::Cell_handle& c : cells) {
+    std::array<int, 4> k = {c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(),
+                            c->vertex(3)->info()};
+    std::sort(k.begin(), k.end());
+    keyed.emplace_back(k, c);
+  }
+  std::sort(keyed.begin(), keyed.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  keyed.erase(std::unique(keyed.begin(), keyed.end(),
+                          [](const auto& a, const auto& b) { return a.first == b.first; }),
+              keyed.end());
+  tets.resize(static_cast<Index>(keyed.size()), 4);
+  for (std::size_t t = 0; t < keyed.size(); ++t)
+    for (int k = 0; k < 4; ++k)
+      tets(static_cast<Index>(t), k) = keyed[t].second->vertex(k)->info();
 }
 
 void Delaunay::cells_touching(int min_id, MatX4i& tets) const {
