@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
@@ -57,6 +58,50 @@ VecX cell_to_vertex(const TetMesh& m, const VecX& c) {
     }
   for (Index v = 0; v < nv; ++v) sum[v] = w[v] > 0 ? sum[v] / w[v] : 0.0;
   return sum;
+}
+
+VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
+  const Index nv = m.num_vertices(), nt = m.num_tets();
+  using Mat4 = Eigen::Matrix4d;
+  std::vector<Mat4> N(static_cast<size_t>(nv), Mat4::Zero());
+  std::vector<Vec4> r(static_cast<size_t>(nv), Vec4::Zero());
+  VecX lo = VecX::Constant(nv, std::numeric_limits<double>::infinity());
+  VecX hi = -lo;
+  for (Index t = 0; t < nt; ++t) {
+    Vec3 xc = Vec3::Zero();
+    for (int i = 0; i < 4; ++i) xc += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+    const double w = m.volumes[t];
+    for (int i = 0; i < 4; ++i) {
+      const Index v = m.tets(t, i);
+      Vec4 phi;
+      phi << 1.0, xc - m.vertices.row(v).transpose();
+      N[v] += w * phi * phi.transpose();
+      r[v] += w * c[t] * phi;
+      lo[v] = std::min(lo[v], c[t]);
+      hi[v] = std::max(hi[v], c[t]);
+    }
+  }
+  VecX out(nv);
+  for (Index v = 0; v < nv; ++v) {
+    const double wsum = N[v](0, 0);
+    if (!(wsum > 0)) {
+      out[v] = 0.0;
+      continue;
+    }
+    const double mean = r[v](0) / wsum;
+    out[v] = mean;
+    if (hi[v] - lo[v] <= 0) continue;
+    // Scale the gradient block to lengths ~1 before judging its conditioning.
+    const double len2 = N[v].bottomRightCorner<3, 3>().trace() / wsum;
+    if (!(len2 > 0)) continue;
+    const Eigen::LDLT<Mat4> ldlt(N[v]);
+    const Vec4 d = ldlt.vectorD();
+    if (ldlt.info() != Eigen::Success || !(d.minCoeff() > 1e-6 * wsum * std::min(1.0, len2)))
+      continue;
+    const Vec4 x = ldlt.solve(r[v]);
+    out[v] = std::clamp(x(0), lo[v], hi[v]);
+  }
+  return out;
 }
 
 Eigen::Matrix<double, 4, 3> barycentric_gradients(const TetMesh& m, Index t) {

@@ -46,6 +46,16 @@ MatX3 vertex_least_squares(const mesh::TetMesh& m, const VecX& u);
 /// Volume-weighted average of cell values at the vertices (#V) — for scalar interpolation.
 VecX cell_to_vertex(const mesh::TetMesh& m, const VecX& cell_values);
 
+/// Vertex values of a cell field for continuous linear interpolation (#V): at each vertex v
+/// the linear least-squares fit c ≈ a + g · (x̄_t − x_v) over the cells around v (weights
+/// V_t), a taken and clamped to the min/max of those cells; where the fit is not determined
+/// (fewer than 4 cells, or centroids in a plane) the volume-weighted mean. Exact for linear
+/// fields, so interpolating it diffuses only the curvature of a field (the plain mean of
+/// cell_to_vertex also flattens its slopes); the clamp and the barycentric interpolation
+/// make no new extrema. (A per-cell clamped linear reconstruction kept fronts sharper but
+/// left cell-to-cell speckle in the smoke.)
+VecX cell_to_vertex_linear(const mesh::TetMesh& m, const VecX& cell_values);
+
 /// Gradients of the barycentric functions of tet t (row i = ∇λ_i, 1/m).
 Eigen::Matrix<double, 4, 3> barycentric_gradients(const mesh::TetMesh& m, Index t);
 

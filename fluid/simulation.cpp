@@ -58,7 +58,8 @@ struct FluidSimulation::Impl {
   double time = 0.0;
   bool initialized = false;
 
-  /// Sources: volume boxes and the cells on inflow patches (density, temperature).
+  /// Volume sources (density, temperature). Inflow patches emit through the transfer: a
+  /// back-trace stopped at an Inflow face takes the patch's values (transfer.hpp).
   void apply_sources(const TetMesh& m, FluidState& s) const {
     if (!params.sources.empty()) {
       for (Index t = 0; t < m.num_tets(); ++t) {
@@ -70,15 +71,6 @@ struct FluidSimulation::Impl {
           if (src.emits_temperature) s.temperature[t] = src.temperature;
         }
       }
-    }
-    for (Index f = 0; f < m.num_faces(); ++f) {
-      if (m.face_kind[f] != FaceKind::Inflow) continue;
-      const Index pi = m.face_patch[f];
-      if (pi < 0 || pi >= static_cast<Index>(params.patches.size())) continue;
-      const PatchConditions& pc = params.patches[pi];
-      const Index t = m.face_tets(f, 0);
-      s.density[t] = pc.smoke_density;
-      s.temperature[t] = pc.emits_temperature ? pc.temperature : params.ambient_temperature;
     }
   }
 
@@ -186,6 +178,11 @@ FluidStepReport FluidSimulation::step(TetMesh nm, double h,
     in.old_density = &I.state.density;
     in.old_temperature = &I.state.temperature;
     in.reconstruction = P.reconstruction;
+    for (const PatchConditions& pc : P.patches) {
+      in.inflow_density.push_back(pc.smoke_density);
+      in.inflow_temperature.push_back(pc.emits_temperature ? pc.temperature
+                                                           : P.ambient_temperature);
+    }
     TransferOutput out = transfer(in, nm, h);
     s.u = std::move(out.u);
     s.density = std::move(out.density);

@@ -92,6 +92,7 @@ TracePoint walk_segment(const TetMesh& m, const TracePoint& from, const Vec3& x1
     if (n < 0) {  // the path leaves the fluid: stop on the boundary face
       cur.bary = bx;
       cur.clamped = true;
+      cur.exit_face = m.tet_faces(cur.tet, k_best);
       return cur;
     }
     const Vec3 xe = [&] {
@@ -151,6 +152,13 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     return p;  // the walk's boundary point
   };
   // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
+  // The Inflow patch a back-trace was stopped at (−1 if none).
+  auto inflow_patch = [&](const TracePoint& p) -> Index {
+    if (!p.clamped || p.exit_face < 0 || om.face_kind[p.exit_face] != mesh::FaceKind::Inflow)
+      return -1;
+    return om.face_patch[p.exit_face];
+  };
+  Index last_inflow = -1;  // set by trace_back
   auto trace_back = [&](const TracePoint& p0) {
     const Vec3 u0 = field.at(p0.tet, p0.bary);
     const Vec3 x0 = position(om, p0);
@@ -159,6 +167,8 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     // x_back lies beyond x_mid along about the same path: walk on from there.
     TracePoint pb = walk_segment(om, pm.clamped ? p0 : pm, x0 - h * um);
     if (pm.clamped || pb.clamped) ++out.clamped;
+    last_inflow = inflow_patch(pb);
+    if (last_inflow < 0) last_inflow = inflow_patch(pm);
     return pb;
   };
 
@@ -166,8 +176,14 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   // spatially sorted order); then each face from its first cell's point, a fraction of a
   // cell away.
   std::vector<TracePoint> cell_start(static_cast<size_t>(nt));
-  const VecX dv = in.old_density ? cell_to_vertex(om, *in.old_density) : VecX();
-  const VecX tv = in.old_temperature ? cell_to_vertex(om, *in.old_temperature) : VecX();
+  const bool has_d = in.old_density != nullptr, has_T = in.old_temperature != nullptr;
+  const VecX dv = has_d ? cell_to_vertex_linear(om, *in.old_density) : VecX();
+  const VecX tv = has_T ? cell_to_vertex_linear(om, *in.old_temperature) : VecX();
+  auto sample = [&](const VecX& vv, const TracePoint& p) {
+    double s = 0.0;
+    for (int i = 0; i < 4; ++i) s += p.bary[i] * vv[om.tets(p.tet, i)];
+    return s;
+  };
   TracePoint prev;
   for (Index t = 0; t < nt; ++t) {
     Vec3 x = Vec3::Zero();
@@ -176,16 +192,14 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     const TracePoint p0 = start_at(x, prev, inside);
     if (inside) prev = p0;
     cell_start[t] = inside ? p0 : prev;  // a face of this cell starts from a point inside
-    if (!dv.size() && !tv.size()) continue;
+    if (!has_d && !has_T) continue;
     const TracePoint pb = trace_back(p0);
-    double d = 0.0, T = 0.0;
-    for (int i = 0; i < 4; ++i) {
-      const Index v = om.tets(pb.tet, i);
-      if (dv.size()) d += pb.bary[i] * dv[v];
-      if (tv.size()) T += pb.bary[i] * tv[v];
-    }
-    out.density[t] = d;
-    out.temperature[t] = T;
+    out.density[t] = has_d ? sample(dv, pb) : 0.0;
+    out.temperature[t] = has_T ? sample(tv, pb) : 0.0;
+    const auto ip = static_cast<size_t>(last_inflow);
+    if (last_inflow >= 0 && ip < in.inflow_density.size()) out.density[t] = in.inflow_density[ip];
+    if (last_inflow >= 0 && ip < in.inflow_temperature.size())
+      out.temperature[t] = in.inflow_temperature[ip];
   }
   for (Index f = 0; f < nf; ++f) {
     const Vec3 x = nm.face_centroids.row(f).transpose();

@@ -4,12 +4,18 @@
 /// semi-Lagrangian and so unconditionally stable [Stam 1999], [KFCO06, §4]: every face centre
 /// of the new mesh is traced back through the old mesh's reconstructed velocity (RK2) and
 /// takes the normal component of the old field there; cell scalars (smoke, temperature) are
-/// traced from the cell centroids and interpolated linearly from volume-averaged vertex values
-/// (a convex combination: no new extrema).
+/// traced from the cell centroids and interpolated linearly from vertex values fitted to the
+/// old cells (reconstruct.hpp cell_to_vertex_linear: exact for linear fields, no new
+/// extrema).
+///
+/// A scalar back-trace stopped at an Inflow face takes the patch's emitted smoke and
+/// temperature (TransferInput::inflow_density): that is how jets emit.
 ///
 /// Back-traces never cross the fluid boundary: the path is walked tet by tet through the old
 /// mesh and stops where it would leave the fluid (at a wall, a solid face or the box). So
 /// smoke cannot jump through a thin solid, and nothing is read from inside a solid.
+#include <vector>
+
 #include "core/types.hpp"
 #include "fluid/params.hpp"
 #include "mesh/locate.hpp"
@@ -21,6 +27,7 @@ struct TracePoint {
   Index tet = -1;
   Vec4 bary = Vec4::Zero();
   bool clamped = false;  ///< the path was stopped at the fluid boundary
+  Index exit_face = -1;  ///< clamped: the boundary face it was stopped at
 };
 
 /// Walk the straight path from the point at (tet, bary) of `m` to x1 through face
@@ -36,6 +43,11 @@ struct TransferInput {
   const VecX* old_density = nullptr;
   const VecX* old_temperature = nullptr;
   Reconstruction reconstruction = Reconstruction::VertexLeastSquares;
+  /// What enters through the old mesh's Inflow faces, by patch (TetMesh::face_patch): a
+  /// scalar back-trace stopped at an Inflow face takes these values (the fluid that came in
+  /// through the patch during the step). Empty: the boundary value is interpolated as
+  /// anywhere else.
+  std::vector<double> inflow_density, inflow_temperature;
 };
 
 struct TransferOutput {
