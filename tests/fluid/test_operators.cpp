@@ -229,3 +229,32 @@ TEST_CASE("reconstruction: uniform flow exact for both; rotation and shear error
   for (auto& r : rms)
     for (double e : r) CHECK(e < 0.05);
 }
+
+TEST_CASE("projection: every backend of the scene's fluid.solver gives the same field") {
+  // fluid.solver.linear selects the pressure solver: AMG (default), CHOLMOD, CG + incomplete
+  // Cholesky, BiCGSTAB + ILUT, UMFPACK. All must agree to their tolerance.
+  const mesh::TetMesh m =
+      mesh::remesh(box_domain(Vec3::Zero(), Vec3::Ones()),
+                   {sphere_surface(Vec3(0.5, 0.5, 0.5), 0.2, 2)}, sizing(0.08, 0.2));
+  std::mt19937 rng(9);
+  std::normal_distribution<double> N;
+  VecX u0(m.num_faces());
+  for (Index f = 0; f < m.num_faces(); ++f) u0[f] = m.is_boundary(f) ? 0.0 : N(rng);
+  VecX ref;
+  for (SolverKind k : {SolverKind::Cholmod, SolverKind::Amg, SolverKind::CgIc,
+                       SolverKind::BiCgStabIlut, SolverKind::Umfpack}) {
+    CAPTURE(to_string(k));
+    SolverOptions o;
+    o.rel_tol = 1e-12;
+    o.max_iterations = 5000;
+    auto solver = make_linear_solver(k, o);
+    VecX u = u0, q;
+    const ProjectionReport r = project(m, 1e-6, VecX(), u, q, *solver);
+    CHECK(r.converged);
+    CHECK(r.divergence_after <= 1e-8 * r.divergence_before);
+    if (ref.size() == 0)
+      ref = u;
+    else
+      CHECK((u - ref).cwiseAbs().maxCoeff() <= 1e-7 * ref.cwiseAbs().maxCoeff());
+  }
+}

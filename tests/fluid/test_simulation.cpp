@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 
+#include "fluid/forces.hpp"
 #include "fluid/operators.hpp"
 #include "fluid/reconstruct.hpp"
 #include "fluid/simulation.hpp"
@@ -376,4 +377,49 @@ TEST_CASE("a rigidly moving solid: its faces carry no net flux and the fluid sta
     err = std::max(err, std::abs(sim.state().u[f] - m.face_normals.row(f).dot((v + w.cross(x - c)).transpose())));
   }
   CHECK(err <= 1e-12);
+}
+
+TEST_CASE("the remesher refines where the smoke is, within the cell budget") {
+  // FluidParams::refine: cells holding smoke ask for `size`; the next mesh is finer there.
+  const mesh::FluidDomain d = box_domain(Vec3::Zero(), Vec3(2, 1, 1));
+  const mesh::TetMesh coarse = mesh::remesh(d, {}, sizing(0.2, 0.2));
+  FluidParams p = quiet_params();
+  p.refine.size = 0.05;
+  p.refine.density_threshold = 0.1;
+  FluidSimulation sim(p);
+  sim.initialize(coarse);
+  FluidState s = sim.state();
+  for (Index t = 0; t < coarse.num_tets(); ++t)
+    if (centroid(coarse, t).x() < 0.5) s.density[t] = 1.0;  // smoke in x < 0.5
+  sim.set_state(s);
+  mesh::Sizing z = sizing(0.2, 0.2);
+  z.refine = sim.refinement_field();
+  REQUIRE(z.refine);
+  const mesh::TetMesh fine = mesh::remesh(d, {}, z);
+  auto mean_edge_where = [&](const mesh::TetMesh& m, bool smoke_side) {
+    const VecX e = cell_sizes(m);
+    double s = 0;
+    int n = 0;
+    for (Index t = 0; t < m.num_tets(); ++t) {
+      const double x = centroid(m, t).x();
+      if (smoke_side ? x < 0.4 : x > 1.2) {
+        s += e[t];
+        ++n;
+      }
+    }
+    return s / n;
+  };
+  const double in_smoke = mean_edge_where(fine, true), away = mean_edge_where(fine, false);
+  MESSAGE("mean edge in the smoke " << in_smoke << " m, away " << away << " m; cells "
+                                    << coarse.num_tets() << " -> " << fine.num_tets());
+  CHECK(in_smoke < 0.5 * away);
+  CHECK(away == doctest::Approx(mean_edge_where(coarse, false)).epsilon(0.1));
+  // with a budget the whole mesh coarsens to stay within it
+  z.max_cells = fine.num_tets() / 2;
+  const mesh::TetMesh budget = mesh::remesh(d, {}, z);
+  CHECK(budget.num_tets() <= z.max_cells * 1.1);
+  // no smoke, no request
+  FluidSimulation clean(p);
+  clean.initialize(coarse);
+  CHECK_FALSE(clean.refinement_field());
 }
