@@ -1,7 +1,7 @@
 #pragma once
 /// @file forces.hpp
 /// Body forces on the face velocities (DESIGN.md §2 step 4): buoyancy and vorticity
-/// confinement [Fedkiw, Stam, Jensen 2001, Eqs. (8), (11)], and the smoke/heat sources.
+/// confinement [Fedkiw01, Eqs. (8), (11)], and the smoke/heat sources.
 /// Forces are evaluated per cell and applied to a face as n_f · (mean of its cells' values).
 #include "core/types.hpp"
 #include "fluid/params.hpp"

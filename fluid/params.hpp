@@ -67,12 +67,12 @@ struct FluidParams {
   Vec3 gravity = Vec3::Zero();
   Vec3 up = Vec3(0.0, 0.0, 1.0);  ///< unit "up" for buoyancy (scenes: −gravity direction)
   /// Boussinesq buoyancy on the faces, (−α ρ_smoke + β (T − T_ambient)) up
-  /// [Fedkiw, Stam, Jensen 2001, Eq. (8)]: α in m⁴/(kg s²) (so that α ρ_smoke is m/s²),
+  /// [Fedkiw01, Eq. (8)]: α in m⁴/(kg s²) (so that α ρ_smoke is m/s²),
   /// β in m/(s² K).
   double buoyancy_alpha = 0.0;
   double buoyancy_beta = 0.0;
   double ambient_temperature = 0.0;  ///< K (any offset: only T − T_ambient matters)
-  /// Vorticity confinement strength ε (dimensionless; 0 = off) [Fedkiw et al. 2001, Eq. (11)]:
+  /// Vorticity confinement strength ε (dimensionless; 0 = off) [Fedkiw01, Eq. (11)]:
   /// f = ε h_cell (N × ω), N = ∇|ω| / |∇|ω||.
   double vorticity_confinement = 0.0;
   /// Dissipation per second of smoke density and of T − T_ambient (0 = none).

@@ -165,7 +165,7 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
       const Index f = m.tet_faces(t, k);
       phi[k] = m.tet_face_signs(t, k) * m.face_areas[f] * u[f];
     }
-    // [Whitney / RT0] u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k, at x = x_i.
+    // [Bossavit88] Whitney / RT0: u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k, at x = x_i.
     const double s = 1.0 / (3.0 * m.volumes[t]);
     for (int i = 0; i < 4; ++i) {
       Vec3 v = Vec3::Zero();
