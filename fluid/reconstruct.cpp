@@ -133,6 +133,11 @@ MatX3 cell_vorticity(const TetMesh& m, const MatX3& U) {
 
 namespace {
 constexpr double kFlatCellFraction = 0.02;
+/// normal_at's clamp: the range of the vertex values widened by this many range widths on
+/// each side. Measured on a rigid rotation at 98k cells, 100 steps per revolution: no clamp
+/// +51 % kinetic energy per revolution (growing), 0: −47 %, 0.25: −38 %, 1: −12 % (and
+/// −17 % after two revolutions, no growth).
+constexpr double kClampMargin = 1.0;
 }  // namespace
 
 VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kind)
@@ -145,7 +150,8 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
   }
   const Index nt = m.num_tets();
   m_values.resize(4 * static_cast<Index>(nt), 3);
-  MatX3 ls;  // vertex least-squares values, for the flat cells (computed if there are any)
+  m_vertex_ls = vertex_least_squares(m, u);
+  const MatX3& ls = m_vertex_ls;  // for the flat cells and the clamp
   for (Index t = 0; t < nt; ++t) {
     Vec3 x[4];
     double emax2 = 0;
@@ -155,7 +161,6 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
     // A flat cell (volume below 2 % of the regular tet's on its longest edge) amplifies the
     // round-off of its face fluxes by 1/V: it takes the vertex least-squares values instead.
     if (m.volumes[t] < kFlatCellFraction * emax2 * std::sqrt(emax2) / (6.0 * std::sqrt(2.0))) {
-      if (ls.rows() == 0) ls = vertex_least_squares(m, u);
       for (int i = 0; i < 4; ++i) m_values.row(4 * t + i) = ls.row(m.tets(t, i));
       continue;
     }
@@ -184,6 +189,19 @@ Vec3 VelocityField::at(Index t, const Vec4& bary) const {
     return v;
   }
   return (m_values.block<4, 3>(4 * t, 0).transpose() * bary).eval();
+}
+
+double VelocityField::normal_at(Index t, const Vec4& bary, const Vec3& n) const {
+  const double v = n.dot(at(t, bary));
+  if (m_kind == Reconstruction::VertexLeastSquares) return v;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int i = 0; i < 4; ++i) {
+    const double w = n.dot(m_vertex_ls.row(m_mesh->tets(t, i)).transpose());
+    lo = std::min(lo, w);
+    hi = std::max(hi, w);
+  }
+  const double pad = kClampMargin * (hi - lo);
+  return std::clamp(v, lo - pad, hi + pad);
 }
 
 MatX3 VelocityField::vertex_velocities() const {

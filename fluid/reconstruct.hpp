@@ -25,6 +25,12 @@ class VelocityField {
 
   /// Velocity in tet t at barycentric coordinates λ (Σ λ = 1) (m/s).
   Vec3 at(Index t, const Vec4& bary) const;
+  /// n · u at (t, λ), for the transfer. Whitney: clamped to the range of n · U_v over the
+  /// tet's 4 vertex least-squares velocities U_v, widened by one range width on each side
+  /// (a clamp in the manner of [Selle08]): RT0's corner values overshoot in poorly shaped
+  /// cells, and semi-Lagrangian sampling of them gained energy (+51 % per revolution of a
+  /// rigid rotation at 98k cells without the clamp; −12 % with it, −47 % with the bare range).
+  double normal_at(Index t, const Vec4& bary, const Vec3& n) const;
   /// Velocity at the centroid of every tet (#T × 3).
   MatX3 cell_velocities() const;
   /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
@@ -38,6 +44,7 @@ class VelocityField {
   /// VertexLeastSquares: #V × 3 vertex values; Whitney: 4#T × 3, the RT0 field of tet t at
   /// its corner i in row 4t + i (the field is affine in each tet, so u = Σ λ_i u_ti).
   MatX3 m_values;
+  MatX3 m_vertex_ls;  ///< Whitney: the vertex least-squares velocities, for normal_at's clamp
 };
 
 /// Per-vertex least-squares velocities (#V × 3), see the file comment.

@@ -206,7 +206,7 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     bool inside = false;
     const TracePoint p0 = start_at(x, cell_start[nm.face_tets(f, 0)], inside);
     const TracePoint pb = trace_back(p0);
-    out.u[f] = nm.face_normals.row(f).dot(field.at(pb.tet, pb.bary).transpose());
+    out.u[f] = field.normal_at(pb.tet, pb.bary, nm.face_normals.row(f).transpose());
   }
   if (!in.old_density) out.density.setZero();
   if (!in.old_temperature) out.temperature.setZero();
