@@ -13,8 +13,56 @@
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
+#include <boost/container_hash/hash.hpp>
+#include <boost/unordered_map.hpp>
 
 #include "core/error.hpp"
+
+namespace tetfsi::mesh {
+namespace {
+/// Tag (in the place of CGAL's lock data structure, unused when sequential) that selects the
+/// Triangulation_3 base below: vertex removal that does not depend on memory addresses.
+struct AddressFreeRemoval {};
+
+/// Hash of an oriented vertex triple by the vertices' ids (info), the same for its three
+/// rotations: Triangulation_3::make_canonical_oriented_triple picks the rotation by address.
+/// remove_3D also hashes triples with null handles (of the hole's temporary triangulation's
+/// infinite vertex when it is planar): id −2.
+struct IdTripleHash {
+  template <class Handle>
+  static int id(const Handle& v) {
+    return v == Handle() ? -2 : v->info();
+  }
+  template <class Triple>
+  std::size_t operator()(const Triple& t) const {
+    std::array<int, 3> k = {id(t.first), id(t.second), id(t.third)};
+    std::rotate(k.begin(), std::min_element(k.begin(), k.end()), k.end());
+    return boost::hash_range(k.begin(), k.end());
+  }
+};
+}  // namespace
+}  // namespace tetfsi::mesh
+
+namespace CGAL {
+/// Triangulation_3::remove_3D fills the hole of a removed vertex cell by cell, taking the next
+/// boundary facet from the front of a hash map keyed by vertex handles, i.e. by addresses:
+/// the new cells were created, stored and later iterated in an order that changed from run
+/// to run (the same triangulation, numbered differently). Keyed by vertex ids instead, the
+/// order depends only on the operations. The rest is CGAL's sequential base. Checked against
+/// CGAL 5.5; the test "remesh: the same input gives the same mesh" fails if this stops working.
+template <>
+class Triangulation_3_base<Sequential_tag, tetfsi::mesh::AddressFreeRemoval>
+    : public Triangulation_3_base<Sequential_tag, Default> {
+ protected:
+  Triangulation_3_base() = default;
+  explicit Triangulation_3_base(void*) {}
+
+  template <typename Vertex_triple, typename Facet>
+  struct Vertex_triple_Facet_map_generator {
+    using type = boost::unordered_map<Vertex_triple, Facet, tetfsi::mesh::IdTripleHash>;
+  };
+};
+}  // namespace CGAL
 
 namespace tetfsi::mesh {
 
@@ -24,7 +72,8 @@ using Vb = CGAL::Triangulation_vertex_base_with_info_3<int, K>;
 using Cb = CGAL::Triangulation_cell_base_with_info_3<int, K>;
 using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
 // Sequential: CGAL's parallel insertion measured slower on this machine (DESIGN.md §6).
-using DT = CGAL::Delaunay_triangulation_3<K, Tds>;
+// Vertex ids must be set before a removal: the infinite vertex has id −1.
+using DT = CGAL::Delaunay_triangulation_3<K, Tds, CGAL::Default, AddressFreeRemoval>;
 using Point = K::Point_3;
 
 inline Point to_point(const Vec3& p) {
@@ -58,7 +107,9 @@ struct Delaunay::Impl {
   DT::Cell_handle hint;
 };
 
-Delaunay::Delaunay() : m_impl(std::make_unique<Impl>()) {}
+Delaunay::Delaunay() : m_impl(std::make_unique<Impl>()) {
+  m_impl->dt.infinite_vertex()->info() = -1;
+}
 Delaunay::~Delaunay() = default;
 
 void Delaunay::build(const std::vector<Vec3>& points) {
@@ -68,7 +119,8 @@ void Delaunay::build(const std::vector<Vec3>& points) {
   in.reserve(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
     in.emplace_back(to_point(points[i]), static_cast<int>(i));
-  d.dt.insert(in.begin(), in.end());  // spatial sort + hinted insertion
+  d.dt.infinite_vertex()->info() = -1;  // clear() made a new one
+  d.dt.insert(in.begin(), in.end());    // spatial sort + hinted insertion
   if (d.dt.number_of_vertices() != points.size()) throw_duplicate(points);
   d.handles.assign(points.size(), DT::Vertex_handle());
   for (auto v = d.dt.finite_vertices_begin(); v != d.dt.finite_vertices_end(); ++v)

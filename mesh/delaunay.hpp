@@ -14,7 +14,9 @@
 namespace tetfsi::mesh {
 
 /// Delaunay_triangulation_3 (Epick: exact predicates, so the combinatorics are exactly
-/// Delaunay) with an integer id per vertex.
+/// Delaunay) with an integer id per vertex. Deterministic: the cells, their vertex order and
+/// their order in `extract` depend only on the points, ids and sequence of calls, never on
+/// memory addresses (vertex removal is keyed by ids, delaunay.cpp).
 class Delaunay {
  public:
   Delaunay();
