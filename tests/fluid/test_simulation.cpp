@@ -423,3 +423,26 @@ TEST_CASE("the remesher refines where the smoke is, within the cell budget") {
   clean.initialize(coarse);
   CHECK_FALSE(clean.refinement_field());
 }
+
+TEST_CASE("hydrostatics with an open lid at zero pressure: p = rho g depth, absolutely") {
+  // The open lid fixes the pressure level: p = ρ g (z_lid − z) at every circumcentre, and the
+  // water stays at rest.
+  mesh::FluidDomain d = box_domain(Vec3::Zero(), Vec3(1, 1, 0.8));
+  d.patches.push_back(patch("lid", FaceKind::Open, 5, Vec2(0, 0), Vec2(1, 1)));
+  const mesh::TetMesh m = mesh::remesh(d, {}, sizing(0.1, 0.1));
+  FluidParams p = quiet_params();
+  p.density = 1000;
+  p.gravity = Vec3(0, 0, -9.81);
+  p.patches.resize(1);  // pressure 0 on the lid
+  FluidSimulation sim(p);
+  sim.initialize(m);
+  PhaseTimes ph;
+  const FluidStepReport r = sim.step(m, 0.02, {}, ph);
+  CHECK(r.converged);
+  CHECK(sim.state().u.cwiseAbs().maxCoeff() <= 1e-10);
+  double err = 0;
+  for (Index t = 0; t < m.num_tets(); ++t)
+    err = std::max(err, std::abs(sim.state().p[t] - 1000 * 9.81 * (0.8 - m.circumcentres(t, 2))));
+  MESSAGE("max |p - rho g depth| = " << err << " Pa (rho g H = " << 1000 * 9.81 * 0.8 << " Pa)");
+  CHECK(err <= 1e-6 * 1000 * 9.81 * 0.8);
+}
