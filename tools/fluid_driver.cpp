@@ -11,14 +11,6 @@
 
 namespace tetfsi::tools {
 
-namespace {
-
-std::string fmt_vec(const Vec3& v) {
-  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
-}
-
-}  // namespace
-
 FluidDriver::FluidDriver(const FluidSpec& spec, const solid::SolidWorld& world)
     : m_spec(spec), m_sim(spec.params) {
   // Each body's boundary (SolidBody::boundary_triangles of its rest mesh) is compacted once

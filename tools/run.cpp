@@ -156,10 +156,6 @@ std::string one_line(std::string s) {
   return s;
 }
 
-std::string fmt_vec(const Vec3& v) {
-  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
-}
-
 
 /// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
 void write_frame(OutputWriter& out, const solid::SolidWorld& world, int step, double t,

@@ -98,10 +98,6 @@ std::string describe(const json& j) {
   }
 }
 
-std::string fmt_vec(const Vec3& v) {
-  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
-}
-
 std::string fmt_vec2(const Vec2& v) {
   return fmt::format("[{:.6g}, {:.6g}]", v.x(), v.y());
 }
@@ -1285,6 +1281,10 @@ solid::SolidWorld build_world(const Scene& scene) {
     world.obstacles.push_back(o);
   }
   return world;
+}
+
+std::string fmt_vec(const Vec3& v) {
+  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
 }
 
 }  // namespace tetfsi::tools

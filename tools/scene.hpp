@@ -226,6 +226,9 @@ struct Scene {
   nlohmann::json resolved;  ///< the scene with every default filled in (written to the output)
 };
 
+/// "[x, y, z]" with 6 significant digits, for one-line messages and summaries.
+std::string fmt_vec(const Vec3& v);
+
 /// Parse a scene from JSON. `file` names the scene in messages and anchors relative paths.
 /// @throws InputError "<file>: <json.path>: <problem>", e.g.
 ///   "scene.json: bodies[0].material.poison_ratio: unknown key (did you mean 'poisson_ratio'?)"
