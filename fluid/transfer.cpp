@@ -10,44 +10,20 @@ namespace tetfsi::fluid {
 
 using mesh::TetMesh;
 
-namespace {
+Barycentrics::Barycentrics(const TetMesh& m)
+    : m_mesh(&m), m_inv(static_cast<size_t>(m.num_tets())) {
+  for (Index t = 0; t < m.num_tets(); ++t) {
+    const Vec3 x0 = m.vertices.row(m.tets(t, 0)).transpose();
+    Mat3 E;
+    for (int i = 0; i < 3; ++i) E.col(i) = m.vertices.row(m.tets(t, i + 1)).transpose() - x0;
+    m_inv[t] = E.inverse();
+  }
+}
 
-/// Barycentric coordinates of x in tet t.
-Vec4 bary_of(const TetMesh& m, Index t, const Vec3& x) {
-  const Vec3 x0 = m.vertices.row(m.tets(t, 0)).transpose();
-  Mat3 E;
-  for (int i = 0; i < 3; ++i) E.col(i) = m.vertices.row(m.tets(t, i + 1)).transpose() - x0;
-  const Vec3 l = E.partialPivLu().solve(x - x0);
+Vec4 Barycentrics::operator()(Index t, const Vec3& x) const {
+  const Vec3 l = m_inv[t] * (x - m_mesh->vertices.row(m_mesh->tets(t, 0)).transpose());
   return Vec4(1.0 - l.sum(), l[0], l[1], l[2]);
 }
-
-/// Per-tet inverse edge matrices of a mesh, for fast barycentric coordinates.
-struct BaryCache {
-  const TetMesh* m = nullptr;
-  std::vector<Mat3> inv;  ///< E⁻¹ with E = [x1 − x0, x2 − x0, x3 − x0]
-  explicit BaryCache(const TetMesh& mesh) : m(&mesh), inv(static_cast<size_t>(mesh.num_tets())) {
-    for (Index t = 0; t < mesh.num_tets(); ++t) {
-      const Vec3 x0 = mesh.vertices.row(mesh.tets(t, 0)).transpose();
-      Mat3 E;
-      for (int i = 0; i < 3; ++i)
-        E.col(i) = mesh.vertices.row(mesh.tets(t, i + 1)).transpose() - x0;
-      inv[t] = E.inverse();
-    }
-  }
-  Vec4 operator()(Index t, const Vec3& x) const {
-    const Vec3 l = inv[t] * (x - m->vertices.row(m->tets(t, 0)).transpose());
-    return Vec4(1.0 - l.sum(), l[0], l[1], l[2]);
-  }
-};
-
-thread_local const BaryCache* t_bary = nullptr;  ///< set by transfer() for walk_segment
-
-Vec4 bary_in(const TetMesh& m, Index t, const Vec3& x) {
-  if (t_bary && t_bary->m == &m) return (*t_bary)(t, x);
-  return bary_of(m, t, x);
-}
-
-}  // namespace
 
 Vec3 position(const TetMesh& m, const TracePoint& p) {
   Vec3 x = Vec3::Zero();
@@ -55,14 +31,15 @@ Vec3 position(const TetMesh& m, const TracePoint& p) {
   return x;
 }
 
-TracePoint walk_segment(const TetMesh& m, const TracePoint& from, const Vec3& x1) {
+TracePoint walk_segment(const Barycentrics& bary, const TracePoint& from, const Vec3& x1) {
+  const TetMesh& m = bary.mesh();
   TracePoint cur = from;
   Vec4 b0 = from.bary;  // where the walk is now, in cur.tet
   constexpr double eps = 1e-12;
   const int max_steps = 10000;
   int prev_face = -1;
   for (int step = 0; step < max_steps; ++step) {
-    const Vec4 b1 = bary_in(m, cur.tet, x1);
+    const Vec4 b1 = bary(cur.tet, x1);
     if (b1.minCoeff() >= -eps) {
       cur.bary = b1;
       return cur;
@@ -95,14 +72,10 @@ TracePoint walk_segment(const TetMesh& m, const TracePoint& from, const Vec3& x1
       cur.exit_face = m.tet_faces(cur.tet, k_best);
       return cur;
     }
-    const Vec3 xe = [&] {
-      Vec3 x = Vec3::Zero();
-      for (int i = 0; i < 4; ++i) x += bx[i] * m.vertices.row(m.tets(cur.tet, i)).transpose();
-      return x;
-    }();
+    const Vec3 xe = position(m, TracePoint{cur.tet, bx, false});
     prev_face = m.tet_faces(cur.tet, k_best);
     cur.tet = n;
-    b0 = bary_in(m, n, xe).cwiseMax(0.0);
+    b0 = bary(n, xe).cwiseMax(0.0);
     b0 /= b0.sum();
   }
   cur.bary = b0;  // the step limit (never seen): stay where the walk got to
@@ -116,11 +89,7 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
                in.old_u->size(), om.num_faces());
   const VelocityField field(om, *in.old_u, in.reconstruction);
   const mesh::PointLocator locator(om);
-  const BaryCache cache(om);
-  t_bary = &cache;
-  struct Reset {
-    ~Reset() { t_bary = nullptr; }
-  } reset;
+  const Barycentrics bary(om);
   TransferOutput out;
   const Index nf = nm.num_faces(), nt = nm.num_tets();
   out.u.resize(nf);
@@ -137,7 +106,7 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     TracePoint p;
     inside = true;
     if (from.tet >= 0) {
-      p = walk_segment(om, TracePoint{from.tet, from.bary, false}, x);
+      p = walk_segment(bary, TracePoint{from.tet, from.bary, false}, x);
       if (!p.clamped) return p;
     }
     const mesh::Location loc = locator.locate(x, from.tet, /*nearest_if_outside=*/from.tet < 0);
@@ -162,10 +131,10 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   auto trace_back = [&](const TracePoint& p0) {
     const Vec3 u0 = field.at(p0.tet, p0.bary);
     const Vec3 x0 = position(om, p0);
-    const TracePoint pm = walk_segment(om, p0, x0 - 0.5 * h * u0);
+    const TracePoint pm = walk_segment(bary, p0, x0 - 0.5 * h * u0);
     const Vec3 um = field.at(pm.tet, pm.bary);
     // x_back lies beyond x_mid along about the same path: walk on from there.
-    TracePoint pb = walk_segment(om, pm.clamped ? p0 : pm, x0 - h * um);
+    TracePoint pb = walk_segment(bary, pm.clamped ? p0 : pm, x0 - h * um);
     if (pm.clamped || pb.clamped) ++out.clamped;
     last_inflow = inflow_patch(pb);
     if (last_inflow < 0) last_inflow = inflow_patch(pm);

@@ -30,9 +30,24 @@ struct TracePoint {
   Index exit_face = -1;  ///< clamped: the boundary face it was stopped at
 };
 
-/// Walk the straight path from the point at (tet, bary) of `m` to x1 through face
+/// Barycentric coordinates in the tets of a fixed mesh, from per-tet inverse edge matrices
+/// computed once (the walks evaluate them millions of times per transfer). Keeps a reference
+/// to the mesh.
+class Barycentrics {
+ public:
+  explicit Barycentrics(const mesh::TetMesh& m);
+  /// λ of x in tet t (Σ λ = 1; all ≥ 0 inside).
+  Vec4 operator()(Index t, const Vec3& x) const;
+  const mesh::TetMesh& mesh() const { return *m_mesh; }
+
+ private:
+  const mesh::TetMesh* m_mesh;
+  std::vector<Mat3> m_inv;  ///< E⁻¹ with E = [x1 − x0, x2 − x0, x3 − x0] per tet
+};
+
+/// Walk the straight path from the point at (tet, bary) of `bary.mesh()` to x1 through face
 /// neighbours; return where x1 is, or the point where the path leaves the fluid (clamped).
-TracePoint walk_segment(const mesh::TetMesh& m, const TracePoint& from, const Vec3& x1);
+TracePoint walk_segment(const Barycentrics& bary, const TracePoint& from, const Vec3& x1);
 
 /// Position of a trace point (m).
 Vec3 position(const mesh::TetMesh& m, const TracePoint& p);
