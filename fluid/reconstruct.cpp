@@ -68,8 +68,7 @@ VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
   VecX lo = VecX::Constant(nv, std::numeric_limits<double>::infinity());
   VecX hi = -lo;
   for (Index t = 0; t < nt; ++t) {
-    Vec3 xc = Vec3::Zero();
-    for (int i = 0; i < 4; ++i) xc += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+    const Vec3 xc = mesh::tet_centroid(m, t);
     const double w = m.volumes[t];
     for (int i = 0; i < 4; ++i) {
       const Index v = m.tets(t, i);

@@ -63,8 +63,7 @@ struct FluidSimulation::Impl {
   void apply_sources(const TetMesh& m, FluidState& s) const {
     if (!params.sources.empty()) {
       for (Index t = 0; t < m.num_tets(); ++t) {
-        Vec3 c = Vec3::Zero();
-        for (int i = 0; i < 4; ++i) c += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+        const Vec3 c = mesh::tet_centroid(m, t);
         for (const SmokeSource& src : params.sources) {
           if ((c.array() < src.lo.array()).any() || (c.array() > src.hi.array()).any()) continue;
           s.density[t] = std::max(s.density[t], src.smoke_density);
@@ -315,8 +314,7 @@ RefineField FluidSimulation::refinement_field() const {
     const bool smoke = m_impl->state.density[t] > rp.density_threshold;
     const bool swirl = vort.size() && vort[t] > rp.vorticity_threshold;
     if (!smoke && !swirl) continue;
-    Vec3 c = Vec3::Zero();
-    for (int i = 0; i < 4; ++i) c += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+    const Vec3 c = mesh::tet_centroid(m, t);
     Vec3i v;
     for (int a = 0; a < 3; ++a)
       v[a] = std::clamp(static_cast<int>((c[a] - lo[a]) / cell), 0, n[a] - 1);

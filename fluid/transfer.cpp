@@ -155,8 +155,7 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   };
   TracePoint prev;
   for (Index t = 0; t < nt; ++t) {
-    Vec3 x = Vec3::Zero();
-    for (int i = 0; i < 4; ++i) x += 0.25 * nm.vertices.row(nm.tets(t, i)).transpose();
+    const Vec3 x = mesh::tet_centroid(nm, t);
     bool inside = false;
     const TracePoint p0 = start_at(x, prev, inside);
     if (inside) prev = p0;

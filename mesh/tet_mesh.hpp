@@ -99,6 +99,13 @@ void update_geometry(TetMesh& m);
 /// Circumcentre of a tet (m). For a degenerate tet the result is not finite.
 Vec3 circumcentre(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 
+/// Centroid of tet t, the mean of its 4 vertices (m).
+inline Vec3 tet_centroid(const TetMesh& m, Index t) {
+  Vec3 x = Vec3::Zero();
+  for (int i = 0; i < 4; ++i) x += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+  return x;
+}
+
 /// Total volume Σ V_t (m³).
 double total_volume(const TetMesh& m);
 

@@ -5,7 +5,9 @@
 #include <random>
 #include <vector>
 
+#include "core/linear_solver.hpp"
 #include "core/types.hpp"
+#include "fluid/operators.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/remesh.hpp"
 #include "mesh/tet_mesh.hpp"
@@ -66,6 +68,28 @@ inline mesh::TetMesh random_delaunay(int n, unsigned seed = 7) {
   for (int i = 0; i < n; ++i) p.row(8 + i) = Vec3(U(rng), U(rng), U(rng)).transpose();
   MatX4i t = mesh::delaunay_tets(p);
   return mesh::build_tet_mesh(p, t);
+}
+
+/// Normal components n_f · field(x_f) of a vector field at the face centroids (#F).
+template <class F>
+VecX face_field(const mesh::TetMesh& m, F&& field) {
+  VecX u(m.num_faces());
+  for (Index f = 0; f < m.num_faces(); ++f)
+    u[f] = m.face_normals.row(f).dot(field(Vec3(m.face_centroids.row(f).transpose())).transpose());
+  return u;
+}
+
+/// face_field with 0 on the boundary faces, projected (AMG, rel_tol 1e-12) so that it starts
+/// divergence-free: the initial field of the Taylor–Green and rotation tests.
+template <class F>
+VecX divergence_free_field(const mesh::TetMesh& m, double min_dual_fraction, F&& field) {
+  VecX u = face_field(m, field);
+  for (Index f = 0; f < m.num_faces(); ++f)
+    if (m.is_boundary(f)) u[f] = 0.0;
+  auto solver = make_linear_solver(SolverKind::Amg, {1e-12, 500});
+  VecX q;
+  fluid::project(m, min_dual_fraction, VecX(), u, q, *solver);
+  return u;
 }
 
 }  // namespace tetfsi::test

@@ -27,15 +27,6 @@ const mesh::TetMesh& sphere_in_box() {
   return m;
 }
 
-/// Normal components of a vector field at the face centroids.
-template <class F>
-VecX face_field(const mesh::TetMesh& m, F&& field) {
-  VecX u(m.num_faces());
-  for (Index f = 0; f < m.num_faces(); ++f)
-    u[f] = m.face_normals.row(f).dot(field(Vec3(m.face_centroids.row(f).transpose())).transpose());
-  return u;
-}
-
 std::unique_ptr<LinearSolver> amg(double tol = 1e-12) {
   SolverOptions o;
   o.rel_tol = tol;
@@ -213,8 +204,7 @@ TEST_CASE("reconstruction: uniform flow exact for both; rotation and shear error
       const MatX3 c = f.cell_velocities();
       double s = 0, w = 0;
       for (Index t = 0; t < m.num_tets(); ++t) {
-        Vec3 x = Vec3::Zero();
-        for (int i = 0; i < 4; ++i) x += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
+        const Vec3 x = mesh::tet_centroid(m, t);
         const Vec3 exact = fi == 0 ? rot(x) : shear(x);
         s += m.volumes[t] * (c.row(t).transpose() - exact).squaredNorm();
         w += m.volumes[t];

@@ -24,19 +24,7 @@ using mesh::FaceKind;
 
 namespace {
 
-template <class F>
-VecX face_field(const mesh::TetMesh& m, F&& field) {
-  VecX u(m.num_faces());
-  for (Index f = 0; f < m.num_faces(); ++f)
-    u[f] = m.face_normals.row(f).dot(field(Vec3(m.face_centroids.row(f).transpose())).transpose());
-  return u;
-}
-
-Vec3 centroid(const mesh::TetMesh& m, Index t) {
-  Vec3 x = Vec3::Zero();
-  for (int i = 0; i < 4; ++i) x += 0.25 * m.vertices.row(m.tets(t, i)).transpose();
-  return x;
-}
+using mesh::tet_centroid;
 
 FluidParams quiet_params() {
   FluidParams p;
@@ -152,16 +140,10 @@ double taylor_green_rate(double size, Reconstruction k, int steps, double h, Ind
   FluidSimulation sim(p);
   sim.initialize(m);
   FluidState s = sim.state();
-  s.u = face_field(m, [](const Vec3& x) {
+  // n·u = 0 on the walls already, up to round-off
+  s.u = divergence_free_field(m, p.min_dual_fraction, [](const Vec3& x) {
     return Vec3(std::sin(x.x()) * std::cos(x.y()), -std::cos(x.x()) * std::sin(x.y()), 0.0);
   });
-  for (Index f = 0; f < m.num_faces(); ++f)
-    if (m.is_boundary(f)) s.u[f] = 0.0;  // n·u = 0 on the walls already, up to round-off
-  {
-    auto solver = make_linear_solver(SolverKind::Amg, {1e-12, 500});
-    VecX q;
-    project(m, p.min_dual_fraction, VecX(), s.u, q, *solver);  // start divergence-free
-  }
   sim.set_state(s);
   auto energy = [&] {
     const MatX3 c = sim.cell_velocities();
@@ -226,23 +208,16 @@ double rotation_drift(double size, int steps, Reconstruction k, Index* cells) {
   FluidSimulation sim(p);
   sim.initialize(m);
   FluidState s = sim.state();
-  s.u = face_field(m, [&](const Vec3& x) {
+  s.u = divergence_free_field(m, p.min_dual_fraction, [&](const Vec3& x) {
     const Vec3 r = x - o;
     return r.norm() < 0.4 ? Vec3(-omega * r.y(), omega * r.x(), 0.0) : Vec3::Zero();
   });
-  for (Index f = 0; f < m.num_faces(); ++f)
-    if (m.is_boundary(f)) s.u[f] = 0.0;
-  {
-    auto solver = make_linear_solver(SolverKind::Amg, {1e-12, 500});
-    VecX q;
-    project(m, p.min_dual_fraction, VecX(), s.u, q, *solver);
-  }
   sim.set_state(s);
   auto Lz = [&] {
     const MatX3 c = sim.cell_velocities();
     double L = 0;
     for (Index t = 0; t < sim.mesh().num_tets(); ++t) {
-      const Vec3 r = centroid(sim.mesh(), t) - o;
+      const Vec3 r = tet_centroid(sim.mesh(), t) - o;
       if (r.norm() > 0.4) continue;
       L += sim.mesh().volumes[t] * r.cross(Vec3(c.row(t).transpose())).z();
     }
@@ -314,7 +289,7 @@ TEST_CASE("jet: inflow flux = outflow flux every step; no smoke in a sealed cavi
   const mesh::TetMesh& mm = sim.mesh();
   double inside = 0, near = 0;
   for (Index t = 0; t < mm.num_tets(); ++t) {
-    const double r = (centroid(mm, t) - o).norm();
+    const double r = (tet_centroid(mm, t) - o).norm();
     if (r < 0.18) inside = std::max(inside, sim.state().density[t]);
     if (r > 0.25 && r < 0.35) near = std::max(near, sim.state().density[t]);
   }
@@ -391,7 +366,7 @@ TEST_CASE("the remesher refines where the smoke is, within the cell budget") {
   sim.initialize(coarse);
   FluidState s = sim.state();
   for (Index t = 0; t < coarse.num_tets(); ++t)
-    if (centroid(coarse, t).x() < 0.5) s.density[t] = 1.0;  // smoke in x < 0.5
+    if (tet_centroid(coarse, t).x() < 0.5) s.density[t] = 1.0;  // smoke in x < 0.5
   sim.set_state(s);
   mesh::Sizing z = sizing(0.2, 0.2);
   z.refine = sim.refinement_field();
@@ -402,7 +377,7 @@ TEST_CASE("the remesher refines where the smoke is, within the cell budget") {
     double s = 0;
     int n = 0;
     for (Index t = 0; t < m.num_tets(); ++t) {
-      const double x = centroid(m, t).x();
+      const double x = tet_centroid(m, t).x();
       if (smoke_side ? x < 0.4 : x > 1.2) {
         s += e[t];
         ++n;

@@ -45,12 +45,6 @@ TetMesh build(const VolumeMesh& v) {
   return build_tet_mesh(v.vertices, v.tets);
 }
 
-Vec3 tet_centroid(const TetMesh& m, Index t) {
-  Vec3 c = Vec3::Zero();
-  for (int k = 0; k < 4; ++k) c += m.vertices.row(m.tets(t, k)).transpose();
-  return c / 4.0;
-}
-
 /// The meshes every invariant is checked on.
 std::vector<std::pair<std::string, TetMesh>> test_meshes() {
   std::vector<std::pair<std::string, TetMesh>> out;
