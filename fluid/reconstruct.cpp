@@ -219,6 +219,10 @@ MatX3 VelocityField::vertex_velocities() const {
   return U;
 }
 
+VecX VelocityField::vorticity_magnitude() const {
+  return cell_vorticity(*m_mesh, least_squares_vertices()).rowwise().norm();
+}
+
 MatX3 VelocityField::cell_velocities() const {
   const Index nt = m_mesh->num_tets();
   MatX3 c(nt, 3);

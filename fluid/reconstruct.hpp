@@ -36,6 +36,13 @@ class VelocityField {
   /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
   /// volume-weighted mean of the adjacent tets' RT0 vertex values (Whitney).
   MatX3 vertex_velocities() const;
+  /// The vertex least-squares velocities (#V × 3), whatever the kind (Whitney keeps them for
+  /// its flat cells and its clamp).
+  const MatX3& least_squares_vertices() const {
+    return m_kind == Reconstruction::VertexLeastSquares ? m_values : m_vertex_ls;
+  }
+  /// |curl u| per tet (#T, 1/s) of the linear interpolation of least_squares_vertices().
+  VecX vorticity_magnitude() const;
   Reconstruction kind() const { return m_kind; }
 
  private:

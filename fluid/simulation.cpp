@@ -274,20 +274,16 @@ const FluidState& FluidSimulation::state() const { return m_impl->state; }
 const FluidParams& FluidSimulation::params() const { return m_impl->params; }
 double FluidSimulation::time() const { return m_impl->time; }
 
-MatX3 FluidSimulation::cell_velocities() const {
-  const VelocityField f(m_impl->mesh, m_impl->state.u, m_impl->params.reconstruction);
-  return f.cell_velocities();
+VelocityField FluidSimulation::velocity_field() const {
+  return VelocityField(m_impl->mesh, m_impl->state.u, m_impl->params.reconstruction);
 }
 
-MatX3 FluidSimulation::vertex_velocities() const {
-  const VelocityField f(m_impl->mesh, m_impl->state.u, m_impl->params.reconstruction);
-  return f.vertex_velocities();
-}
+MatX3 FluidSimulation::cell_velocities() const { return velocity_field().cell_velocities(); }
+
+MatX3 FluidSimulation::vertex_velocities() const { return velocity_field().vertex_velocities(); }
 
 VecX FluidSimulation::vorticity_magnitude() const {
-  return cell_vorticity(m_impl->mesh, vertex_least_squares(m_impl->mesh, m_impl->state.u))
-      .rowwise()
-      .norm();
+  return velocity_field().vorticity_magnitude();
 }
 
 RefineField FluidSimulation::refinement_field() const {

@@ -13,6 +13,7 @@
 #include "core/timer.hpp"
 #include "core/types.hpp"
 #include "fluid/params.hpp"
+#include "fluid/reconstruct.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
@@ -87,6 +88,10 @@ class FluidSimulation {
   const mesh::TetMesh& mesh() const;
   const FluidState& state() const;
   const FluidParams& params() const;
+  /// The reconstructed velocity of the current state (params().reconstruction); it refers
+  /// to the current mesh, so it is valid until the next step. Build it once when several of
+  /// its fields are needed (a frame).
+  VelocityField velocity_field() const;
   /// Reconstructed velocity at the cell centroids (#T × 3) and at the vertices (#V × 3).
   MatX3 cell_velocities() const;
   MatX3 vertex_velocities() const;

@@ -178,10 +178,11 @@ FluidFrameFields FluidDriver::frame_fields() const {
   f.pressure = s.p;
   f.density = s.density;
   f.temperature = s.temperature;
-  f.vorticity = m_sim.vorticity_magnitude();
+  const fluid::VelocityField v = m_sim.velocity_field();  // one reconstruction for all three
+  f.vorticity = v.vorticity_magnitude();
   f.divergence = fluid::divergence(m_sim.mesh(), s.u);
-  f.cell_velocity = m_sim.cell_velocities();
-  f.vertex_velocity = m_sim.vertex_velocities();
+  f.cell_velocity = v.cell_velocities();
+  f.vertex_velocity = v.vertex_velocities();
   return f;
 }
 
