@@ -112,15 +112,12 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     const mesh::Location loc = locator.locate(x, from.tet, /*nearest_if_outside=*/from.tet < 0);
     if (loc.inside || from.tet < 0) {
       inside = loc.inside;
-      if (!loc.inside) ++out.start_outside;
       return TracePoint{loc.tet, loc.bary, false};
     }
-    ++out.start_outside;
     inside = false;
     p.clamped = false;
     return p;  // the walk's boundary point
   };
-  // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
   // The Inflow patch a back-trace was stopped at (−1 if none).
   auto inflow_patch = [&](const TracePoint& p) -> Index {
     if (!p.clamped || p.exit_face < 0 || om.face_kind[p.exit_face] != mesh::FaceKind::Inflow)
@@ -128,6 +125,7 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     return om.face_patch[p.exit_face];
   };
   Index last_inflow = -1;  // set by trace_back
+  // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
   auto trace_back = [&](const TracePoint& p0) {
     const Vec3 u0 = field.at(p0.tet, p0.bary);
     const Vec3 x0 = position(om, p0);

@@ -70,7 +70,6 @@ struct TransferOutput {
   VecX density;      ///< #T_new
   VecX temperature;  ///< #T_new
   Index clamped = 0;       ///< traces stopped at the fluid boundary
-  Index start_outside = 0;  ///< new points that lie outside the old fluid (e.g. where a solid was)
 };
 
 /// Advect the old state by h onto `new_mesh` (see the file comment).
