@@ -124,8 +124,12 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
       return -1;
     return om.face_patch[p.exit_face];
   };
-  Index last_inflow = -1;  // set by trace_back
   // RK2 (midpoint) back-trace from x [KFCO06, §4]: x_mid = x − h/2 u(x), x_back = x − h u(x_mid).
+  // Returns where it ended and the Inflow patch either half was stopped at (−1 if none).
+  struct Trace {
+    TracePoint end;
+    Index inflow = -1;
+  };
   auto trace_back = [&](const TracePoint& p0) {
     const Vec3 u0 = field.at(p0.tet, p0.bary);
     const Vec3 x0 = position(om, p0);
@@ -134,9 +138,9 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     // x_back lies beyond x_mid along about the same path: walk on from there.
     TracePoint pb = walk_segment(bary, pm.clamped ? p0 : pm, x0 - h * um);
     if (pm.clamped || pb.clamped) ++out.clamped;
-    last_inflow = inflow_patch(pb);
-    if (last_inflow < 0) last_inflow = inflow_patch(pm);
-    return pb;
+    Trace tr{pb, inflow_patch(pb)};
+    if (tr.inflow < 0) tr.inflow = inflow_patch(pm);
+    return tr;
   };
 
   // Cells first, each located from the previous one (the cells of a CGAL mesh come in
@@ -159,19 +163,19 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
     if (inside) prev = p0;
     cell_start[t] = inside ? p0 : prev;  // a face of this cell starts from a point inside
     if (!has_d && !has_T) continue;
-    const TracePoint pb = trace_back(p0);
-    out.density[t] = has_d ? sample(dv, pb) : 0.0;
-    out.temperature[t] = has_T ? sample(tv, pb) : 0.0;
-    const auto ip = static_cast<size_t>(last_inflow);
-    if (last_inflow >= 0 && ip < in.inflow_density.size()) out.density[t] = in.inflow_density[ip];
-    if (last_inflow >= 0 && ip < in.inflow_temperature.size())
+    const Trace tr = trace_back(p0);
+    out.density[t] = has_d ? sample(dv, tr.end) : 0.0;
+    out.temperature[t] = has_T ? sample(tv, tr.end) : 0.0;
+    const auto ip = static_cast<size_t>(tr.inflow);
+    if (tr.inflow >= 0 && ip < in.inflow_density.size()) out.density[t] = in.inflow_density[ip];
+    if (tr.inflow >= 0 && ip < in.inflow_temperature.size())
       out.temperature[t] = in.inflow_temperature[ip];
   }
   for (Index f = 0; f < nf; ++f) {
     const Vec3 x = nm.face_centroids.row(f).transpose();
     bool inside = false;
     const TracePoint p0 = start_at(x, cell_start[nm.face_tets(f, 0)], inside);
-    const TracePoint pb = trace_back(p0);
+    const TracePoint pb = trace_back(p0).end;
     out.u[f] = field.normal_at(pb.tet, pb.bary, nm.face_normals.row(f).transpose());
   }
   if (!in.old_density) out.density.setZero();
