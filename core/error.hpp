@@ -41,19 +41,18 @@ class InternalError : public Error {
 
 /// Always-on check (Release too): throws tetfsi::InternalError with file:line and message.
 /// The message is a fmt format string: `TETFSI_CHECK(n > 0, "need n > 0, got {}", n)`.
-#define TETFSI_CHECK(cond, ...)                                                        \
-  do {                                                                                 \
-    if (!(cond)) [[unlikely]] {                                                        \
-      throw ::tetfsi::InternalError(::fmt::format("{}:{}: check '{}' failed: {}",      \
-                                                  __FILE__, __LINE__, #cond,           \
-                                                  ::fmt::format(__VA_ARGS__)));        \
-    }                                                                                  \
+#define TETFSI_CHECK(cond, ...)                                                                  \
+  do {                                                                                           \
+    if (!(cond)) [[unlikely]] {                                                                  \
+      throw ::tetfsi::InternalError(::fmt::format("{}:{}: check '{}' failed: {}", __FILE__,      \
+                                                  __LINE__, #cond, ::fmt::format(__VA_ARGS__))); \
+    }                                                                                            \
   } while (0)
 
 /// Check that throws a chosen error type with just the message (for user-facing checks).
-#define TETFSI_REQUIRE(ErrorType, cond, ...)                      \
-  do {                                                            \
-    if (!(cond)) [[unlikely]] {                                   \
-      throw ErrorType(::fmt::format(__VA_ARGS__));                \
-    }                                                             \
+#define TETFSI_REQUIRE(ErrorType, cond, ...)       \
+  do {                                             \
+    if (!(cond)) [[unlikely]] {                    \
+      throw ErrorType(::fmt::format(__VA_ARGS__)); \
+    }                                              \
   } while (0)

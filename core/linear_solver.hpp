@@ -29,6 +29,7 @@
 /// Symmetric but possibly indefinite systems (e.g. 3n × 3n StVK stiffness under
 /// compression): try `cholmod`; its `setup` throws `SolverError` when the matrix is not
 /// SPD, and the caller falls back to `umfpack`, which takes any nonsingular matrix.
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -76,6 +77,25 @@ class LinearSolver {
 };
 
 std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts = {});
+
+/// y = S x for a linear operator given as a function (x and y have the operator's size).
+using LinearOperator = std::function<void(const VecX& x, VecX& y)>;
+
+/// Conjugate gradients on an SPD operator S that is only available as a product (e.g. a
+/// Schur complement), preconditioned by hypre BoomerAMG built on a sparse SPD matrix P that
+/// approximates S (PETSc KSPCG with a shell matrix; BoomerAMG tuned as for `amg`, options
+/// prefix `tetfsi_amg_`). Stops on the true residual ||b − S x|| ≤ rel_tol ||b|| like the
+/// other iterative backends; x is the initial guess.
+class OperatorSolver {
+ public:
+  virtual ~OperatorSolver() = default;
+  /// S and P must stay alive until the next setup. @throws SolverError if the AMG setup fails.
+  virtual void setup(Index n, LinearOperator S, const SparseMatrix& P) = 0;
+  virtual SolveReport solve(const VecX& b, VecX& x) = 0;
+};
+
+/// @throws SolverError if PETSc cannot be initialised.
+std::unique_ptr<OperatorSolver> make_amg_operator_solver(const SolverOptions& opts = {});
 
 /// True relative residual ||b − A x||₂ / ||b||₂ (||A x||₂ if b = 0, so x = 0 gives 0).
 /// @param A n × n, @param b length n, @param x length n.

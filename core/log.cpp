@@ -19,8 +19,8 @@ spdlog::logger& logger() {
 void set_log_level(const std::string& level) {
   const auto lvl = spdlog::level::from_str(level);
   if (lvl == spdlog::level::off && level != "off") {
-    throw InputError(fmt::format(
-        "unknown log level '{}': use trace, debug, info, warn, error or off", level));
+    throw InputError(
+        fmt::format("unknown log level '{}': use trace, debug, info, warn, error or off", level));
   }
   logger().set_level(lvl);
 }

@@ -133,6 +133,49 @@ struct WrappedVec {
   }
 };
 
+/// KSPSolve with restarts from x; fills rep.iterations and rep.residual (true_residual()
+/// evaluates ||b − A x|| / ||b|| for the current x).
+template <class Residual>
+void krylov_with_restarts(KSP ksp, const VecX& b, VecX& x, const SolverOptions& opts,
+                          const std::string& name, SolveReport& rep, Residual&& true_residual) {
+  const Index n = static_cast<Index>(b.size());
+  WrappedVec vb(n, b.data());
+  WrappedVec vx(n, x.data());
+  rep.residual = true_residual();
+  KSPConvergedReason reason = KSP_CONVERGED_ITERATING;
+  // Restart when PETSc's recursively updated residual met the tolerance but the true one
+  // did not (rare; a few restarts at most).
+  for (int round = 0; round <= 5; ++round) {
+    const int left = opts.max_iterations - rep.iterations;
+    if (rep.residual <= opts.rel_tol || left <= 0) break;
+    TETFSI_PETSC(KSPSetTolerances(ksp, opts.rel_tol, 0.0, PETSC_DEFAULT, left));
+    const VecX x_before = x;
+    TETFSI_PETSC(KSPSolve(ksp, vb.v, vx.v));
+    PetscInt its = 0;
+    TETFSI_PETSC(KSPGetIterationNumber(ksp, &its));
+    TETFSI_PETSC(KSPGetConvergedReason(ksp, &reason));
+    rep.iterations += static_cast<int>(its);
+    rep.residual = true_residual();
+    if (!std::isfinite(rep.residual)) {  // breakdown (NaN/Inf): keep the last finite x
+      x = x_before;                      // same size, so vx still wraps x's buffer
+      rep.residual = true_residual();
+      break;
+    }
+    if (reason < 0 || its == 0) break;
+  }
+  if (rep.residual > opts.rel_tol)
+    logger().debug("{}: not converged after {} iterations (PETSc reason {}), residual {:.3g}", name,
+                   rep.iterations, KSPConvergedReasons[reason], rep.residual);
+}
+
+/// BoomerAMG on the KSP's preconditioner with the `tetfsi_amg_` tuning.
+void use_boomeramg(KSP ksp) {
+  PC pc = nullptr;
+  TETFSI_PETSC(KSPGetPC(ksp, &pc));
+  TETFSI_PETSC(PCSetType(pc, PCHYPRE));
+  TETFSI_PETSC(PCHYPRESetType(pc, "boomeramg"));
+}
+
 // ---- the solver ------------------------------------------------------------------------------
 
 class PetscAmgSolver final : public LinearSolver {
@@ -235,38 +278,9 @@ class PetscAmgSolver final : public LinearSolver {
   }
 
  private:
-  /// KSPSolve with restarts; fills rep.iterations and rep.residual.
   void krylov(const VecX& b, VecX& x, SolveReport& rep) {
-    const Index n = static_cast<Index>(b.size());
-    const double bnorm = b.norm();
-    auto true_residual = [&] { return (b - m_csr * x).norm() / bnorm; };
-    WrappedVec vb(n, b.data());
-    WrappedVec vx(n, x.data());
-    rep.residual = true_residual();
-    KSPConvergedReason reason = KSP_CONVERGED_ITERATING;
-    // Restart when PETSc's recursively updated residual met the tolerance but the true one
-    // did not (rare; a few restarts at most).
-    for (int round = 0; round <= 5; ++round) {
-      const int left = m_opts.max_iterations - rep.iterations;
-      if (rep.residual <= m_opts.rel_tol || left <= 0) break;
-      TETFSI_PETSC(KSPSetTolerances(m_ksp, m_opts.rel_tol, 0.0, PETSC_DEFAULT, left));
-      const VecX x_before = x;
-      TETFSI_PETSC(KSPSolve(m_ksp, vb.v, vx.v));
-      PetscInt its = 0;
-      TETFSI_PETSC(KSPGetIterationNumber(m_ksp, &its));
-      TETFSI_PETSC(KSPGetConvergedReason(m_ksp, &reason));
-      rep.iterations += static_cast<int>(its);
-      rep.residual = true_residual();
-      if (!std::isfinite(rep.residual)) {  // breakdown (NaN/Inf): keep the last finite x
-        x = x_before;                      // same size, so vx still wraps x's buffer
-        rep.residual = true_residual();
-        break;
-      }
-      if (reason < 0 || its == 0) break;
-    }
-    if (rep.residual > m_opts.rel_tol)
-      logger().debug("{}: not converged after {} iterations (PETSc reason {}), residual {:.3g}",
-                     name(), rep.iterations, KSPConvergedReasons[reason], rep.residual);
+    krylov_with_restarts(m_ksp, b, x, m_opts, name(), rep,
+                         [&] { return (b - m_csr * x).norm() / b.norm(); });
   }
 
   /// Prefix of this solver's options in PETSc's database (see init_petsc_once).
@@ -292,12 +306,133 @@ class PetscAmgSolver final : public LinearSolver {
   double m_setup_s = 0.0;
 };
 
+// ---- CG on a shell operator, BoomerAMG on an approximation -----------------------------------
+
+class PetscOperatorSolver final : public OperatorSolver {
+ public:
+  explicit PetscOperatorSolver(const SolverOptions& opts) : m_opts(opts) { ensure_petsc(); }
+  PetscOperatorSolver(const PetscOperatorSolver&) = delete;
+  PetscOperatorSolver& operator=(const PetscOperatorSolver&) = delete;
+  ~PetscOperatorSolver() override { release(); }
+
+  void setup(Index n, LinearOperator S, const SparseMatrix& P) override {
+    const double t0 = now_seconds();
+    release();
+    try {
+      TETFSI_REQUIRE(SolverError, n > 0 && P.rows() == n && P.cols() == n,
+                     "amg_operator: need an n x n preconditioning matrix, got {} x {} for n = {}",
+                     P.rows(), P.cols(), n);
+      m_n = n;
+      m_op = std::move(S);
+      m_csr = P;
+      m_csr.makeCompressed();
+      TETFSI_PETSC(MatCreateSeqAIJWithArrays(PETSC_COMM_SELF, n, n, m_csr.outerIndexPtr(),
+                                             m_csr.innerIndexPtr(), m_csr.valuePtr(), &m_pmat));
+      TETFSI_PETSC(MatSetOption(m_pmat, MAT_SYMMETRIC, PETSC_TRUE));
+      TETFSI_PETSC(MatSetOption(m_pmat, MAT_SPD, PETSC_TRUE));
+      TETFSI_PETSC(MatCreateShell(PETSC_COMM_SELF, n, n, n, n, this, &m_shell));
+      TETFSI_PETSC(
+          MatShellSetOperation(m_shell, MATOP_MULT, reinterpret_cast<void (*)(void)>(&shell_mult)));
+      TETFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &m_ksp));
+      TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, "tetfsi_amg_"));
+      TETFSI_PETSC(KSPSetOperators(m_ksp, m_shell, m_pmat));
+      TETFSI_PETSC(KSPSetType(m_ksp, KSPCG));
+      TETFSI_PETSC(KSPSetNormType(m_ksp, KSP_NORM_UNPRECONDITIONED));
+      TETFSI_PETSC(KSPSetInitialGuessNonzero(m_ksp, PETSC_TRUE));
+      use_boomeramg(m_ksp);
+      TETFSI_PETSC(KSPSetFromOptions(m_ksp));
+      TETFSI_PETSC(KSPSetUp(m_ksp));
+    } catch (const SolverError& e) {
+      release();
+      throw SolverError(fmt::format("amg_operator: {}", e.what()));
+    }
+    m_setup_s = now_seconds() - t0;
+  }
+
+  SolveReport solve(const VecX& b, VecX& x) override {
+    TETFSI_CHECK(m_ksp != nullptr, "amg_operator: solve() called before setup()");
+    TETFSI_CHECK(b.size() == m_n, "amg_operator: right-hand side has length {}, operator is {}",
+                 b.size(), m_n);
+    const double t0 = now_seconds();
+    SolveReport rep{"amg_operator", true, 0, 0.0, m_setup_s, 0.0};
+    if (x.size() != m_n || !x.allFinite()) x = VecX::Zero(m_n);
+    const double bnorm = b.norm();
+    if (bnorm == 0.0) {
+      x.setZero();
+      rep.solve_s = now_seconds() - t0;
+      return rep;
+    }
+    VecX y(m_n);
+    try {
+      krylov_with_restarts(m_ksp, b, x, m_opts, "amg_operator", rep, [&] {
+        m_op(x, y);
+        return (b - y).norm() / bnorm;
+      });
+    } catch (const SolverError& e) {
+      throw SolverError(fmt::format("amg_operator: {}", e.what()));
+    }
+    rep.converged = rep.residual <= m_opts.rel_tol;
+    rep.solve_s = now_seconds() - t0;
+    return rep;
+  }
+
+ private:
+  static PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
+    void* ctx = nullptr;
+    PetscErrorCode ierr = MatShellGetContext(A, &ctx);
+    if (ierr) return ierr;
+    auto* self = static_cast<PetscOperatorSolver*>(ctx);
+    const PetscScalar* xa = nullptr;
+    PetscScalar* ya = nullptr;
+    ierr = VecGetArrayRead(x, &xa);
+    if (ierr) return ierr;
+    ierr = VecGetArray(y, &ya);
+    if (ierr) return ierr;
+    try {
+      self->m_x = Eigen::Map<const VecX>(xa, self->m_n);
+      self->m_op(self->m_x, self->m_y);
+      Eigen::Map<VecX>(ya, self->m_n) = self->m_y;
+    } catch (...) {
+      VecRestoreArray(y, &ya);
+      VecRestoreArrayRead(x, &xa);
+      return PETSC_ERR_LIB;
+    }
+    ierr = VecRestoreArray(y, &ya);
+    if (ierr) return ierr;
+    return VecRestoreArrayRead(x, &xa);
+  }
+
+  void release() {
+    if (!petsc_finalized()) {
+      if (m_ksp) KSPDestroy(&m_ksp);
+      if (m_shell) MatDestroy(&m_shell);
+      if (m_pmat) MatDestroy(&m_pmat);
+    }
+    m_ksp = nullptr;
+    m_shell = nullptr;
+    m_pmat = nullptr;
+  }
+
+  SolverOptions m_opts;
+  Index m_n = 0;
+  LinearOperator m_op;
+  VecX m_x, m_y;  ///< shell product buffers
+  Eigen::SparseMatrix<double, Eigen::RowMajor, Index> m_csr;
+  Mat m_pmat = nullptr, m_shell = nullptr;
+  KSP m_ksp = nullptr;
+  double m_setup_s = 0.0;
+};
+
 }  // namespace
 
 std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOptions& opts) {
   TETFSI_CHECK(kind == SolverKind::Amg || kind == SolverKind::AmgGamg,
                "make_petsc_solver: {} is not a PETSc backend", to_string(kind));
   return std::make_unique<PetscAmgSolver>(kind, opts);
+}
+
+std::unique_ptr<OperatorSolver> make_petsc_operator_solver(const SolverOptions& opts) {
+  return std::make_unique<PetscOperatorSolver>(opts);
 }
 
 }  // namespace tetfsi::detail

@@ -41,10 +41,18 @@ using Triplet = Eigen::Triplet<double, Index>;
 using Triplets = std::vector<Triplet>;
 
 /// View an n × 3 row-major array as a flat interleaved vector of length 3n (no copy).
-inline Eigen::Map<VecX> flat(MatX3& m) { return {m.data(), m.size()}; }
-inline Eigen::Map<const VecX> flat(const MatX3& m) { return {m.data(), m.size()}; }
+inline Eigen::Map<VecX> flat(MatX3& m) {
+  return {m.data(), m.size()};
+}
+inline Eigen::Map<const VecX> flat(const MatX3& m) {
+  return {m.data(), m.size()};
+}
 /// View a flat interleaved vector of length 3n as n × 3 (no copy).
-inline Eigen::Map<MatX3> as_nodes(VecX& v) { return {v.data(), v.size() / 3, 3}; }
-inline Eigen::Map<const MatX3> as_nodes(const VecX& v) { return {v.data(), v.size() / 3, 3}; }
+inline Eigen::Map<MatX3> as_nodes(VecX& v) {
+  return {v.data(), v.size() / 3, 3};
+}
+inline Eigen::Map<const MatX3> as_nodes(const VecX& v) {
+  return {v.data(), v.size() / 3, 3};
+}
 
 }  // namespace tetfsi

@@ -44,8 +44,7 @@ VecX effective_dual_lengths(const TetMesh& m, double min_dual_fraction) {
 }
 
 VecX net_flux(const TetMesh& m, const VecX& u) {
-  TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(),
-               m.num_faces());
+  TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(), m.num_faces());
   const Index nt = m.num_tets();
   VecX r(nt);
   for (Index t = 0; t < nt; ++t) {
@@ -172,6 +171,93 @@ GroupLists group_lists(const TetMesh& m, const PressureGroups& g) {
 
 }  // namespace
 
+Index apply_pressure_gradient(const TetMesh& m, const VecX& d_eff, const PressureGroups& groups,
+                              const VecX& q, const VecX& q_open, VecX& u, const VecX* cell_source) {
+  const Index nt = m.num_tets(), nf = m.num_faces();
+  const Index ng = groups.count;
+  TETFSI_CHECK(q.size() == nt && u.size() == nf,
+               "apply_pressure_gradient: q has {} of {}, u {} of {}", q.size(), nt, u.size(), nf);
+  const bool has_q_open = q_open.size() == nf;
+  Index internal = 0;
+
+  // u = u* − G q on the faces between groups and on Open faces [Chentanez06, Eq. (2)];
+  // the least-squares gradient of each group from those faces (A_f n nᵀ g = A_f n (Gq)_f).
+  std::vector<Mat3> nn(static_cast<size_t>(ng), Mat3::Zero());
+  MatX3 rhs = MatX3::Zero(ng, 3);
+  for (Index f = 0; f < nf; ++f) {
+    const Index t1 = m.face_tets(f, 0), t2 = m.face_tets(f, 1);
+    double gq;
+    if (t2 >= 0) {
+      if (groups.cell_group[t1] == groups.cell_group[t2]) continue;
+      gq = (q[t2] - q[t1]) / d_eff[f];
+    } else if (m.face_kind[f] == FaceKind::Open) {
+      gq = ((has_q_open ? q_open[f] : 0.0) - q[t1]) / d_eff[f];
+    } else {
+      continue;
+    }
+    u[f] -= gq;
+    const Vec3 n = m.face_normals.row(f).transpose();
+    const Mat3 a_nn = m.face_areas[f] * n * n.transpose();
+    const Vec3 a_n = m.face_areas[f] * gq * n;
+    for (const Index t : {t1, t2}) {
+      if (t < 0) continue;
+      nn[groups.cell_group[t]] += a_nn;
+      rhs.row(groups.cell_group[t]) += a_n.transpose();
+    }
+  }
+  // Internal faces of groups: u_f −= n_f · ∇q_g, then the smallest correction that makes each
+  // cell of the group divergence-free (operators.hpp).
+  const GroupLists L = group_lists(m, groups);
+  VecX cell_flux = net_flux(m, u);  // updated below per group
+  std::vector<Index> local(static_cast<size_t>(nt), -1);
+  for (Index k = 0; k < ng; ++k) {
+    const Index c0 = L.cell_start[k], c1 = L.cell_start[k + 1];
+    const Index f0 = L.face_start[k], f1 = L.face_start[k + 1];
+    if (f1 == f0) continue;
+    internal += f1 - f0;
+    // Least-squares gradient (pseudo-inverse over the well-determined directions).
+    Eigen::SelfAdjointEigenSolver<Mat3> es(nn[k]);
+    Vec3 grad = Vec3::Zero();
+    const double tr = nn[k].trace();
+    for (int i = 0; i < 3; ++i)
+      if (tr > 0 && es.eigenvalues()[i] > 1e-6 * tr)
+        grad += es.eigenvectors().col(i) *
+                (es.eigenvectors().col(i).dot(rhs.row(k).transpose()) / es.eigenvalues()[i]);
+    for (Index i = f0; i < f1; ++i) {
+      const Index f = L.faces[i];
+      const double du = m.face_normals.row(f).dot(grad.transpose());
+      u[f] -= du;
+      cell_flux[m.face_tets(f, 0)] -= m.face_areas[f] * du;
+      cell_flux[m.face_tets(f, 1)] += m.face_areas[f] * du;
+    }
+    // Correction δ_f = λ_t2 − λ_t1 with K λ = r (K: Laplacian of the group with weights A_f,
+    // r: each cell's net outward flux); λ of the group's first cell pinned to 0.
+    const Index n = c1 - c0;
+    for (Index i = c0; i < c1; ++i) local[L.cells[i]] = i - c0;
+    Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n, n);
+    Eigen::VectorXd r(n);
+    for (Index i = c0; i < c1; ++i)
+      r[i - c0] = cell_flux[L.cells[i]] - (cell_source ? (*cell_source)[L.cells[i]] : 0.0);
+    for (Index i = f0; i < f1; ++i) {
+      const Index f = L.faces[i];
+      const Index a = local[m.face_tets(f, 0)], c = local[m.face_tets(f, 1)];
+      const double w = m.face_areas[f];
+      K(a, a) += w;
+      K(c, c) += w;
+      K(a, c) -= w;
+      K(c, a) -= w;
+    }
+    Eigen::VectorXd lambda = Eigen::VectorXd::Zero(n);
+    if (n > 1) lambda.tail(n - 1) = K.bottomRightCorner(n - 1, n - 1).ldlt().solve(r.tail(n - 1));
+    for (Index i = f0; i < f1; ++i) {
+      const Index f = L.faces[i];
+      u[f] += lambda[local[m.face_tets(f, 1)]] - lambda[local[m.face_tets(f, 0)]];
+    }
+    for (Index i = c0; i < c1; ++i) local[L.cells[i]] = -1;
+  }
+  return internal;
+}
+
 ProjectionReport project(const TetMesh& m, double min_dual_fraction, const VecX& q_open, VecX& u,
                          VecX& q, LinearSolver& solver) {
   ProjectionReport rep;
@@ -238,82 +324,7 @@ ProjectionReport project(const TetMesh& m, double min_dual_fraction, const VecX&
   t0 = now_seconds();
   q.resize(nt);
   for (Index t = 0; t < nt; ++t) q[t] = qg[groups.cell_group[t]];
-
-  // u = u* − G q on the faces between groups and on Open faces [Chentanez06, Eq. (2)];
-  // the least-squares gradient of each group from those faces (A_f n nᵀ g = A_f n (Gq)_f).
-  std::vector<Mat3> nn(static_cast<size_t>(ng), Mat3::Zero());
-  MatX3 rhs = MatX3::Zero(ng, 3);
-  for (Index f = 0; f < nf; ++f) {
-    const Index t1 = m.face_tets(f, 0), t2 = m.face_tets(f, 1);
-    double gq;
-    if (t2 >= 0) {
-      if (groups.cell_group[t1] == groups.cell_group[t2]) continue;
-      gq = (q[t2] - q[t1]) / d_eff[f];
-    } else if (m.face_kind[f] == FaceKind::Open) {
-      gq = ((has_q_open ? q_open[f] : 0.0) - q[t1]) / d_eff[f];
-    } else {
-      continue;
-    }
-    u[f] -= gq;
-    const Vec3 n = m.face_normals.row(f).transpose();
-    const Mat3 a_nn = m.face_areas[f] * n * n.transpose();
-    const Vec3 a_n = m.face_areas[f] * gq * n;
-    for (const Index t : {t1, t2}) {
-      if (t < 0) continue;
-      nn[groups.cell_group[t]] += a_nn;
-      rhs.row(groups.cell_group[t]) += a_n.transpose();
-    }
-  }
-  // Internal faces of groups: u_f −= n_f · ∇q_g, then the smallest correction that makes each
-  // cell of the group divergence-free (operators.hpp).
-  const GroupLists L = group_lists(m, groups);
-  VecX cell_flux = net_flux(m, u);  // updated below per group
-  std::vector<Index> local(static_cast<size_t>(nt), -1);
-  for (Index k = 0; k < ng; ++k) {
-    const Index c0 = L.cell_start[k], c1 = L.cell_start[k + 1];
-    const Index f0 = L.face_start[k], f1 = L.face_start[k + 1];
-    if (f1 == f0) continue;
-    rep.internal_faces += f1 - f0;
-    // Least-squares gradient (pseudo-inverse over the well-determined directions).
-    Eigen::SelfAdjointEigenSolver<Mat3> es(nn[k]);
-    Vec3 grad = Vec3::Zero();
-    const double tr = nn[k].trace();
-    for (int i = 0; i < 3; ++i)
-      if (tr > 0 && es.eigenvalues()[i] > 1e-6 * tr)
-        grad += es.eigenvectors().col(i) *
-                (es.eigenvectors().col(i).dot(rhs.row(k).transpose()) / es.eigenvalues()[i]);
-    for (Index i = f0; i < f1; ++i) {
-      const Index f = L.faces[i];
-      const double du = m.face_normals.row(f).dot(grad.transpose());
-      u[f] -= du;
-      cell_flux[m.face_tets(f, 0)] -= m.face_areas[f] * du;
-      cell_flux[m.face_tets(f, 1)] += m.face_areas[f] * du;
-    }
-    // Correction δ_f = λ_t2 − λ_t1 with K λ = r (K: Laplacian of the group with weights A_f,
-    // r: each cell's net outward flux); λ of the group's first cell pinned to 0.
-    const Index n = c1 - c0;
-    for (Index i = c0; i < c1; ++i) local[L.cells[i]] = i - c0;
-    Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n, n);
-    Eigen::VectorXd r(n);
-    for (Index i = c0; i < c1; ++i) r[i - c0] = cell_flux[L.cells[i]];
-    for (Index i = f0; i < f1; ++i) {
-      const Index f = L.faces[i];
-      const Index a = local[m.face_tets(f, 0)], c = local[m.face_tets(f, 1)];
-      const double w = m.face_areas[f];
-      K(a, a) += w;
-      K(c, c) += w;
-      K(a, c) -= w;
-      K(c, a) -= w;
-    }
-    Eigen::VectorXd lambda = Eigen::VectorXd::Zero(n);
-    if (n > 1)
-      lambda.tail(n - 1) = K.bottomRightCorner(n - 1, n - 1).ldlt().solve(r.tail(n - 1));
-    for (Index i = f0; i < f1; ++i) {
-      const Index f = L.faces[i];
-      u[f] += lambda[local[m.face_tets(f, 1)]] - lambda[local[m.face_tets(f, 0)]];
-    }
-    for (Index i = c0; i < c1; ++i) local[L.cells[i]] = -1;
-  }
+  rep.internal_faces = apply_pressure_gradient(m, d_eff, groups, q, q_open, u);
   rep.assembly_s += now_seconds() - t0;
   rep.divergence_after = nt > 0 ? divergence(m, u).cwiseAbs().maxCoeff() : 0.0;
   return rep;

@@ -75,6 +75,17 @@ PressureGroups pressure_groups(const mesh::TetMesh& m, double min_dual_fraction)
 SparseMatrix pressure_matrix(const mesh::TetMesh& m, const VecX& d_eff, const PressureGroups& g,
                              const Regions& regions);
 
+/// u ← u − G q on the faces between groups and on Open faces, and the group-internal faces
+/// as in the file comment, so that every cell's net outward flux becomes its `cell_source`
+/// (m³/s per cell; nullptr: 0, divergence-free) — to the accuracy with which q solves the
+/// pressure equation. On entry u holds u* with every prescribed boundary velocity set (Wall,
+/// Inflow, Solid faces). q: #T cell values (equal within a group); q_open: #F values on Open
+/// faces (may be empty for 0). [Chentanez06, Eq. (8)]
+/// @return the number of group-internal faces
+Index apply_pressure_gradient(const mesh::TetMesh& m, const VecX& d_eff, const PressureGroups& g,
+                              const VecX& q, const VecX& q_open, VecX& u,
+                              const VecX* cell_source = nullptr);
+
 struct ProjectionReport {
   bool converged = false;
   int iterations = 0;
@@ -86,8 +97,8 @@ struct ProjectionReport {
   /// of a closed region, which incompressibility cannot absorb; it is removed (spread over the
   /// region's cells in proportion to volume) before the solve and reported here.
   double incompatibility = 0.0;
-  Index groups = 0;           ///< pressure unknowns (≤ #T)
-  Index internal_faces = 0;   ///< faces inside groups
+  Index groups = 0;          ///< pressure unknowns (≤ #T)
+  Index internal_faces = 0;  ///< faces inside groups
   double assembly_s = 0.0, setup_s = 0.0, solve_s = 0.0;
 };
 

@@ -61,6 +61,10 @@ const char* to_string(Reconstruction r);
 /// The fluid's physics and numerics.
 struct FluidParams {
   double density = 1.2;  ///< ρ (kg/m³): 1.2 for air, 1000 for water
+  /// ρ (kg/m³) of the fluid in enclosed regions: regions bounded only by solid faces, i.e.
+  /// a liquid sealed inside a closed body (a toy, a water balloon) in air. 0: `density`.
+  /// Regions never exchange fluid, so each keeps its own density (cell_fluid_density).
+  double enclosed_density = 0.0;
   /// Gravity acting on the fluid itself (m/s², liquids). For a single-density fluid it is a
   /// pure gradient and is carried by the hydrostatic part of the pressure: p = p_dyn + ρ g·x
   /// (exact; the velocity never sees it). Smoke scenes use buoyancy instead.

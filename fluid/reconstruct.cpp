@@ -1,10 +1,10 @@
 #include "fluid/reconstruct.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <Eigen/Geometry>
 
 #include "core/error.hpp"
 
@@ -41,7 +41,8 @@ MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
       Vec3 x = Vec3::Zero();
       for (int i = 0; i < 3; ++i)
         if (ev[i] > 1e-6 * tr)
-          x += es.eigenvectors().col(i) * (es.eigenvectors().col(i).dot(rhs.row(v).transpose()) / ev[i]);
+          x += es.eigenvectors().col(i) *
+               (es.eigenvectors().col(i).dot(rhs.row(v).transpose()) / ev[i]);
       U.row(v) = x.transpose();
     }
   }
@@ -123,8 +124,7 @@ MatX3 cell_vorticity(const TetMesh& m, const MatX3& U) {
   for (Index t = 0; t < nt; ++t) {
     const auto g = barycentric_gradients(m, t);
     Vec3 c = Vec3::Zero();
-    for (int i = 0; i < 4; ++i)
-      c += g.row(i).transpose().cross(U.row(m.tets(t, i)).transpose());
+    for (int i = 0; i < 4; ++i) c += g.row(i).transpose().cross(U.row(m.tets(t, i)).transpose());
     w.row(t) = c.transpose();
   }
   return w;
@@ -141,8 +141,7 @@ constexpr double kClampMargin = 1.0;
 
 VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kind)
     : m_mesh(&m), m_kind(kind) {
-  TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(),
-               m.num_faces());
+  TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(), m.num_faces());
   if (kind == Reconstruction::VertexLeastSquares) {
     m_values = vertex_least_squares(m, u);
     return;
@@ -156,7 +155,8 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
     double emax2 = 0;
     for (int i = 0; i < 4; ++i)
       for (int j = i + 1; j < 4; ++j)
-        emax2 = std::max(emax2, (m.vertices.row(m.tets(t, i)) - m.vertices.row(m.tets(t, j))).squaredNorm());
+        emax2 = std::max(
+            emax2, (m.vertices.row(m.tets(t, i)) - m.vertices.row(m.tets(t, j))).squaredNorm());
     // A flat cell (volume below 2 % of the regular tet's on its longest edge) amplifies the
     // round-off of its face fluxes by 1/V: it takes the vertex least-squares values instead.
     if (m.volumes[t] < kFlatCellFraction * emax2 * std::sqrt(emax2) / (6.0 * std::sqrt(2.0))) {
@@ -169,7 +169,8 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
       const Index f = m.tet_faces(t, k);
       phi[k] = m.tet_face_signs(t, k) * m.face_areas[f] * u[f];
     }
-    // [Bossavit88] Whitney / RT0: u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k, at x = x_i.
+    // [Bossavit88] Whitney / RT0: u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k, at x
+    // = x_i.
     const double s = 1.0 / (3.0 * m.volumes[t]);
     for (int i = 0; i < 4; ++i) {
       Vec3 v = Vec3::Zero();

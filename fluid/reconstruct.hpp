@@ -4,7 +4,8 @@
 ///  - VertexLeastSquares: at each vertex v, U_v = argmin Σ_{f ∋ v} A_f (n_f · U − u_f)²
 ///    (a 3 × 3 solve; every face around the vertex, boundary faces with their prescribed
 ///    values), then u(x) = Σ_i λ_i U_i inside a tet. Continuous; exact for uniform flow.
-///  - Whitney (RT0) [Bossavit88]: in tet t with vertices x_i and outward fluxes Φ_k = s_tk A_k u_k through
+///  - Whitney (RT0) [Bossavit88]: in tet t with vertices x_i and outward fluxes Φ_k = s_tk A_k u_k
+///  through
 ///    the face opposite x_k, u(x) = Σ_k Φ_k (x − x_k) / (3 V_t). Reproduces every face flux
 ///    exactly and uniform flow exactly; discontinuous between tets. A flat cell (volume below
 ///    2 % of the regular tet on its longest edge — the slivers a remesh can leave against a
@@ -62,9 +63,9 @@ VecX cell_to_vertex(const mesh::TetMesh& m, const VecX& cell_values);
 
 /// Vertex values of a cell field for continuous linear interpolation (#V): at each vertex v
 /// the linear least-squares fit c ≈ a + g · (x̄_t − x_v) over the cells around v (weights
-/// V_t), a taken and clamped to the min/max of those cells (the clamp of [Selle08]); where the fit is not determined
-/// (fewer than 4 cells, or centroids in a plane) the volume-weighted mean. Exact for linear
-/// fields, so interpolating it diffuses only the curvature of a field (the plain mean of
+/// V_t), a taken and clamped to the min/max of those cells (the clamp of [Selle08]); where the fit
+/// is not determined (fewer than 4 cells, or centroids in a plane) the volume-weighted mean. Exact
+/// for linear fields, so interpolating it diffuses only the curvature of a field (the plain mean of
 /// cell_to_vertex also flattens its slopes); the clamp and the barycentric interpolation
 /// make no new extrema. (A per-cell clamped linear reconstruction kept fronts sharper but
 /// left cell-to-cell speckle in the smoke.)

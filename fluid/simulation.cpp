@@ -31,6 +31,9 @@ void check_params(const FluidParams& p) {
   TETFSI_REQUIRE(InputError, std::isfinite(p.density) && p.density > 0,
                  "fluid density must be positive, got {}", p.density);
   TETFSI_REQUIRE(InputError, p.gravity.allFinite(), "fluid gravity must be finite");
+  TETFSI_REQUIRE(InputError, std::isfinite(p.enclosed_density) && p.enclosed_density >= 0,
+                 "fluid enclosed_density must be >= 0 (0: the fluid's density), got {}",
+                 p.enclosed_density);
   TETFSI_REQUIRE(InputError, p.up.allFinite() && std::abs(p.up.norm() - 1.0) < 1e-9,
                  "fluid 'up' must be a unit vector");
   TETFSI_REQUIRE(InputError, finite_nonneg(p.buoyancy_alpha) && finite_nonneg(p.buoyancy_beta),
@@ -45,8 +48,10 @@ void check_params(const FluidParams& p) {
                  "min_dual_fraction must be in (0, 1), got {}", p.min_dual_fraction);
 }
 
-/// Hydrostatic part ρ g·x of the total pressure at x (liquids; 0 if gravity is 0).
-double hydrostatic(const FluidParams& p, const Vec3& x) { return p.density * p.gravity.dot(x); }
+/// Hydrostatic part ρ g·x of the total pressure at x in the outer fluid (Open faces).
+double hydrostatic(const FluidParams& p, const Vec3& x) {
+  return hydrostatic_pressure(p.density, p.gravity, x);
+}
 
 }  // namespace
 
@@ -152,22 +157,38 @@ void FluidSimulation::initialize(TetMesh m) {
   Impl& I = *m_impl;
   I.state = FluidState::at_rest(m, I.params.ambient_temperature);
   I.apply_sources(m, I.state);
+  const VecX rho = cell_fluid_density(m, I.params);
   for (Index t = 0; t < m.num_tets(); ++t)
-    I.state.p[t] = hydrostatic(I.params, m.circumcentres.row(t).transpose());
+    I.state.p[t] =
+        hydrostatic_pressure(rho[t], I.params.gravity, m.circumcentres.row(t).transpose());
   I.mesh = std::move(m);
   I.time = 0.0;
   I.initialized = true;
 }
 
-FluidStepReport FluidSimulation::step(TetMesh nm, double h,
-                                      const std::vector<SolidSurfaceMotion>& solids,
-                                      PhaseTimes& phases) {
-  Impl& I = *m_impl;
-  TETFSI_CHECK(I.initialized, "FluidSimulation::step before initialize");
+VecX cell_fluid_density(const TetMesh& m, const FluidParams& p) {
+  VecX rho = VecX::Constant(m.num_tets(), p.density);
+  if (!(p.enclosed_density > 0) || p.enclosed_density == p.density) return rho;
+  const Regions regions = fluid_regions(m);
+  std::vector<bool> enclosed(static_cast<size_t>(regions.count()), true);
+  for (Index f = 0; f < m.num_faces(); ++f)
+    if (m.is_boundary(f) && m.face_kind[f] != FaceKind::Solid)
+      enclosed[regions.cell_region[m.face_tets(f, 0)]] = false;
+  for (Index t = 0; t < m.num_tets(); ++t)
+    if (enclosed[regions.cell_region[t]]) rho[t] = p.enclosed_density;
+  return rho;
+}
+
+FluidPrediction FluidSimulation::predict(TetMesh nm, double h,
+                                         const std::vector<SolidSurfaceMotion>& solids,
+                                         PhaseTimes& phases) const {
+  const Impl& I = *m_impl;
+  TETFSI_CHECK(I.initialized, "FluidSimulation::predict before initialize");
   TETFSI_REQUIRE(InputError, std::isfinite(h) && h > 0, "fluid step: dt must be positive, got {}",
                  h);
   const FluidParams& P = I.params;
-  FluidStepReport rep;
+  FluidPrediction pred;
+  pred.h = h;
   FluidState s;
   {
     ScopedTimer timer(phases, "transfer");
@@ -186,15 +207,15 @@ FluidStepReport FluidSimulation::step(TetMesh nm, double h,
     s.u = std::move(out.u);
     s.density = std::move(out.density);
     s.temperature = std::move(out.temperature);
-    rep.traces_clamped = out.clamped;
+    pred.traces_clamped = out.clamped;
   }
   {
     ScopedTimer timer(phases, "forces");
     if (P.smoke_decay > 0) s.density *= std::exp(-P.smoke_decay * h);
     if (P.temperature_decay > 0)
-      s.temperature = (s.temperature.array() - P.ambient_temperature) *
-                          std::exp(-P.temperature_decay * h) +
-                      P.ambient_temperature;
+      s.temperature =
+          (s.temperature.array() - P.ambient_temperature) * std::exp(-P.temperature_decay * h) +
+          P.ambient_temperature;
     I.apply_sources(nm, s);
     if (P.buoyancy_alpha > 0 || P.buoyancy_beta > 0)
       add_cell_acceleration(nm, buoyancy(P, s.density, s.temperature), h, s.u);
@@ -203,32 +224,69 @@ FluidStepReport FluidSimulation::step(TetMesh nm, double h,
       add_cell_acceleration(nm, vorticity_confinement(nm, U, P.vorticity_confinement), h, s.u);
     }
     I.apply_boundary_velocity(nm, solids, s.u);
+    pred.rho = cell_fluid_density(nm, P);
+    pred.p_open = I.open_q(nm, h) * (P.density / h);
   }
+  pred.u_star = std::move(s.u);
+  pred.density = std::move(s.density);
+  pred.temperature = std::move(s.temperature);
+  pred.mesh = std::move(nm);
+  return pred;
+}
+
+FluidStepReport FluidSimulation::step(TetMesh nm, double h,
+                                      const std::vector<SolidSurfaceMotion>& solids,
+                                      PhaseTimes& phases) {
+  Impl& I = *m_impl;
+  const FluidParams& P = I.params;
+  FluidPrediction pred = predict(std::move(nm), h, solids, phases);
   I.ensure_solver();
   VecX q;
-  ProjectionReport pr;
-  {
-    const VecX qo = I.open_q(nm, h);
-    pr = project(nm, P.min_dual_fraction, qo, s.u, q, *I.solver);
-  }
+  VecX u = pred.u_star;
+  const VecX qo = pred.p_open * (h / P.density);
+  const ProjectionReport pr = project(pred.mesh, P.min_dual_fraction, qo, u, q, *I.solver);
   phases.add("assembly", pr.assembly_s);
   phases.add("solve", pr.setup_s + pr.solve_s);
   if (!pr.converged)
     logger().warn("fluid pressure solve did not converge: {} iterations, residual {:.3g}",
                   pr.iterations, pr.residual);
-  TETFSI_REQUIRE(SolverError, s.u.allFinite() && s.density.allFinite() && s.temperature.allFinite(),
+  // q = h p / ρ per region (the pressure matrix has no entries between regions).
+  const VecX p_dyn = q.cwiseProduct(pred.rho) / h;
+  TETFSI_REQUIRE(SolverError, u.allFinite() && p_dyn.allFinite(),
                  "fluid state became non-finite at t = {:.6g} s (pressure solve residual {:.3g}); "
                  "reduce time.dt",
                  I.time + h, pr.residual);
-  s.p = q * (P.density / h);
-  for (Index t = 0; t < nm.num_tets(); ++t)
-    s.p[t] += hydrostatic(P, nm.circumcentres.row(t).transpose());
-
+  FluidStepReport rep = commit(std::move(pred), std::move(u), p_dyn);
   rep.converged = pr.converged;
   rep.iterations = pr.iterations;
   rep.residual = pr.residual;
   rep.divergence_before = pr.divergence_before;
   rep.divergence_after = pr.divergence_after;
+  return rep;
+}
+
+FluidStepReport FluidSimulation::commit(FluidPrediction pred, VecX u, VecX p_dyn) {
+  Impl& I = *m_impl;
+  const FluidParams& P = I.params;
+  TetMesh& nm = pred.mesh;
+  TETFSI_CHECK(u.size() == nm.num_faces() && p_dyn.size() == nm.num_tets(),
+               "commit: u has {} of {} faces, p {} of {} cells", u.size(), nm.num_faces(),
+               p_dyn.size(), nm.num_tets());
+  TETFSI_REQUIRE(SolverError,
+                 u.allFinite() && p_dyn.allFinite() && pred.density.allFinite() &&
+                     pred.temperature.allFinite(),
+                 "fluid state became non-finite at t = {:.6g} s; reduce time.dt", I.time + pred.h);
+  const double h = pred.h;
+  FluidStepReport rep;
+  rep.traces_clamped = pred.traces_clamped;
+  FluidState s;
+  s.u = std::move(u);
+  s.density = std::move(pred.density);
+  s.temperature = std::move(pred.temperature);
+  s.p = std::move(p_dyn);
+  for (Index t = 0; t < nm.num_tets(); ++t)
+    s.p[t] += hydrostatic_pressure(pred.rho[t], P.gravity, nm.circumcentres.row(t).transpose());
+  rep.divergence_after = nm.num_tets() ? divergence(nm, s.u).cwiseAbs().maxCoeff() : 0.0;
   I.mesh = std::move(nm);
   I.state = std::move(s);
   I.time += h;
@@ -237,17 +295,24 @@ FluidStepReport FluidSimulation::step(TetMesh nm, double h,
   const MatX3 uc = cell_velocities();
   const VecX speed = uc.rowwise().norm();
   const VecX dx = cell_sizes(m);
-  rep.kinetic_energy = 0.5 * P.density * (m.volumes.array() * speed.array().square()).sum();
+  rep.kinetic_energy = 0.5 * (m.volumes.array() * pred.rho.array() * speed.array().square()).sum();
   rep.smoke_mass = m.volumes.dot(I.state.density);
   rep.max_speed = I.state.u.size() ? I.state.u.cwiseAbs().maxCoeff() : 0.0;
   rep.cfl = m.num_tets() ? (h * speed.array() / dx.array()).maxCoeff() : 0.0;
   for (Index f = 0; f < m.num_faces(); ++f) {
     const double q_f = m.face_areas[f] * I.state.u[f];
     switch (m.face_kind[f]) {
-      case FaceKind::Inflow: rep.inflow_flux -= q_f; break;
-      case FaceKind::Open: rep.outflow_flux += q_f; break;
-      case FaceKind::Solid: rep.solid_flux += q_f; break;
-      default: break;
+      case FaceKind::Inflow:
+        rep.inflow_flux -= q_f;
+        break;
+      case FaceKind::Open:
+        rep.outflow_flux += q_f;
+        break;
+      case FaceKind::Solid:
+        rep.solid_flux += q_f;
+        break;
+      default:
+        break;
     }
   }
   return rep;
@@ -262,25 +327,37 @@ void FluidSimulation::set_state(FluidState s) {
                  "({} faces, {} cells)",
                  s.u.size(), s.p.size(), s.density.size(), s.temperature.size(), m.num_faces(),
                  m.num_tets());
-  TETFSI_REQUIRE(InputError,
-                 s.u.allFinite() && s.p.allFinite() && s.density.allFinite() &&
-                     s.temperature.allFinite(),
-                 "fluid state has non-finite values");
+  TETFSI_REQUIRE(
+      InputError,
+      s.u.allFinite() && s.p.allFinite() && s.density.allFinite() && s.temperature.allFinite(),
+      "fluid state has non-finite values");
   m_impl->state = std::move(s);
 }
 
-const TetMesh& FluidSimulation::mesh() const { return m_impl->mesh; }
-const FluidState& FluidSimulation::state() const { return m_impl->state; }
-const FluidParams& FluidSimulation::params() const { return m_impl->params; }
-double FluidSimulation::time() const { return m_impl->time; }
+const TetMesh& FluidSimulation::mesh() const {
+  return m_impl->mesh;
+}
+const FluidState& FluidSimulation::state() const {
+  return m_impl->state;
+}
+const FluidParams& FluidSimulation::params() const {
+  return m_impl->params;
+}
+double FluidSimulation::time() const {
+  return m_impl->time;
+}
 
 VelocityField FluidSimulation::velocity_field() const {
   return VelocityField(m_impl->mesh, m_impl->state.u, m_impl->params.reconstruction);
 }
 
-MatX3 FluidSimulation::cell_velocities() const { return velocity_field().cell_velocities(); }
+MatX3 FluidSimulation::cell_velocities() const {
+  return velocity_field().cell_velocities();
+}
 
-MatX3 FluidSimulation::vertex_velocities() const { return velocity_field().vertex_velocities(); }
+MatX3 FluidSimulation::vertex_velocities() const {
+  return velocity_field().vertex_velocities();
+}
 
 VecX FluidSimulation::vorticity_magnitude() const {
   return velocity_field().vorticity_magnitude();

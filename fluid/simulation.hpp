@@ -53,6 +53,30 @@ struct FluidStepReport {
   Index traces_clamped = 0;        ///< back-traces stopped at a wall / solid / the box
 };
 
+/// The fluid's part of a step up to its pressure (DESIGN.md §2 steps 3–4) on the new mesh:
+/// the intermediate velocity v* with every prescribed boundary velocity set, ready for a
+/// projection — FluidSimulation's own, or the simultaneous coupled solve [Chentanez06,
+/// Eq. (7)], which replaces the Solid faces of deformable bodies by H uⁿ⁺¹.
+struct FluidPrediction {
+  mesh::TetMesh mesh;
+  double h = 0.0;
+  VecX u_star;       ///< #F v*: Wall 0, Inflow −speed, Solid faces n_f · Σ w_a v_a (`solids`)
+  VecX density;      ///< #T smoke density after transfer, decay and sources
+  VecX temperature;  ///< #T
+  VecX rho;          ///< #T fluid density per cell (cell_fluid_density)
+  VecX p_open;       ///< #F dynamic pressure prescribed on Open faces (Pa), 0 elsewhere
+  Index traces_clamped = 0;
+};
+
+/// The fluid density of every cell (#T, kg/m³): `enclosed_density` in regions bounded only by
+/// Solid faces when it is set, `density` elsewhere.
+VecX cell_fluid_density(const mesh::TetMesh& m, const FluidParams& p);
+
+/// Hydrostatic part ρ g·x of a liquid's pressure (Pa) at x (0 if the fluid has no gravity).
+inline double hydrostatic_pressure(double rho, const Vec3& gravity, const Vec3& x) {
+  return rho * gravity.dot(x);
+}
+
 /// A function "desired edge length at x" for mesh::Sizing::refine (≤ 0: no request).
 using RefineField = std::function<double(const Vec3&)>;
 
@@ -80,6 +104,17 @@ class FluidSimulation {
   ///   the simulation then keeps its previous mesh and state.
   FluidStepReport step(mesh::TetMesh new_mesh, double h,
                        const std::vector<SolidSurfaceMotion>& solids, PhaseTimes& phases);
+
+  /// Steps 1–2 of `step` only (transfer, forces, sources, boundary values), for a projection
+  /// done elsewhere (coupling/). Phases "transfer" and "forces". The simulation is unchanged.
+  FluidPrediction predict(mesh::TetMesh new_mesh, double h,
+                          const std::vector<SolidSurfaceMotion>& solids, PhaseTimes& phases) const;
+  /// End a step from `pred` with the projected face velocities u (#F) and the dynamic
+  /// pressure p_dyn (#T, Pa; the hydrostatic part ρ g·x is added here): the new mesh and
+  /// state, time += h. Fills the report's diagnostics (energy, fluxes, CFL, smoke mass); the
+  /// solve fields are the caller's.
+  /// @throws SolverError if u or p_dyn is not finite (the simulation is then unchanged).
+  FluidStepReport commit(FluidPrediction pred, VecX u, VecX p_dyn);
 
   /// Replace the state on the current mesh (e.g. an initial velocity field; tests).
   /// @throws InputError if a size does not match the mesh or a value is not finite.

@@ -66,10 +66,10 @@ struct TransferInput {
 };
 
 struct TransferOutput {
-  VecX u;            ///< #F_new: n_f · u_old(x_back) on every face
-  VecX density;      ///< #T_new
-  VecX temperature;  ///< #T_new
-  Index clamped = 0;       ///< traces stopped at the fluid boundary
+  VecX u;             ///< #F_new: n_f · u_old(x_back) on every face
+  VecX density;       ///< #T_new
+  VecX temperature;   ///< #T_new
+  Index clamped = 0;  ///< traces stopped at the fluid boundary
 };
 
 /// Advect the old state by h onto `new_mesh` (see the file comment).
