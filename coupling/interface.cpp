@@ -66,7 +66,8 @@ SparseMatrix build_H(const TetMesh& m, const std::vector<BodyInterface>& bodies)
   for_each_solid_face(m, bodies, [&](Index f, const Index* node, const double* w) {
     for (int k = 0; k < 3; ++k)
       for (int d = 0; d < 3; ++d)
-        tr.emplace_back(f, 3 * node[k] + d, w[k] * m.face_normals(f, d));  // (H u)_f = n_f·Σ w_a u_a
+        tr.emplace_back(f, 3 * node[k] + d,
+                        w[k] * m.face_normals(f, d));  // (H u)_f = n_f·Σ w_a u_a
   });
   SparseMatrix H(m.num_faces(), n3);
   H.setFromTriplets(tr.begin(), tr.end());

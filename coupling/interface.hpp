@@ -25,8 +25,8 @@ namespace tetfsi::coupling {
 /// was built from (triangles in its compact vertex numbering, as in mesh::SolidSurface) and
 /// the body node of each compact vertex.
 struct BodyInterface {
-  MatX3i triangles;   ///< #Ts × 3, compact surface vertex indices
-  VecXi surface_node; ///< #Vs: body node of each compact surface vertex
+  MatX3i triangles;     ///< #Ts × 3, compact surface vertex indices
+  VecXi surface_node;   ///< #Vs: body node of each compact surface vertex
   Index num_nodes = 0;  ///< nodes of the body (its DOF block is 3 × this)
 };
 

@@ -58,9 +58,11 @@ TEST_CASE("J = (V D1 H)^T exactly, and the interface power balance") {
   const SparseMatrix diff = SparseMatrix(J) - SparseMatrix(VD1H.transpose());
   double dmax = 0, jmax = 0;
   for (int k = 0; k < diff.outerSize(); ++k)
-    for (SparseMatrix::InnerIterator it(diff, k); it; ++it) dmax = std::max(dmax, std::abs(it.value()));
+    for (SparseMatrix::InnerIterator it(diff, k); it; ++it)
+      dmax = std::max(dmax, std::abs(it.value()));
   for (int k = 0; k < J.outerSize(); ++k)
-    for (SparseMatrix::InnerIterator it(J, k); it; ++it) jmax = std::max(jmax, std::abs(it.value()));
+    for (SparseMatrix::InnerIterator it(J, k); it; ++it)
+      jmax = std::max(jmax, std::abs(it.value()));
   MESSAGE("max |J - (V D1 H)^T| = " << dmax << " (max |J| = " << jmax << ")");
   CHECK(dmax <= 1e-15 * jmax);
   // pᵀ Jᵀ u = pᵀ V D1 H u for random p, u [VALIDATION.md "Interface power balance"]
@@ -81,7 +83,9 @@ TEST_CASE("J = (V D1 H)^T exactly, and the interface power balance") {
     for (Index i = off[b + 1] - 5; i < off[b + 1]; ++i) CHECK(f.segment<3>(3 * i).norm() == 0.0);
 }
 
-TEST_CASE("a rigid motion moves no net volume through the interface; a uniform pressure gives no net force") {
+TEST_CASE(
+    "a rigid motion moves no net volume through the interface; a uniform pressure gives no net "
+    "force") {
   const Scene s = two_spheres(0.05);
   const SparseMatrix H = build_H(s.mesh, s.bodies), J = build_J(s.mesh, s.bodies);
   const std::vector<Index> off = node_offsets(s.bodies);
@@ -90,7 +94,8 @@ TEST_CASE("a rigid motion moves no net volume through the interface; a uniform p
   for (Index b = 0; b < 2; ++b) {
     const Vec3 c = s.surfaces[b].vertices.colwise().mean().transpose();
     for (Index i = 0; i < s.surfaces[b].vertices.rows(); ++i)
-      u.segment<3>(3 * (off[b] + i)) = v + w.cross(Vec3(s.surfaces[b].vertices.row(i).transpose()) - c);
+      u.segment<3>(3 * (off[b] + i)) =
+          v + w.cross(Vec3(s.surfaces[b].vertices.row(i).transpose()) - c);
   }
   const VecX hu = H * u;
   for (int b = 0; b < 2; ++b) {
@@ -122,7 +127,8 @@ TEST_CASE("hydrostatic pressure on the interface gives Archimedes' buoyancy") {
     const Scene s = two_spheres(size);
     const SparseMatrix J = build_J(s.mesh, s.bodies);
     VecX p(s.mesh.num_tets());
-    for (Index t = 0; t < s.mesh.num_tets(); ++t) p[t] = rho * g * (1.0 - s.mesh.circumcentres(t, 2));
+    for (Index t = 0; t < s.mesh.num_tets(); ++t)
+      p[t] = rho * g * (1.0 - s.mesh.circumcentres(t, 2));
     const VecX force = J * p;
     const std::vector<Index> off = node_offsets(s.bodies);
     Vec3 total = Vec3::Zero();
@@ -131,8 +137,9 @@ TEST_CASE("hydrostatic pressure on the interface gives Archimedes' buoyancy") {
     double v6 = 0;
     const auto& sf = s.surfaces[0];
     for (Index t = 0; t < sf.triangles.rows(); ++t)
-      v6 += Vec3(sf.vertices.row(sf.triangles(t, 0))).dot(
-          Vec3(sf.vertices.row(sf.triangles(t, 1))).cross(Vec3(sf.vertices.row(sf.triangles(t, 2)))));
+      v6 += Vec3(sf.vertices.row(sf.triangles(t, 0)))
+                .dot(Vec3(sf.vertices.row(sf.triangles(t, 1)))
+                         .cross(Vec3(sf.vertices.row(sf.triangles(t, 2)))));
     const double expected = rho * g * v6 / 6.0;
     // n_f points from the fluid into the solid: the pressure force is J p, upwards here.
     const double err = std::abs(total.z() - expected) / expected;
@@ -142,9 +149,8 @@ TEST_CASE("hydrostatic pressure on the interface gives Archimedes' buoyancy") {
     CHECK(total.head<2>().norm() < 0.05 * expected);
     CHECK(err < 0.6 * err_prev);  // first order: about halves with the cell size
     err_prev = err;
-    const VecX fx = face_pressure_forces(s.mesh, s.bodies, [&](const Vec3& x) {
-      return rho * g * (1.0 - x.z());
-    });
+    const VecX fx = face_pressure_forces(s.mesh, s.bodies,
+                                         [&](const Vec3& x) { return rho * g * (1.0 - x.z()); });
     Vec3 exact = Vec3::Zero();
     for (Index i = off[0]; i < off[1]; ++i) exact += fx.segment<3>(3 * i);
     CHECK(exact.z() == doctest::Approx(expected).epsilon(1e-10));

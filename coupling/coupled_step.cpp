@@ -1,0 +1,255 @@
+#include "coupling/coupled_step.hpp"
+
+#include <cmath>
+#include <exception>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "solid/integrator.hpp"
+#include "solid/obstacles.hpp"
+
+namespace tetfsi::coupling {
+
+Scheme parse_scheme(const std::string& name) {
+  if (name == "simultaneous") return Scheme::Simultaneous;
+  if (name == "splitting") return Scheme::Splitting;
+  throw InputError(
+      fmt::format("unknown coupling scheme '{}': use simultaneous or splitting", name));
+}
+
+const char* to_string(Scheme s) {
+  return s == Scheme::Simultaneous ? "simultaneous" : "splitting";
+}
+
+BodySurface body_surface(const solid::SolidBody& b) {
+  BodySurface bd;
+  const MatX3i& tris = b.boundary_triangles();
+  VecXi local = VecXi::Constant(b.num_nodes(), -1);
+  std::vector<Index> nodes;
+  bd.triangles.resize(tris.rows(), 3);
+  for (Index t = 0; t < tris.rows(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const Index v = tris(t, k);
+      if (local[v] < 0) {
+        local[v] = static_cast<Index>(nodes.size());
+        nodes.push_back(v);
+      }
+      bd.triangles(t, k) = local[v];
+    }
+  }
+  bd.nodes = Eigen::Map<const VecXi>(nodes.data(), static_cast<Index>(nodes.size()));
+  return bd;
+}
+
+CoupledStepper::CoupledStepper(CouplingParams params, const solid::SolidWorld& world)
+    : m_params(std::move(params)) {
+  for (const solid::SolidBody& b : world.bodies) m_surfaces.push_back(body_surface(b));
+}
+
+namespace {
+
+/// d, u and time of the world, to leave it at tⁿ when a step fails.
+struct Snapshot {
+  double time = 0.0;
+  std::vector<std::pair<MatX3, MatX3>> state;
+  explicit Snapshot(const solid::SolidWorld& w) : time(w.time) {
+    for (const auto& b : w.bodies) state.emplace_back(b.displacement, b.velocity);
+  }
+  void restore(solid::SolidWorld& w) const {
+    w.time = time;
+    for (size_t i = 0; i < state.size(); ++i) {
+      w.bodies[i].displacement = state[i].first;
+      w.bodies[i].velocity = state[i].second;
+    }
+  }
+};
+
+void check_finite(const solid::SolidBody& body, double h) {
+  TETFSI_REQUIRE(SolverError, body.displacement.allFinite() && body.velocity.allFinite(),
+                 "body '{}': state became non-finite at a step with h = {}; reduce time.dt or "
+                 "raise rayleigh damping",
+                 body.name(), h);
+}
+
+}  // namespace
+
+CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSimulation& fluid,
+                                       const MeshBuilder& build, double h, PhaseTimes& phases) {
+  TETFSI_REQUIRE(InputError, std::isfinite(h) && h > 0, "coupled step: dt must be > 0, got {}", h);
+  const Index nb = static_cast<Index>(world.bodies.size());
+  TETFSI_CHECK(static_cast<Index>(m_surfaces.size()) == nb,
+               "coupled step: the world has {} bodies, the stepper was made for {}", nb,
+               m_surfaces.size());
+  const Snapshot snap(world);
+  const double t1 = world.time + h;
+  const Vec3 g_fluid = fluid.params().gravity;
+  CoupledStepReport rep;
+  rep.scheme = m_params.scheme;
+
+  std::vector<BodyInterface> ifaces(nb);
+  for (Index b = 0; b < nb; ++b) {
+    ifaces[b].triangles = m_surfaces[b].triangles;
+    ifaces[b].surface_node = m_surfaces[b].nodes;
+    ifaces[b].num_nodes = world.bodies[b].num_nodes();
+  }
+  auto positions = [&](auto&& disp) {
+    std::vector<MatX3> x(nb);
+    for (Index b = 0; b < nb; ++b) x[b] = world.bodies[b].rest_positions() + disp(b);
+    return x;
+  };
+  auto motion = [&] {
+    std::vector<fluid::SolidSurfaceMotion> s(nb);
+    for (Index b = 0; b < nb; ++b) {
+      s[b].triangles = m_surfaces[b].triangles;
+      s[b].velocity.resize(m_surfaces[b].nodes.size(), 3);
+      for (Index k = 0; k < m_surfaces[b].nodes.size(); ++k)
+        s[b].velocity.row(k) = world.bodies[b].velocity.row(m_surfaces[b].nodes[k]);
+    }
+    return s;
+  };
+  auto solve_phases = [&](const CoupledReport& r) {
+    phases.add("coupled_assembly", r.assembly_s);
+    phases.add("coupled_solve", r.setup_s + r.solve_s);
+  };
+
+  try {
+    fluid::FluidPrediction pred;
+    CoupledSolution sol;
+    if (m_params.scheme == Scheme::Simultaneous) {
+      // 1. each deformable body's Eq. (4) at dⁿ; kinematic bodies to tⁿ⁺¹
+      std::vector<CoupledBody> cb(nb);
+      {
+        ScopedTimer timer(phases, "coupled_assembly");
+        for (Index b = 0; b < nb; ++b) {
+          solid::SolidBody& body = world.bodies[b];
+          cb[b].interface = ifaces[b];
+          if (body.is_kinematic()) {
+            body.set_kinematic_state(t1);
+            continue;
+          }
+          solid::TrapezoidalSystem sys = solid::assemble_trapezoidal(
+              body, h, body.external_forces(world.gravity), world.trapezoid);
+          cb[b].free = true;
+          cb[b].A = std::move(sys.A);
+          cb[b].b = std::move(sys.b);
+          cb[b].fixed = body.fixed_dofs();
+          cb[b].x = body.positions();
+          cb[b].u = flat(body.velocity);
+        }
+      }
+      // 2. the mesh around x* = X + dⁿ + h uⁿ, or around xⁿ if that fails (a body predicted
+      //    out of the box)
+      mesh::TetMesh m;
+      try {
+        m = build(positions([&](Index b) -> MatX3 {
+          const auto& body = world.bodies[b];
+          return body.is_kinematic() ? body.displacement
+                                     : MatX3(body.displacement + h * body.velocity);
+        }));
+      } catch (const MeshError& e) {
+        logger().debug(
+            "coupled step: remesh around the predicted surfaces failed ({}); "
+            "building around the surfaces at t = {:.6g} s",
+            e.what(), world.time);
+        rep.predicted_mesh = false;
+        m = build(positions([&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
+      }
+      // 3. transfer, forces: v*
+      pred = fluid.predict(std::move(m), h, motion(), phases);
+      // 4. [Chentanez06, Eq. (7)]
+      CoupledInput in;
+      in.mesh = &pred.mesh;
+      in.u_star = &pred.u_star;
+      in.rho = &pred.rho;
+      in.p_open = &pred.p_open;
+      in.h = h;
+      in.gravity = g_fluid;
+      in.bodies = &cb;
+      in.volume_targets = &m_targets;
+      sol = solve_coupled(in, m_params.solve);
+      solve_phases(sol.report);
+      // 5. Eq. (5), collisions
+      ScopedTimer timer(phases, "update");
+      for (Index b = 0; b < nb; ++b) {
+        solid::SolidBody& body = world.bodies[b];
+        if (!cb[b].free) continue;
+        solid::advance_trapezoidal(body, sol.u[b], h);
+        rep.contacts += solid::resolve_collisions(body, world.obstacles);
+        check_finite(body, h);
+      }
+    } else {
+      // 1. the bodies with the fluid's last nodal forces held
+      if (!m_have_force) {
+        const mesh::TetMesh& m0 = fluid.mesh();
+        const VecX rho = fluid::cell_fluid_density(m0, fluid.params());
+        VecX p_dyn = fluid.state().p;
+        for (Index t = 0; t < m0.num_tets(); ++t)
+          p_dyn[t] -=
+              fluid::hydrostatic_pressure(rho[t], g_fluid, m0.circumcentres.row(t).transpose());
+        m_held_force = fluid_forces(m0, ifaces, p_dyn, rho, g_fluid);
+      }
+      {
+        ScopedTimer timer(phases, "solid");
+        for (Index b = 0; b < nb; ++b) {
+          solid::SolidBody& body = world.bodies[b];
+          if (body.is_kinematic()) {
+            body.set_kinematic_state(t1);
+            continue;
+          }
+          VecX fe = body.external_forces(world.gravity) + m_held_force[b];
+          for (Index l = 0; l < fe.size(); ++l)
+            if (body.is_fixed(l)) fe[l] = 0.0;
+          const solid::TrapezoidalSystem sys =
+              solid::assemble_trapezoidal(body, h, fe, world.trapezoid);
+          std::unique_ptr<LinearSolver> s = make_linear_solver(SolverKind::Cholmod);
+          try {
+            s->setup(sys.A);
+          } catch (const SolverError&) {
+            s = make_linear_solver(SolverKind::Umfpack);
+            s->setup(sys.A);
+          }
+          VecX u = flat(body.velocity);
+          const SolveReport sr = s->solve(sys.b, u);
+          rep.solid_iterations += sr.iterations;
+          solid::advance_trapezoidal(body, u, h);
+          rep.contacts += solid::resolve_collisions(body, world.obstacles);
+          check_finite(body, h);
+        }
+      }
+      // 2. the mesh around the bodies at tⁿ⁺¹, the fluid with their velocities held
+      mesh::TetMesh m =
+          build(positions([&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
+      pred = fluid.predict(std::move(m), h, motion(), phases);
+      std::vector<CoupledBody> cb(nb);
+      for (Index b = 0; b < nb; ++b) cb[b].interface = ifaces[b];  // all prescribed
+      CoupledInput in;
+      in.mesh = &pred.mesh;
+      in.u_star = &pred.u_star;
+      in.rho = &pred.rho;
+      in.p_open = &pred.p_open;
+      in.h = h;
+      in.gravity = g_fluid;
+      in.bodies = &cb;
+      sol = solve_coupled(in, m_params.solve);
+      solve_phases(sol.report);
+      m_held_force = sol.fluid_force;
+      m_have_force = true;
+    }
+    rep.solve = sol.report;
+    rep.fluid = fluid.commit(std::move(pred), std::move(sol.u_face), std::move(sol.p));
+  } catch (...) {
+    snap.restore(world);
+    throw;
+  }
+  rep.fluid.converged = rep.solve.converged;
+  rep.fluid.iterations = rep.solve.iterations;
+  rep.fluid.residual = rep.solve.residual;
+  rep.fluid.divergence_before = rep.solve.divergence_before;
+  rep.fluid.divergence_after = rep.solve.divergence_after;
+  world.time = t1;
+  rep.solid_kinetic_energy = world.kinetic_energy();
+  rep.elastic_energy = world.elastic_energy();
+  return rep;
+}
+
+}  // namespace tetfsi::coupling

@@ -1,0 +1,150 @@
+#pragma once
+/// @file coupled_system.hpp
+/// The simultaneous fluid–solid solve of one step [Chentanez06, §3.3, Eqs. (6)–(8)]: the
+/// solid velocities uⁿ⁺¹ of every free body and the fluid pressure pⁿ⁺¹ from one system.
+///
+/// Unknowns: the free bodies' node velocities (stacked, 3 per node) and one pressure per
+/// group of co-spherical cells (fluid/operators.hpp; a group's cells share the pressure, so
+/// J's columns are summed per group). With C = diag(h/ρ_g) L, L = −V D2 G the pressure
+/// matrix between groups (SPD up to its constants), the paper's system (7)
+///
+///     [ A            −J          ] [u]   [ b           ]
+///     [ −D1 H        (h/ρ) D2 G  ] [p] = [ D2 v* − s/V ]
+///
+/// is, after multiplying its second block row by the group volumes V (J = (V D1 H)ᵀ), the
+/// symmetric quasi-definite system (DESIGN.md §4)
+///
+///     [ A     −J ] [u]   [ b            ]
+///     [ −Jᵀ   −C ] [p] = [ V D2 v* − s  ]
+///
+/// with A = M/h + C_damp + (h/2)K' per body [Chentanez06, Eq. (4)] and s the net outward
+/// flux allowed per group (zero except in enclosed regions, below). Solvers:
+///  - `schur_amg` (default): eliminate u. S = C + Jᵀ A⁻¹ J is SPD; CG on S, applied as a
+///    product (A⁻¹ by a Cholesky factorization of each body's A), preconditioned by
+///    BoomerAMG on the sparse P = C + Jᵀ diag(A)⁻¹ J; then u = A⁻¹ (b + J p);
+///  - `umfpack`, `bicgstab_ilut`: the paper's non-symmetric form, the paper's solvers (LU;
+///    BiCGSTAB with incomplete LU) — the reference;
+///  - `symmetric_umfpack`: LU of the symmetric form (a check of the equivalence).
+/// Then the fluid face velocities by Eq. (8): v* − (h/ρ) G p inside and on Open faces,
+/// (H u)_f on the Solid faces of free bodies.
+///
+/// Regions (connected fluid). A region with an Open face has its pressure level fixed by
+/// it. A region that touches a free body has none to fix: Jᵀ A⁻¹ J lifts the constant (a
+/// uniform pressure squeezes the body), so it is solved without a pin and without any flux
+/// correction. Only a region bounded by walls and prescribed bodies alone is pinned and its
+/// net boundary flux removed (fluid::project()).
+///
+/// Enclosed regions (bounded only by Solid faces of free bodies: a liquid in a closed toy or
+/// balloon) keep their volume exactly. The linearised constraint conserves it only to
+/// O(h² |∇u|²) per step (the solid moves by the trapezoidal rule, Eq. (5), not along uⁿ⁺¹),
+/// so the solve allows the region a net flux c (spread over its cells in proportion to
+/// volume): the solution is affine in c, one more solve gives its direction, and c is chosen
+/// by Newton on the exact volume of the cavity's triangles after Eq. (5),
+/// V(xⁿ + h/2 (uⁿ + uⁿ⁺¹(c))) = V_target. The target is the region's volume when first seen.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/types.hpp"
+#include "coupling/interface.hpp"
+#include "mesh/tet_mesh.hpp"
+
+namespace tetfsi::coupling {
+
+enum class CoupledSolverKind { SchurAmg, Umfpack, BiCgStabIlut, SymmetricUmfpack };
+/// "schur_amg" | "umfpack" | "bicgstab_ilut" | "symmetric_umfpack".
+/// @throws InputError naming the value and the valid ones.
+CoupledSolverKind parse_coupled_solver(const std::string& name);
+const char* to_string(CoupledSolverKind k);
+const std::vector<std::string>& coupled_solver_names();
+
+/// One body as the coupled solve sees it.
+struct CoupledBody {
+  BodyInterface interface;  ///< how the mesh's Solid faces refer to it
+  /// true: its velocities are unknowns (a deformable body). false: prescribed (kinematic,
+  /// or held by time splitting): its Solid faces keep the v* the caller set.
+  bool free = false;
+  SparseMatrix A;  ///< free: [Chentanez06, Eq. (4)], 3n × 3n, fixed DOFs eliminated
+  VecX b;          ///< free: 3n, without fluid forces
+  std::vector<std::uint8_t> fixed;  ///< free: per DOF, 1 if fixed (its u stays 0)
+  MatX3 x;                          ///< free: node positions at tⁿ (#n × 3; enclosed volumes)
+  VecX u;                           ///< free: uⁿ (3n; enclosed volumes)
+};
+
+struct CoupledOptions {
+  CoupledSolverKind solver = CoupledSolverKind::SchurAmg;
+  /// Relative residual of the iterative solves. The right-hand side carries the bodies'
+  /// momentum, so the fluid's per-cell divergence follows it more loosely than in a fluid-only
+  /// projection: measured 1e-6, 6e-9, 3e-10 of the v* divergence at 1e-8, 1e-10, 1e-12 (12,
+  /// 15, 17 CG iterations on 8k pressure unknowns).
+  double rel_tol = 1e-10;
+  int max_iterations = 500;
+  double min_dual_fraction = 1e-6;  ///< as fluid::FluidParams
+  bool conserve_volume = true;      ///< the enclosed-volume correction (file comment)
+};
+
+/// Enclosed regions' targets, keyed by the region's first (body, triangle) pair, kept by
+/// the caller across steps (remeshing renumbers cells, not the bodies' triangles).
+using VolumeTargets = std::map<std::int64_t, double>;
+
+struct CoupledInput {
+  const mesh::TetMesh* mesh = nullptr;
+  const VecX* u_star = nullptr;  ///< #F v*, prescribed velocities set (FluidPrediction)
+  const VecX* rho = nullptr;     ///< #T fluid density per cell
+  const VecX* p_open = nullptr;  ///< #F dynamic pressure on Open faces (Pa)
+  double h = 0.0;
+  /// The fluid's gravity (liquids): the hydrostatic pressure ρ g·x pushes the free bodies
+  /// exactly (face_pressure_forces), J carries only the dynamic pressure.
+  Vec3 gravity = Vec3::Zero();
+  const std::vector<CoupledBody>* bodies = nullptr;  ///< every body of the mesh, by index
+  VolumeTargets* volume_targets = nullptr;           ///< may be null: no volume correction
+};
+
+/// An enclosed region of this step.
+struct EnclosedRegion {
+  std::int64_t key = 0;
+  Index cells = 0;
+  double volume = 0.0;  ///< V of its cavity at tⁿ (m³)
+  double target = 0.0;  ///< V_target
+  double after = 0.0;   ///< V after Eq. (5) with the solution
+  double flux = 0.0;    ///< the net flux c allowed (m³/s)
+};
+
+struct CoupledReport {
+  std::string backend;
+  bool converged = false;
+  int iterations = 0;     ///< Krylov iterations (1 for LU), summed over right-hand sides
+  double residual = 0.0;  ///< worst relative residual of the solves
+  Index solid_unknowns = 0, pressure_unknowns = 0;
+  /// pᵀ Jᵀ uⁿ⁺¹ = pᵀ V D1 H uⁿ⁺¹: the power of the dynamic pressure on the free bodies (W).
+  double interface_power = 0.0;
+  double divergence_before = 0.0;  ///< max_t |(D v*)_t| (1/s)
+  double divergence_after = 0.0;   ///< max_t |(D v)_t − s_t/V_t| after Eq. (8) (1/s)
+  Index pinned_regions = 0;
+  double incompatibility = 0.0;  ///< as fluid::ProjectionReport, pinned regions only
+  std::vector<EnclosedRegion> enclosed;
+  double assembly_s = 0.0, setup_s = 0.0, solve_s = 0.0;
+};
+
+struct CoupledSolution {
+  std::vector<VecX> u;  ///< per body: uⁿ⁺¹ (3n) of free bodies, empty for the others
+  VecX p;               ///< #T dynamic pressure (Pa)
+  VecX u_face;          ///< #F face velocities, Eq. (8)
+  /// Per body: the fluid's force on each node (3n, N): J p plus the hydrostatic part.
+  std::vector<VecX> fluid_force;
+  CoupledReport report;
+};
+
+/// Assemble and solve, see the file comment.
+/// @throws SolverError if a factorization fails or the result is not finite;
+///   InputError for inconsistent sizes (naming them).
+CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt);
+
+/// The fluid's force on every node of every body (3n each, N) of a pressure p (#T, dynamic,
+/// Pa) on mesh m, with the hydrostatic part ρ g·x at the face centroids: J p + F_hydro.
+/// Time splitting holds it over the next solid step.
+std::vector<VecX> fluid_forces(const mesh::TetMesh& m, const std::vector<BodyInterface>& bodies,
+                               const VecX& p, const VecX& rho, const Vec3& gravity);
+
+}  // namespace tetfsi::coupling

@@ -1,0 +1,71 @@
+#pragma once
+/// @file coupled_test_utils.hpp
+/// A fluid box with solid bodies, stepped by coupling::CoupledStepper: the remesher builds the
+/// fluid mesh around the bodies' surfaces as the run loop does (tools/fluid_driver.cpp).
+#include <utility>
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "coupling/coupled_step.hpp"
+#include "fluid/simulation.hpp"
+#include "mesh/remesh.hpp"
+#include "solid/world.hpp"
+#include "tests/fluid/fluid_test_utils.hpp"
+
+namespace tetfsi::test {
+
+struct CoupledRig {
+  solid::SolidWorld world;
+  mesh::FluidDomain domain;
+  mesh::Sizing sizing;
+  fluid::FluidParams fluid_params;
+  coupling::CouplingParams coupling;
+
+  std::unique_ptr<fluid::FluidSimulation> fluid;
+  std::unique_ptr<coupling::CoupledStepper> stepper;
+
+  /// The fluid mesh around every body at the given node positions.
+  mesh::TetMesh build(const std::vector<MatX3>& x) const {
+    std::vector<mesh::SolidSurface> s(world.bodies.size());
+    for (size_t b = 0; b < s.size(); ++b) {
+      const coupling::BodySurface& bs = stepper->surfaces()[b];
+      s[b].body = static_cast<int>(b);
+      s[b].triangles = bs.triangles;
+      s[b].vertices.resize(bs.nodes.size(), 3);
+      for (Index k = 0; k < bs.nodes.size(); ++k) s[b].vertices.row(k) = x[b].row(bs.nodes[k]);
+    }
+    return mesh::remesh(domain, s, sizing);
+  }
+
+  /// Build the stepper and the fluid at rest on the mesh of t = 0.
+  void start() {
+    stepper = std::make_unique<coupling::CoupledStepper>(coupling, world);
+    fluid = std::make_unique<fluid::FluidSimulation>(fluid_params);
+    std::vector<MatX3> x;
+    for (const auto& b : world.bodies) x.push_back(b.positions());
+    fluid->initialize(build(x));
+  }
+
+  coupling::CoupledStepReport step(double h) {
+    PhaseTimes phases;
+    return stepper->step(
+        world, *fluid, [this](const std::vector<MatX3>& x) { return build(x); }, h, phases);
+  }
+};
+
+/// Volume enclosed by a body's boundary triangles at its current positions (outward
+/// triangles: the solid's own volume; with a cavity, minus the cavity).
+inline double signed_boundary_volume(const solid::SolidBody& b, bool inner_only_sign = false) {
+  (void)inner_only_sign;
+  const MatX3 x = b.positions();
+  const MatX3i& T = b.boundary_triangles();
+  double v = 0.0;
+  for (Index t = 0; t < T.rows(); ++t) {
+    const Vec3 a = x.row(T(t, 0)), c = x.row(T(t, 1)), d = x.row(T(t, 2));
+    v += a.dot(c.cross(d));
+  }
+  return v / 6.0;
+}
+
+}  // namespace tetfsi::test
