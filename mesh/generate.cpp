@@ -1,7 +1,9 @@
 /// @file generate.cpp
-/// Structured tet meshes of boxes (Kuhn/Freudenthal split of a hexahedral grid).
+/// Structured tet meshes: boxes and hollow boxes (Kuhn/Freudenthal split of a hexahedral
+/// grid), balls (a Kuhn cube mapped onto the ball), spherical shells (icosphere prisms).
 #include "mesh/generate.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
@@ -14,6 +16,99 @@
 #include "core/log.hpp"
 
 namespace tetfsi::mesh {
+
+namespace {
+
+/// Kuhn split of a unit cube: one tet per permutation (p0, p1, p2) of the axes, the path
+/// 0 → e_p0 → e_p0 + e_p1 → (1,1,1) along the cell's main diagonal, as corner bit codes
+/// (x | y<<1 | z<<2). Every cell uses the same diagonal direction, so the face diagonals of
+/// neighbouring cells agree (conforming). Odd permutations give negative tets; swapping the
+/// two middle path vertices fixes them.
+std::array<std::array<int, 4>, 6> kuhn_local() {
+  constexpr std::array<std::array<int, 3>, 6> kPerms = {
+      {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}}};
+  std::array<std::array<int, 4>, 6> local{};
+  for (int p = 0; p < 6; ++p) {
+    int code = 0;
+    local[p][0] = code;
+    for (int s = 0; s < 3; ++s) {
+      code |= 1 << kPerms[p][s];
+      local[p][s + 1] = code;
+    }
+    if (p >= 3) std::swap(local[p][1], local[p][2]);  // odd permutation
+  }
+  return local;
+}
+
+/// Throws unless a grid of `cells` (each ≥ 1) has fewer tets and vertices than an int holds
+/// (checked before anything is allocated).
+void check_grid_size(const Vec3i& cells, const char* what) {
+  const long long nvx = cells(0) + 1LL, nvy = cells(1) + 1LL, nvz = cells(2) + 1LL;
+  const long long num_cells = static_cast<long long>(cells(0)) * cells(1) * cells(2);
+  TETFSI_REQUIRE(InputError, 6 * num_cells < (1LL << 31) && nvx * nvy * nvz < (1LL << 31),
+                 "{}: {} x {} x {} cells give more tets than an int index can hold; use "
+                 "fewer cells",
+                 what, cells(0), cells(1), cells(2));
+}
+
+/// Kuhn-split tensor grid with grid lines `lines[a]` (increasing) in axis a: vertex (i, j, k)
+/// has index i + nx (j + ny k) (n_a = lines[a].size()); the cells (i, j, k) with
+/// `keep(i, j, k)` become 6 tets each. Vertices of dropped cells are kept (the caller may
+/// remove_unused_vertices). `what` names the generator in errors.
+template <class Keep>
+VolumeMesh kuhn_grid(const std::array<std::vector<double>, 3>& lines, Keep&& keep,
+                     const char* what) {
+  const long long nvx = static_cast<long long>(lines[0].size()),
+                  nvy = static_cast<long long>(lines[1].size()),
+                  nvz = static_cast<long long>(lines[2].size());
+  const long long num_cells = (nvx - 1) * (nvy - 1) * (nvz - 1);
+  check_grid_size(
+      Vec3i(static_cast<int>(nvx - 1), static_cast<int>(nvy - 1), static_cast<int>(nvz - 1)), what);
+  VolumeMesh m;
+  m.vertices.resize(static_cast<Index>(nvx * nvy * nvz), 3);
+  for (long long k = 0; k < nvz; ++k) {
+    for (long long j = 0; j < nvy; ++j) {
+      for (long long i = 0; i < nvx; ++i) {
+        const Index v = static_cast<Index>(i + nvx * (j + nvy * k));
+        m.vertices.row(v) << lines[0][i], lines[1][j], lines[2][k];
+      }
+    }
+  }
+  const auto local = kuhn_local();
+  std::vector<Vec4i> tets;
+  tets.reserve(static_cast<std::size_t>(6 * num_cells));
+  for (long long k = 0; k + 1 < nvz; ++k) {
+    for (long long j = 0; j + 1 < nvy; ++j) {
+      for (long long i = 0; i + 1 < nvx; ++i) {
+        if (!keep(i, j, k)) continue;
+        for (int p = 0; p < 6; ++p) {
+          Vec4i t;
+          for (int c = 0; c < 4; ++c) {
+            const int code = local[p][c];
+            const long long ii = i + (code & 1), jj = j + ((code >> 1) & 1),
+                            kk = k + ((code >> 2) & 1);
+            t(c) = static_cast<Index>(ii + nvx * (jj + nvy * kk));
+          }
+          tets.push_back(t);
+        }
+      }
+    }
+  }
+  m.tets.resize(static_cast<Index>(tets.size()), 4);
+  for (std::size_t t = 0; t < tets.size(); ++t) m.tets.row(static_cast<Index>(t)) = tets[t];
+  return m;
+}
+
+/// `cells` equal steps from a to b; the last line sits exactly on b (no rounding drift).
+void append_uniform(std::vector<double>& lines, double a, double b, int cells) {
+  const double h = (b - a) / cells;
+  for (int i = 0; i <= cells; ++i) {
+    if (i == 0 && !lines.empty()) continue;  // shared with the previous segment
+    lines.push_back(i == cells ? b : a + i * h);
+  }
+}
+
+}  // namespace
 
 VolumeMesh make_box(const Vec3& lo, const Vec3& hi, const Vec3i& cells) {
   TETFSI_REQUIRE(InputError, lo.allFinite() && hi.allFinite(),
@@ -28,62 +123,11 @@ VolumeMesh make_box(const Vec3& lo, const Vec3& hi, const Vec3i& cells) {
                    "make_box: need at least one cell per axis, got cells ({} {} {})", cells(0),
                    cells(1), cells(2));
   }
-  const long long nvx = cells(0) + 1LL, nvy = cells(1) + 1LL, nvz = cells(2) + 1LL;
-  const long long num_cells = static_cast<long long>(cells(0)) * cells(1) * cells(2);
-  TETFSI_REQUIRE(InputError, 6 * num_cells < (1LL << 31) && nvx * nvy * nvz < (1LL << 31),
-                 "make_box: {} x {} x {} cells give more tets than an int index can hold; use "
-                 "fewer cells",
-                 cells(0), cells(1), cells(2));
-
-  VolumeMesh m;
-  m.vertices.resize(static_cast<Index>(nvx * nvy * nvz), 3);
-  const Vec3 h = (hi - lo).cwiseQuotient(cells.cast<double>());
-  for (Index k = 0; k < nvz; ++k) {
-    for (Index j = 0; j < nvy; ++j) {
-      for (Index i = 0; i < nvx; ++i) {
-        const Index v = static_cast<Index>(i + nvx * (j + nvy * k));
-        // Exact ends: the last layer sits on hi, not on lo + n·h (rounding).
-        m.vertices(v, 0) = i == cells(0) ? hi.x() : lo.x() + i * h.x();
-        m.vertices(v, 1) = j == cells(1) ? hi.y() : lo.y() + j * h.y();
-        m.vertices(v, 2) = k == cells(2) ? hi.z() : lo.z() + k * h.z();
-      }
-    }
-  }
-
-  // Kuhn split: one tet per permutation (p0, p1, p2) of the axes, the path
-  // 0 → e_p0 → e_p0 + e_p1 → (1,1,1) along the cell's main diagonal. Every cell uses the
-  // same diagonal direction, so the face diagonals of neighbouring cells agree (conforming).
-  // Odd permutations give negative tets; swapping the two middle path vertices fixes them.
-  constexpr std::array<std::array<int, 3>, 6> kPerms = {
-      {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}}};
-  std::array<std::array<int, 4>, 6> local{};  // corner bit codes (x | y<<1 | z<<2)
-  for (int p = 0; p < 6; ++p) {
-    int code = 0;
-    local[p][0] = code;
-    for (int s = 0; s < 3; ++s) {
-      code |= 1 << kPerms[p][s];
-      local[p][s + 1] = code;
-    }
-    if (p >= 3) std::swap(local[p][1], local[p][2]);  // odd permutation
-  }
-
-  m.tets.resize(static_cast<Index>(6 * num_cells), 4);
-  Index t = 0;
-  for (Index k = 0; k < cells(2); ++k) {
-    for (Index j = 0; j < cells(1); ++j) {
-      for (Index i = 0; i < cells(0); ++i) {
-        for (int p = 0; p < 6; ++p) {
-          for (int c = 0; c < 4; ++c) {
-            const int code = local[p][c];
-            const long long ii = i + (code & 1), jj = j + ((code >> 1) & 1),
-                            kk = k + ((code >> 2) & 1);
-            m.tets(t, c) = static_cast<Index>(ii + nvx * (jj + nvy * kk));
-          }
-          ++t;
-        }
-      }
-    }
-  }
+  check_grid_size(cells, "make_box");
+  std::array<std::vector<double>, 3> lines;
+  for (int a = 0; a < 3; ++a) append_uniform(lines[a], lo(a), hi(a), cells(a));
+  VolumeMesh m = kuhn_grid(
+      lines, [](long long, long long, long long) { return true; }, "make_box");
   logger().debug("make_box: {} x {} x {} cells, {} vertices, {} tets", cells(0), cells(1), cells(2),
                  m.num_vertices(), m.num_tets());
   return m;
@@ -128,6 +172,218 @@ SurfaceMesh make_icosphere(const Vec3& centre, double radius, int subdivisions) 
   for (std::size_t i = 0; i < f.size(); ++i)
     s.triangles.row(static_cast<Index>(i)) = f[i].transpose();
   return s;
+}
+
+VolumeMesh make_spherical_shell(const Vec3& centre, double inner_radius, double outer_radius,
+                                int subdivisions, int layers) {
+  TETFSI_REQUIRE(InputError,
+                 centre.allFinite() && std::isfinite(inner_radius) && std::isfinite(outer_radius),
+                 "make_spherical_shell: centre and radii must be finite, got centre ({} {} {}), "
+                 "inner_radius {}, outer_radius {}",
+                 centre.x(), centre.y(), centre.z(), inner_radius, outer_radius);
+  TETFSI_REQUIRE(InputError, inner_radius > 0 && inner_radius < outer_radius,
+                 "make_spherical_shell: need 0 < inner_radius < outer_radius, got inner_radius "
+                 "{} and outer_radius {}; for a solid ball use make_ball",
+                 inner_radius, outer_radius);
+  TETFSI_REQUIRE(InputError, subdivisions >= 0 && subdivisions <= 7,
+                 "make_spherical_shell: subdivisions must be 0..7, got {}", subdivisions);
+  TETFSI_REQUIRE(InputError, layers >= 1 && layers <= 10000,
+                 "make_spherical_shell: layers must be 1..10000, got {}", layers);
+  const SurfaceMesh unit = make_icosphere(Vec3::Zero(), 1.0, subdivisions);
+  const long long nv = unit.num_vertices(), nf = unit.num_triangles();
+  TETFSI_REQUIRE(InputError, nv * (layers + 1LL) < (1LL << 31) && 3 * nf * layers < (1LL << 31),
+                 "make_spherical_shell: {} layers of {} triangles give more tets than an int "
+                 "index can hold; use fewer layers or subdivisions",
+                 layers, nf);
+
+  VolumeMesh m;
+  m.vertices.resize(static_cast<Index>(nv * (layers + 1LL)), 3);
+  const double dr = (outer_radius - inner_radius) / layers;
+  for (int k = 0; k <= layers; ++k) {
+    const double r = k == layers ? outer_radius : inner_radius + k * dr;  // exact ends
+    for (Index v = 0; v < nv; ++v)
+      m.vertices.row(static_cast<Index>(v + nv * k)) =
+          centre.transpose() + r * unit.vertices.row(v);
+  }
+
+  // Prism (a, b, c) × [r_k, r_k+1] with its triangle's vertices sorted by index, v0 < v1 < v2,
+  // bottom b_i and top t_i: tets (b0 b1 b2 t2), (b0 b1 t1 t2), (b0 t0 t1 t2). The quad over
+  // edge (vi, vj), i < j, is cut by the diagonal b_i–t_j in both prisms that share it, so
+  // neighbours conform.
+  m.tets.resize(static_cast<Index>(3 * nf * layers), 4);
+  Index t = 0;
+  for (int k = 0; k < layers; ++k) {
+    const Index bottom = static_cast<Index>(nv * k), top = static_cast<Index>(nv * (k + 1));
+    for (Index f = 0; f < nf; ++f) {
+      std::array<Index, 3> v = {unit.triangles(f, 0), unit.triangles(f, 1), unit.triangles(f, 2)};
+      std::sort(v.begin(), v.end());
+      const std::array<Vec4i, 3> prism = {
+          Vec4i(bottom + v[0], bottom + v[1], bottom + v[2], top + v[2]),
+          Vec4i(bottom + v[0], bottom + v[1], top + v[1], top + v[2]),
+          Vec4i(bottom + v[0], top + v[0], top + v[1], top + v[2])};
+      for (Vec4i tet : prism) {
+        const auto x = [&](int c) { return Vec3(m.vertices.row(tet(c)).transpose()); };
+        if (signed_volume(x(0), x(1), x(2), x(3)) < 0) std::swap(tet(2), tet(3));
+        m.tets.row(t++) = tet.transpose();
+      }
+    }
+  }
+  logger().debug("make_spherical_shell: radii {} .. {}, {} layers of {} prisms, {} tets",
+                 inner_radius, outer_radius, layers, nf, m.num_tets());
+  return m;
+}
+
+VolumeMesh make_ball(const Vec3& centre, double radius, int subdivisions) {
+  TETFSI_REQUIRE(InputError, centre.allFinite() && std::isfinite(radius) && radius > 0,
+                 "make_ball: need a finite centre and radius > 0, got centre ({} {} {}) and "
+                 "radius {}",
+                 centre.x(), centre.y(), centre.z(), radius);
+  TETFSI_REQUIRE(InputError, subdivisions >= 0 && subdivisions <= 6,
+                 "make_ball: subdivisions must be 0..6, got {}", subdivisions);
+  const int s = subdivisions;
+  // Icospheres of every level: level l's vertices are the first 10·4^l + 2 of level s's (the
+  // subdivision appends midpoints), and triangle f of level l has children 4f .. 4f+3 at
+  // level l+1, the last one (mid01, mid12, mid20).
+  std::vector<SurfaceMesh> level;
+  for (int l = 0; l <= s; ++l) level.push_back(make_icosphere(Vec3::Zero(), 1.0, l));
+  const MatX3& unit = level[s].vertices;
+
+  // Spheres (radius, level): the core icosahedron at R / 2^s (edges ≈ the surface's), then
+  // for each level l = 1..s the region [R 2^(l−1−s), R 2^(l−s)], where level-l edges grow from
+  // half to all of the surface's, cut into n_l layers with radii in geometric progression
+  // (thickness ∝ radius ∝ local edge): n_l = round(kThickness · 2^l) makes a layer about
+  // 0.8 × its edge (icosphere edges ≈ 1.05 r / 2^l; thickness ≈ r ln 2 / n_l).
+  constexpr double kThickness = 0.6931471805599453 / (1.05 * 0.8);
+  std::vector<std::pair<double, int>> spheres = {{std::ldexp(radius, -s), 0}};
+  for (int l = 1; l <= s; ++l) {
+    const int n = std::max(1, static_cast<int>(std::lround(kThickness * (1 << l))));
+    const double a = std::ldexp(radius, l - 1 - s);
+    for (int i = 1; i <= n; ++i)
+      spheres.emplace_back(l == s && i == n ? radius : a * std::pow(2.0, double(i) / n), l);
+  }
+  std::vector<Index> offset;  // first vertex of each sphere; vertex 0 is the centre
+  Index nv = 1;
+  for (const auto& sp : spheres) {
+    offset.push_back(nv);
+    nv += level[sp.second].num_vertices();
+  }
+  VolumeMesh m;
+  m.vertices.resize(nv, 3);
+  m.vertices.row(0) = centre.transpose();
+  for (std::size_t k = 0; k < spheres.size(); ++k) {
+    for (Index v = 0; v < level[spheres[k].second].num_vertices(); ++v)
+      m.vertices.row(offset[k] + v) = centre.transpose() + spheres[k].first * unit.row(v);
+  }
+  std::vector<Vec4i> tets;
+  const auto add = [&](Vec4i t) {
+    const auto x = [&](int c) { return Vec3(m.vertices.row(t(c)).transpose()); };
+    if (signed_volume(x(0), x(1), x(2), x(3)) < 0) std::swap(t(2), t(3));
+    tets.push_back(t);
+  };
+  for (Index f = 0; f < level[0].num_triangles(); ++f)  // the core: cones to the centre
+    add(Vec4i(0, offset[0] + level[0].triangles(f, 0), offset[0] + level[0].triangles(f, 1),
+              offset[0] + level[0].triangles(f, 2)));
+  for (std::size_t k = 0; k + 1 < spheres.size(); ++k) {
+    const Index lo = offset[k], hi = offset[k + 1];
+    const int l = spheres[k].second;
+    if (spheres[k + 1].second == l) {
+      // Prism layer: 3 tets by vertex index order, as make_spherical_shell.
+      for (Index f = 0; f < level[l].num_triangles(); ++f) {
+        std::array<Index, 3> v = {level[l].triangles(f, 0), level[l].triangles(f, 1),
+                                  level[l].triangles(f, 2)};
+        std::sort(v.begin(), v.end());
+        add(Vec4i(lo + v[0], lo + v[1], lo + v[2], hi + v[2]));
+        add(Vec4i(lo + v[0], lo + v[1], hi + v[1], hi + v[2]));
+        add(Vec4i(lo + v[0], hi + v[0], hi + v[1], hi + v[2]));
+      }
+      continue;
+    }
+    // Transition layer, level l inside → l + 1 outside: over triangle (a, b, c) with outer
+    // midpoints (m_ab, m_bc, m_ca), the side over edge (a, b) is cut (a b m_ab), (a a' m_ab),
+    // (b m_ab b') whichever prism looks at it (conforming); one tet per corner,
+    // (a a' m_ab m_ca), and the octahedron (a b c m_ab m_bc m_ca) left between them cut into
+    // 4 around its shortest diagonal.
+    for (Index f = 0; f < level[l].num_triangles(); ++f) {
+      const Vec3i p = level[l].triangles.row(f).transpose();
+      const Vec3i mid = level[l + 1].triangles.row(4 * f + 3).transpose();  // ab, bc, ca
+      const std::array<Index, 3> in = {lo + p(0), lo + p(1), lo + p(2)};
+      const std::array<Index, 3> out = {hi + p(0), hi + p(1), hi + p(2)};
+      const std::array<Index, 3> mm = {hi + mid(0), hi + mid(1), hi + mid(2)};
+      for (int c = 0; c < 3; ++c) add(Vec4i(in[c], out[c], mm[c], mm[(c + 2) % 3]));
+      // Corner c is opposite midpoint (c + 1) % 3.
+      int best = 0;
+      double shortest = 1e300;
+      for (int c = 0; c < 3; ++c) {
+        const double d = (m.vertices.row(in[c]) - m.vertices.row(mm[(c + 1) % 3])).norm();
+        if (d < shortest) shortest = d, best = c;
+      }
+      const Index apex = in[best], opposite = mm[(best + 1) % 3];
+      // The ring around the diagonal: in[b+1], m_(b), m_(b+2), in[b+2] (b = best).
+      const std::array<Index, 4> ring = {in[(best + 1) % 3], mm[best], mm[(best + 2) % 3],
+                                         in[(best + 2) % 3]};
+      for (int r = 0; r < 4; ++r) add(Vec4i(apex, opposite, ring[r], ring[(r + 1) % 4]));
+    }
+  }
+  m.tets.resize(static_cast<Index>(tets.size()), 4);
+  for (std::size_t t = 0; t < tets.size(); ++t) m.tets.row(static_cast<Index>(t)) = tets[t];
+  logger().debug("make_ball: radius {}, {} spheres, {} vertices, {} tets", radius, spheres.size(),
+                 m.num_vertices(), m.num_tets());
+  return m;
+}
+
+VolumeMesh make_hollow_box(const Vec3& lo, const Vec3& hi, double wall_thickness,
+                           const Vec3i& cells) {
+  const double t = wall_thickness;
+  TETFSI_REQUIRE(InputError, lo.allFinite() && hi.allFinite() && std::isfinite(t),
+                 "make_hollow_box: corners and wall thickness must be finite, got lo ({} {} {}), "
+                 "hi ({} {} {}), thickness {}",
+                 lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z(), t);
+  TETFSI_REQUIRE(InputError, t > 0, "make_hollow_box: wall thickness must be > 0, got {}", t);
+  std::array<std::vector<double>, 3> lines;
+  Vec3i wall_cells;
+  for (int a = 0; a < 3; ++a) {
+    TETFSI_REQUIRE(InputError, lo(a) < hi(a),
+                   "make_hollow_box: need lo < hi in every axis, got lo ({} {} {}) and hi ({} {} "
+                   "{}); swap or widen the corners",
+                   lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z());
+    TETFSI_REQUIRE(InputError, lo(a) + t < hi(a) - t,
+                   "make_hollow_box: wall thickness {} leaves no cavity in {} (the box is {} "
+                   "wide there, two walls take {}); use a thinner wall or a larger box",
+                   t, "xyz"[a], hi(a) - lo(a), 2 * t);
+    TETFSI_REQUIRE(InputError, cells(a) >= 1,
+                   "make_hollow_box: need at least one cavity cell per axis, got cells ({} {} {})",
+                   cells(0), cells(1), cells(2));
+    // Wall cells as close to the cavity's cell size as whole numbers allow (at least one).
+    const double h = ((hi(a) - t) - (lo(a) + t)) / cells(a);
+    const double w = std::max(1.0, std::round(t / h));
+    TETFSI_REQUIRE(InputError, w < 1e6,
+                   "make_hollow_box: the walls are {} cavity cells thick in {}; use more cavity "
+                   "cells or a thinner wall",
+                   w, "xyz"[a]);
+    wall_cells(a) = static_cast<int>(w);
+  }
+  check_grid_size(cells + 2 * wall_cells, "make_hollow_box");
+  for (int a = 0; a < 3; ++a) {
+    append_uniform(lines[a], lo(a), lo(a) + t, wall_cells(a));
+    append_uniform(lines[a], lo(a) + t, hi(a) - t, cells(a));
+    append_uniform(lines[a], hi(a) - t, hi(a), wall_cells(a));
+  }
+  const auto in_cavity = [&](long long i, int a) {
+    return i >= wall_cells(a) && i < wall_cells(a) + cells(a);
+  };
+  VolumeMesh m = kuhn_grid(
+      lines,
+      [&](long long i, long long j, long long k) {
+        return !(in_cavity(i, 0) && in_cavity(j, 1) && in_cavity(k, 2));
+      },
+      "make_hollow_box");
+  remove_unused_vertices(m);
+  logger().debug(
+      "make_hollow_box: walls {} thick ({} {} {} cells), cavity {} x {} x {} cells, "
+      "{} vertices, {} tets",
+      t, wall_cells(0), wall_cells(1), wall_cells(2), cells(0), cells(1), cells(2),
+      m.num_vertices(), m.num_tets());
+  return m;
 }
 
 }  // namespace tetfsi::mesh

@@ -1,6 +1,7 @@
 #pragma once
 /// @file generate.hpp
-/// Meshes generated in code: boxes (and thin boxes = sheets), icospheres.
+/// Meshes generated in code: boxes (and thin boxes = sheets), hollow boxes, balls, spherical
+/// shells, icospheres. Every volume mesh is conforming with positively oriented tets.
 #include "mesh/volume_mesh.hpp"
 
 namespace tetfsi::mesh {
@@ -16,5 +17,42 @@ VolumeMesh make_box(const Vec3& lo, const Vec3& hi, const Vec3i& cells);
 /// vertices).
 /// @throws InputError if radius ≤ 0 or not finite, or subdivisions outside 0..7.
 SurfaceMesh make_icosphere(const Vec3& centre, double radius, int subdivisions);
+
+/// A spherical shell: the icosphere of `subdivisions` (make_icosphere) extruded radially into
+/// `layers` equal layers between the two radii; each prism (triangle × layer) is cut into 3
+/// tets by the index order of its triangle's vertices (the quad over edge (vi, vj), vi < vj, gets
+/// the diagonal from vi's inner to vj's outer corner), so neighbouring prisms conform. Vertex
+/// v of layer k (k = 0 at inner_radius … layers at outer_radius) has index v + k·(10·4^s + 2),
+/// at centre + r_k · (unit icosphere vertex v); 3·layers·20·4^s tets. Boundary: the outer
+/// icosphere (normals outward) and the inner one (normals toward the centre, out of the solid
+/// into the cavity). Volume: (R_o³ − R_i³) × the unit icosphere's.
+/// @param centre (m), @param inner_radius, outer_radius 0 < R_i < R_o (m)
+/// @throws InputError for non-finite values, R_i ≤ 0, R_i ≥ R_o, subdivisions outside 0..7,
+///   layers outside 1..10000.
+VolumeMesh make_spherical_shell(const Vec3& centre, double inner_radius, double outer_radius,
+                                int subdivisions, int layers);
+
+/// A solid ball whose boundary is make_icosphere(centre, radius, subdivisions): concentric
+/// icospheres, the coarsest (the icosahedron, at radius / 2^s) coned to the centre (20 tets),
+/// each level l = 1..s taking the radii [R 2^(l−1−s), R 2^(l−s)] in round(0.825 · 2^l)
+/// layers of geometric thickness (about 0.8 × the local edge, so edges stay ≈ R / 2^s
+/// throughout): the first layer of a level a transition (7 tets per coarse triangle, under
+/// its 4 children), the others prisms split like make_spherical_shell's (conforming).
+/// Min dihedral 29.5° and max ≤ 140.3° for s = 1..4 (tests/mesh/test_generate.cpp).
+/// s = 2: 162 surface vertices, 2 880 tets.
+/// @throws InputError if radius ≤ 0 or anything is not finite, or subdivisions outside 0..6.
+VolumeMesh make_ball(const Vec3& centre, double radius, int subdivisions);
+
+/// A box [lo, hi] with one closed box-shaped cavity [lo + t, hi − t] (t = wall_thickness on
+/// all six sides): the tensor grid with lines lo, lo + t, hi − t, hi in each axis, the cavity
+/// span cut into `cells` equal cells and each wall into round(t / cavity cell size) (at least
+/// one) equal cells, Kuhn-split like make_box, the cavity's cells dropped and their unused
+/// vertices removed. Boundary: the outer box (normals outward) and the cavity's box (normals
+/// into the cavity). Walls much thinner than the cavity cells give flat wall cells (one
+/// cell across the wall, cavity-sized along it); give more cells to keep them shapely.
+/// @throws InputError for non-finite values, lo ≥ hi, t ≤ 0, 2 t ≥ hi − lo in any axis (no
+///   cavity), a cell count < 1, or a mesh too large for int indices.
+VolumeMesh make_hollow_box(const Vec3& lo, const Vec3& hi, double wall_thickness,
+                           const Vec3i& cells);
 
 }  // namespace tetfsi::mesh
