@@ -285,16 +285,51 @@ class Parser {
     return b;
   }
 
+  /// An array of 3 positive integers (cell counts).
+  Vec3i cells(const Node& c) const {
+    if (!c.j.is_array() || c.j.size() != 3)
+      fail(c.path, "expected an array of 3 positive integers, got " + describe(c.j));
+    Vec3i out;
+    for (int a = 0; a < 3; ++a) {
+      const Node e{c.j[a], index_path(c.path, a)};
+      out[a] = integer(e);
+      if (out[a] < 1)
+        fail(e.path, fmt::format("cell counts must be positive integers, got {}", out[a]));
+    }
+    return out;
+  }
+
+  /// An integer at `key` (default `fallback`) in lo..hi; `what` says what it counts.
+  int bounded_integer(const Node& n, const std::string& key, int fallback, int lo, int hi,
+                      const char* what) const {
+    const int v = integer(n, key, fallback);
+    if (v < lo || v > hi)
+      fail(child_path(n.path, key), fmt::format("must be {}..{} ({}), got {}", lo, hi, what, v));
+    return v;
+  }
+
+  /// A number > 0 at `key` (required).
+  double positive(const Node& n, const std::string& key, const char* what) const {
+    const Node c = require(n, key);
+    const double v = number(c);
+    if (v <= 0) fail(c.path, fmt::format("must be > 0 ({}), got {}", what, v));
+    return v;
+  }
+
   MeshSpec mesh(const Node& n) const {
-    expect_object(n, {"box", "file", "surface", "cell_size"});
+    const std::vector<std::string> kinds = {"box",    "file",  "surface",
+                                            "sphere", "shell", "hollow_box"};
+    std::vector<std::string> allowed = kinds;
+    allowed.push_back("cell_size");
+    expect_object(n, allowed);
     std::vector<std::string> given;
-    for (const char* k : {"box", "file", "surface"}) {
+    for (const std::string& k : kinds) {
       if (has(n, k)) given.push_back(fmt::format("'{}'", k));
     }
     if (given.size() != 1) {
-      fail(n.path, given.empty() ? std::string("give exactly one of 'box', 'file' or 'surface'")
-                                 : "give exactly one of 'box', 'file' or 'surface', got " +
-                                       join(given, " and "));
+      const std::string what =
+          "give exactly one of 'box', 'file', 'surface', 'sphere', 'shell' or 'hollow_box'";
+      fail(n.path, given.empty() ? what : what + ", got " + join(given, " and "));
     }
     MeshSpec m;
     if (has(n, "box")) {
@@ -302,25 +337,53 @@ class Parser {
       const Node b = child(n, "box");
       expect_object(b, {"lo", "hi", "cells"});
       m.box = bounds(b, true);
-      if (has(b, "cells")) {
-        const Node c = child(b, "cells");
-        if (!c.j.is_array() || c.j.size() != 3)
-          fail(c.path, "expected an array of 3 positive integers, got " + describe(c.j));
-        for (int a = 0; a < 3; ++a) {
-          const Node e{c.j[a], index_path(c.path, a)};
-          m.cells[a] = integer(e);
-          if (m.cells[a] < 1)
-            fail(e.path, fmt::format("cell counts must be positive integers, got {}", m.cells[a]));
-        }
-      }
+      if (has(b, "cells")) m.cells = cells(child(b, "cells"));
     } else if (has(n, "file")) {
       m.kind = MeshSpec::Kind::File;
       m.file = existing_file(child(n, "file"));
-    } else {
+    } else if (has(n, "surface")) {
       m.kind = MeshSpec::Kind::Surface;
       m.file = existing_file(child(n, "surface"));
       if (!has(n, "cell_size"))
         fail(n.path, "a 'surface' mesh needs 'cell_size' (> 0, m): the target tet size");
+    } else if (has(n, "sphere")) {
+      m.kind = MeshSpec::Kind::Sphere;
+      const Node b = child(n, "sphere");
+      expect_object(b, {"center", "radius", "subdivisions"});
+      m.center = vec3(require(b, "center"));
+      m.radius = positive(b, "radius", "m");
+      m.subdivisions = bounded_integer(b, "subdivisions", m.subdivisions, 0, 6,
+                                       "icosphere levels: surface edges about radius / 2^s");
+    } else if (has(n, "shell")) {
+      m.kind = MeshSpec::Kind::Shell;
+      const Node b = child(n, "shell");
+      expect_object(b, {"center", "inner_radius", "outer_radius", "subdivisions", "layers"});
+      m.center = vec3(require(b, "center"));
+      m.inner_radius = positive(b, "inner_radius", "m");
+      m.outer_radius = positive(b, "outer_radius", "m");
+      if (m.inner_radius >= m.outer_radius) {
+        fail(b.path, fmt::format("need inner_radius < outer_radius, got {} and {}; for a solid "
+                                 "ball use 'sphere'",
+                                 m.inner_radius, m.outer_radius));
+      }
+      m.subdivisions = bounded_integer(b, "subdivisions", m.subdivisions, 0, 7,
+                                       "icosphere levels: surface edges about radius / 2^s");
+      m.layers = bounded_integer(b, "layers", m.layers, 1, 10000, "tets across the wall: 3 each");
+    } else {
+      m.kind = MeshSpec::Kind::HollowBox;
+      const Node b = child(n, "hollow_box");
+      expect_object(b, {"lo", "hi", "thickness", "cells"});
+      m.box = bounds(b, true);
+      m.thickness = positive(b, "thickness", "m, the wall on each of the 6 sides");
+      for (int a = 0; a < 3; ++a) {
+        if (2 * m.thickness >= m.box.hi[a] - m.box.lo[a]) {
+          fail(child_path(b.path, "thickness"),
+               fmt::format("two walls of {} m leave no cavity in {} (the box is {} m wide "
+                           "there); use a thinner wall or a larger box",
+                           m.thickness, "xyz"[a], m.box.hi[a] - m.box.lo[a]));
+        }
+      }
+      if (has(b, "cells")) m.cells = cells(child(b, "cells"));
     }
     if (has(n, "cell_size")) {
       const Node c = child(n, "cell_size");
@@ -672,8 +735,9 @@ class Parser {
     fp.min_dual_fraction = number(n, "min_dual_fraction", fp.min_dual_fraction);
     if (fp.min_dual_fraction <= 0 || fp.min_dual_fraction > 0.1)
       fail(child_path(n.path, "min_dual_fraction"),
-           fmt::format("must be in (0, 0.1] (a fraction of the face's mean edge; default 1e-6), got {}",
-                       fp.min_dual_fraction));
+           fmt::format(
+               "must be in (0, 0.1] (a fraction of the face's mean edge; default 1e-6), got {}",
+               fp.min_dual_fraction));
     if (has(n, "solver")) {
       const Node o = child(n, "solver");
       expect_object(o, {"linear", "rel_tol", "max_iterations"});
@@ -770,6 +834,27 @@ json resolve(const Scene& s) {
         break;
       case MeshSpec::Kind::Surface:
         jb["mesh"] = {{"surface", b.mesh.file.string()}, {"cell_size", b.mesh.cell_size}};
+        break;
+      case MeshSpec::Kind::Sphere:
+        jb["mesh"] = {{"sphere",
+                       {{"center", to_json(b.mesh.center)},
+                        {"radius", b.mesh.radius},
+                        {"subdivisions", b.mesh.subdivisions}}}};
+        break;
+      case MeshSpec::Kind::Shell:
+        jb["mesh"] = {{"shell",
+                       {{"center", to_json(b.mesh.center)},
+                        {"inner_radius", b.mesh.inner_radius},
+                        {"outer_radius", b.mesh.outer_radius},
+                        {"subdivisions", b.mesh.subdivisions},
+                        {"layers", b.mesh.layers}}}};
+        break;
+      case MeshSpec::Kind::HollowBox:
+        jb["mesh"] = {{"hollow_box",
+                       {{"lo", to_json(b.mesh.box.lo)},
+                        {"hi", to_json(b.mesh.box.hi)},
+                        {"thickness", b.mesh.thickness},
+                        {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
         break;
     }
     jb["transform"] = {{"scale", b.transform.scale},
@@ -1174,6 +1259,13 @@ mesh::VolumeMesh make_mesh(const MeshSpec& m) {
       params.cell_size = m.cell_size;
       return mesh::tetrahedralize_surface(surface, params, m.file.string());
     }
+    case MeshSpec::Kind::Sphere:
+      return mesh::make_ball(m.center, m.radius, m.subdivisions);
+    case MeshSpec::Kind::Shell:
+      return mesh::make_spherical_shell(m.center, m.inner_radius, m.outer_radius, m.subdivisions,
+                                        m.layers);
+    case MeshSpec::Kind::HollowBox:
+      return mesh::make_hollow_box(m.box.lo, m.box.hi, m.thickness, m.cells);
   }
   throw InternalError("unknown mesh kind");
 }

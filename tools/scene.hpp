@@ -22,6 +22,11 @@
 ///       "mesh": { "box": { "lo": [..], "hi": [..], "cells": [nx, ny, nz] } }
 ///             | { "file": "meshes/bar.msh" }               // .msh .node .ele .vtu
 ///             | { "surface": "meshes/ball.off", "cell_size": 0.02 },  // .off .obj .stl
+///             | { "sphere": { "center": [..], "radius": 0.1, "subdivisions": 2 } }
+///             | { "shell": { "center": [..], "inner_radius": 0.08, "outer_radius": 0.1,
+///                            "subdivisions": 2, "layers": 1 } }   // cavity: fluid inside
+///             | { "hollow_box": { "lo": [..], "hi": [..], "thickness": 0.01,
+///                                 "cells": [nx, ny, nz] } },      // one closed box cavity
 ///       "transform": { "scale": 1.0, "rotate_deg": [0, 0, 0], "translate": [0, 0, 0] },
 ///       "material": { "density": 1000, "youngs_modulus": 1e5, "poisson_ratio": 0.3,
 ///                     "rayleigh_alpha": 0, "rayleigh_beta": 0 },
@@ -66,7 +71,11 @@
 /// ```
 /// Rules beyond the types: a pin or load gives exactly one of "box" / "nodes"; a load needs
 /// "total_force"; selection boxes may be flat (lo ≤ hi, e.g. one face of a box body; they
-/// include nodes within 1e-9 m), mesh and obstacle boxes need lo < hi; a key given twice in
+/// include nodes within 1e-9 m), mesh and obstacle boxes need lo < hi; sphere radius > 0,
+/// subdivisions 0..6 (surface edges about radius / 2^s; default 2); shell 0 < inner_radius <
+/// outer_radius, subdivisions 0..7 (default 2), layers >= 1 (default 1); hollow_box
+/// thickness > 0 and 2 thickness < hi − lo in every axis, cells as for box (default [1, 1,
+/// 1]); the transform applies to generated meshes as to any other; a key given twice in
 /// one object is an error (load_scene only: nlohmann would keep the last silently).
 /// Fluid: a patch's "side" is one of "-x", "+x", "-y", "+y", "-z", "+z"; its rectangle
 /// lo < hi is in the side's two other coordinates in increasing axis order (side ±y: (x, z))
@@ -114,13 +123,23 @@ struct BoxSpec {
   }
 };
 
+/// A body's mesh: read, tetrahedralised (CGAL) or generated (mesh/generate.hpp).
 struct MeshSpec {
-  enum class Kind { Box, File, Surface };
+  enum class Kind { Box, File, Surface, Sphere, Shell, HollowBox };
   Kind kind = Kind::Box;
-  std::filesystem::path file;   ///< File / Surface: absolute (resolved against the scene folder)
-  BoxSpec box;                  ///< Box: extent
-  Vec3i cells = Vec3i::Ones();  ///< Box: hexahedra per axis (6 tets each)
-  double cell_size = 0.0;       ///< Surface: Mesh_3 cell size (m)
+  std::filesystem::path file;  ///< File / Surface: absolute (resolved against the scene folder)
+  BoxSpec box;                 ///< Box, HollowBox: extent (m)
+  /// Box: hexahedra per axis (6 tets each); HollowBox: across the cavity (the walls get
+  /// round(thickness / cavity cell) cells, at least one)
+  Vec3i cells = Vec3i::Ones();
+  double cell_size = 0.0;      ///< Surface: Mesh_3 cell size (m)
+  Vec3 center = Vec3::Zero();  ///< Sphere, Shell (m)
+  double radius = 0.0;         ///< Sphere: mesh::make_ball (m)
+  double inner_radius = 0.0;   ///< Shell: mesh::make_spherical_shell, < outer_radius (m)
+  double outer_radius = 0.0;   ///< Shell (m)
+  int subdivisions = 2;        ///< Sphere (0..6), Shell (0..7): icosphere level of the surface
+  int layers = 1;              ///< Shell: prism layers across the wall (1..10000)
+  double thickness = 0.0;      ///< HollowBox: wall thickness on all six sides (m)
 };
 
 /// x ↦ translate + R (scale · x), R = Rz · Ry · Rx from rotate_deg (degrees about x, y, z).

@@ -340,7 +340,8 @@ TEST_CASE("out-of-range values say what the range is") {
   check_edit_rejected([](json& j) { j.erase("bodies"); }, {"missing required key 'bodies'"});
   check_edit_rejected(
       [](json& j) { j["bodies"][0]["mesh"]["file"] = "x.msh"; },
-      {"bodies[0].mesh: give exactly one of 'box', 'file' or 'surface', got 'box' and 'file'"});
+      {"bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', 'shell' or "
+       "'hollow_box', got 'box' and 'file'"});
   check_edit_rejected([](json& j) { j["bodies"][0]["mesh"] = json::object(); },
                       {"bodies[0].mesh: give exactly one of"});
   check_edit_rejected([](json& j) { j["bodies"][0]["transform"]["scale"] = 0; },
@@ -1150,4 +1151,107 @@ TEST_CASE("build_world: a closed surface is tetrahedralised at the requested cel
   CHECK(b.total_mass() == doctest::Approx(500.0).epsilon(0.15));
   CHECK(b.rest_positions().minCoeff() >= -1e-6);
   CHECK(b.rest_positions().maxCoeff() <= 1.0 + 1e-6);
+}
+
+TEST_CASE("generated meshes: sphere, shell, hollow_box parse, resolve back and build") {
+  json j = minimal_json();
+  json& bodies = j["bodies"];
+  bodies[0]["mesh"] = json::parse(R"({ "sphere": { "center": [0, 0, 0.5], "radius": 0.1 } })");
+  bodies.push_back(json::parse(R"({ "name": "balloon", "mesh": { "shell": {
+      "center": [1, 0, 0], "inner_radius": 0.08, "outer_radius": 0.1, "subdivisions": 1,
+      "layers": 2 } } })"));
+  bodies.push_back(json::parse(R"({ "name": "tank", "mesh": { "hollow_box": {
+      "lo": [0, 0, 0], "hi": [0.4, 0.3, 0.2], "thickness": 0.05, "cells": [3, 2, 1] } },
+      "transform": { "translate": [0, 0, 2] },
+      "pins": [ { "box": { "lo": [0, 0, 2], "hi": [0.4, 0.3, 2] } } ] })"));
+  const Scene s = parse_scene(j, "scene.json");
+  const MeshSpec& ball = s.bodies[0].mesh;
+  CHECK(ball.kind == MeshSpec::Kind::Sphere);
+  CHECK(ball.center == Vec3(0, 0, 0.5));
+  CHECK(ball.radius == 0.1);
+  CHECK(ball.subdivisions == 2);  // default
+  const MeshSpec& shell = s.bodies[1].mesh;
+  CHECK(shell.kind == MeshSpec::Kind::Shell);
+  CHECK(shell.inner_radius == 0.08);
+  CHECK(shell.outer_radius == 0.1);
+  CHECK(shell.subdivisions == 1);
+  CHECK(shell.layers == 2);
+  const MeshSpec& tank = s.bodies[2].mesh;
+  CHECK(tank.kind == MeshSpec::Kind::HollowBox);
+  CHECK(tank.box.hi == Vec3(0.4, 0.3, 0.2));
+  CHECK(tank.thickness == 0.05);
+  CHECK(tank.cells == Vec3i(3, 2, 1));
+
+  // The resolved scene writes every key back, defaults included, and parses to the same.
+  const json& r = s.resolved["bodies"];
+  CHECK(r[0]["mesh"] == json::parse(R"({ "sphere": { "center": [0.0, 0.0, 0.5], "radius": 0.1,
+                                          "subdivisions": 2 } })"));
+  CHECK(r[1]["mesh"]["shell"]["layers"] == 2);
+  CHECK(r[2]["mesh"]["hollow_box"]["thickness"] == 0.05);
+  CHECK(r[2]["mesh"]["hollow_box"]["cells"] == json::array({3, 2, 1}));
+  const Scene back = parse_scene(json::parse(s.resolved.dump(2)), "scene.resolved.json");
+  CHECK(back.resolved == s.resolved);
+
+  // build_world: masses are ρ × the generators' polyhedral volumes; transform and pins work.
+  const solid::SolidWorld w = build_world(s);
+  REQUIRE(w.bodies.size() == 3);
+  // Inscribed icospheres: the ball's volume is within its 3.4 % deficit at s = 2 (below),
+  // the s = 1 shell's within 13 %.
+  const double ball_mass = 1000.0 * 4.0 / 3.0 * M_PI * 1e-3;
+  CHECK(w.bodies[0].total_mass() < ball_mass);
+  CHECK(w.bodies[0].total_mass() > 0.965 * ball_mass);
+  const double shell_mass = 1000.0 * 4.0 / 3.0 * M_PI * (1e-3 - 0.512e-3);
+  CHECK(w.bodies[1].total_mass() < shell_mass);
+  CHECK(w.bodies[1].total_mass() > 0.87 * shell_mass);
+  CHECK(w.bodies[1].num_tets() == 2 * 3 * 80);
+  // Hollow box: exact volume 0.4·0.3·0.2 − 0.3·0.2·0.1, translated to z ∈ [2, 2.2], its
+  // bottom face (the z = 2 grid plane, selected after the transform) pinned.
+  const solid::SolidBody& t = w.bodies[2];
+  CHECK(t.total_mass() == doctest::Approx(1000.0 * (0.024 - 0.006)).epsilon(1e-12));
+  CHECK(t.rest_positions().col(2).minCoeff() == doctest::Approx(2.0));
+  CHECK(t.rest_positions().col(2).maxCoeff() == doctest::Approx(2.2));
+  // Grid lines: x: 1 wall + 3 + 1 wall cells → 6 lines; y: 1 + 2 + 1 → 5; all on z = 2.
+  CHECK(t.num_fixed_dofs() == 3 * 6 * 5);
+}
+
+TEST_CASE("generated meshes: missing keys, bad values and two kinds are one-line errors") {
+  const auto rejected = [](const char* mesh, std::initializer_list<std::string> parts) {
+    json j = minimal_json();
+    j["bodies"][0]["mesh"] = json::parse(mesh);
+    check_input_error([&] { parse_scene(j, "scene.json"); }, parts);
+  };
+  rejected(R"({ "sphere": { "center": [0, 0, 0] } })",
+           {"scene.json: bodies[0].mesh.sphere: missing required key 'radius'"});
+  rejected(R"({ "sphere": { "radius": 1 } })",
+           {"bodies[0].mesh.sphere: missing required key 'center'"});
+  rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": -1 } })",
+           {"bodies[0].mesh.sphere.radius: must be > 0 (m), got -1"});
+  rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1, "subdivisions": 9 } })",
+           {"bodies[0].mesh.sphere.subdivisions: must be 0..6", "got 9"});
+  rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1, "subdivision": 2 } })",
+           {"bodies[0].mesh.sphere.subdivision: unknown key (did you mean 'subdivisions'?)"});
+  rejected(
+      R"({ "shell": { "center": [0, 0, 0], "inner_radius": 0.2, "outer_radius": 0.2 } })",
+      {"bodies[0].mesh.shell: need inner_radius < outer_radius, got 0.2 and 0.2", "use 'sphere'"});
+  rejected(R"({ "shell": { "center": [0, 0, 0], "outer_radius": 0.2 } })",
+           {"bodies[0].mesh.shell: missing required key 'inner_radius'"});
+  rejected(R"({ "shell": { "center": [0, 0, 0], "inner_radius": 0.1, "outer_radius": 0.2,
+                "layers": 0 } })",
+           {"bodies[0].mesh.shell.layers: must be 1..10000", "got 0"});
+  rejected(R"({ "hollow_box": { "lo": [0, 0, 0], "hi": [1, 1, 0.2], "thickness": 0.1 } })",
+           {"bodies[0].mesh.hollow_box.thickness: two walls of 0.1 m leave no cavity in z",
+            "use a thinner wall or a larger box"});
+  rejected(R"({ "hollow_box": { "lo": [0, 0, 0], "hi": [1, 1, 1] } })",
+           {"bodies[0].mesh.hollow_box: missing required key 'thickness'"});
+  rejected(R"({ "hollow_box": { "lo": [0, 0, 0], "hi": [1, 1, 1], "thickness": 0.1,
+                "cells": [2, 0, 2] } })",
+           {"bodies[0].mesh.hollow_box.cells[1]: cell counts must be positive integers, got 0"});
+  rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1 },
+                "box": { "lo": [0, 0, 0], "hi": [1, 1, 1] } })",
+           {"scene.json: bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', "
+            "'shell' or 'hollow_box', got 'box' and 'sphere'"});
+  rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1 }, "cell_size": 0.1 })",
+           {"bodies[0].mesh.cell_size: cell_size applies only to a 'surface' mesh"});
+  rejected(R"({ "ball": { "center": [0, 0, 0], "radius": 1 } })",
+           {"bodies[0].mesh.ball: unknown key"});
 }
