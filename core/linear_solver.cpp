@@ -302,8 +302,8 @@ bool is_symmetric(const SparseMatrix& A, double rel_tol) {
   return dmax <= rel_tol * amax;
 }
 
-std::unique_ptr<OperatorSolver> make_amg_operator_solver(const SolverOptions& opts) {
-  return detail::make_petsc_operator_solver(opts);
+std::unique_ptr<AmgPreconditioner> make_amg_preconditioner() {
+  return detail::make_petsc_preconditioner();
 }
 
 }  // namespace tetfsi

@@ -29,7 +29,6 @@
 /// Symmetric but possibly indefinite systems (e.g. 3n × 3n StVK stiffness under
 /// compression): try `cholmod`; its `setup` throws `SolverError` when the matrix is not
 /// SPD, and the caller falls back to `umfpack`, which takes any nonsingular matrix.
-#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -78,24 +77,19 @@ class LinearSolver {
 
 std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts = {});
 
-/// y = S x for a linear operator given as a function (x and y have the operator's size).
-using LinearOperator = std::function<void(const VecX& x, VecX& y)>;
-
-/// Conjugate gradients on an SPD operator S that is only available as a product (e.g. a
-/// Schur complement), preconditioned by hypre BoomerAMG built on a sparse SPD matrix P that
-/// approximates S (PETSc KSPCG with a shell matrix; BoomerAMG tuned as for `amg`, options
-/// prefix `tetfsi_amg_`). Stops on the true residual ||b − S x|| ≤ rel_tol ||b|| like the
-/// other iterative backends; x is the initial guess.
-class OperatorSolver {
+/// One application of hypre BoomerAMG (a V-cycle, tuned as for `amg`, options prefix
+/// `tetfsi_amg_`) as a preconditioner z ≈ P⁻¹ r, for Krylov methods written outside the
+/// solver layer (coupling/coupled_system.cpp).
+class AmgPreconditioner {
  public:
-  virtual ~OperatorSolver() = default;
-  /// S and P must stay alive until the next setup. @throws SolverError if the AMG setup fails.
-  virtual void setup(Index n, LinearOperator S, const SparseMatrix& P) = 0;
-  virtual SolveReport solve(const VecX& b, VecX& x) = 0;
+  virtual ~AmgPreconditioner() = default;
+  /// P must stay alive until the next setup. @throws SolverError if the setup fails.
+  virtual void setup(const SparseMatrix& P) = 0;
+  virtual void apply(const VecX& r, VecX& z) = 0;
+  virtual double setup_seconds() const = 0;
 };
-
 /// @throws SolverError if PETSc cannot be initialised.
-std::unique_ptr<OperatorSolver> make_amg_operator_solver(const SolverOptions& opts = {});
+std::unique_ptr<AmgPreconditioner> make_amg_preconditioner();
 
 /// True relative residual ||b − A x||₂ / ||b||₂ (||A x||₂ if b = 0, so x = 0 gives 0).
 /// @param A n × n, @param b length n, @param x length n.

@@ -168,14 +168,6 @@ void krylov_with_restarts(KSP ksp, const VecX& b, VecX& x, const SolverOptions& 
                    rep.iterations, KSPConvergedReasons[reason], rep.residual);
 }
 
-/// BoomerAMG on the KSP's preconditioner with the `tetfsi_amg_` tuning.
-void use_boomeramg(KSP ksp) {
-  PC pc = nullptr;
-  TETFSI_PETSC(KSPGetPC(ksp, &pc));
-  TETFSI_PETSC(PCSetType(pc, PCHYPRE));
-  TETFSI_PETSC(PCHYPRESetType(pc, "boomeramg"));
-}
-
 // ---- the solver ------------------------------------------------------------------------------
 
 class PetscAmgSolver final : public LinearSolver {
@@ -306,120 +298,66 @@ class PetscAmgSolver final : public LinearSolver {
   double m_setup_s = 0.0;
 };
 
-// ---- CG on a shell operator, BoomerAMG on an approximation -----------------------------------
+// ---- BoomerAMG alone, as a preconditioner ---------------------------------------------------
 
-class PetscOperatorSolver final : public OperatorSolver {
+class PetscAmgPreconditioner final : public AmgPreconditioner {
  public:
-  explicit PetscOperatorSolver(const SolverOptions& opts) : m_opts(opts) { ensure_petsc(); }
-  PetscOperatorSolver(const PetscOperatorSolver&) = delete;
-  PetscOperatorSolver& operator=(const PetscOperatorSolver&) = delete;
-  ~PetscOperatorSolver() override { release(); }
+  PetscAmgPreconditioner() { ensure_petsc(); }
+  PetscAmgPreconditioner(const PetscAmgPreconditioner&) = delete;
+  PetscAmgPreconditioner& operator=(const PetscAmgPreconditioner&) = delete;
+  ~PetscAmgPreconditioner() override { release(); }
 
-  void setup(Index n, LinearOperator S, const SparseMatrix& P) override {
+  void setup(const SparseMatrix& P) override {
     const double t0 = now_seconds();
     release();
     try {
-      TETFSI_REQUIRE(SolverError, n > 0 && P.rows() == n && P.cols() == n,
-                     "amg_operator: need an n x n preconditioning matrix, got {} x {} for n = {}",
-                     P.rows(), P.cols(), n);
+      const Index n = static_cast<Index>(P.rows());
+      TETFSI_REQUIRE(SolverError, n > 0 && P.cols() == n,
+                     "need a nonempty square matrix, got {} x {}", P.rows(), P.cols());
       m_n = n;
-      m_op = std::move(S);
       m_csr = P;
       m_csr.makeCompressed();
       TETFSI_PETSC(MatCreateSeqAIJWithArrays(PETSC_COMM_SELF, n, n, m_csr.outerIndexPtr(),
-                                             m_csr.innerIndexPtr(), m_csr.valuePtr(), &m_pmat));
-      TETFSI_PETSC(MatSetOption(m_pmat, MAT_SYMMETRIC, PETSC_TRUE));
-      TETFSI_PETSC(MatSetOption(m_pmat, MAT_SPD, PETSC_TRUE));
-      TETFSI_PETSC(MatCreateShell(PETSC_COMM_SELF, n, n, n, n, this, &m_shell));
-      TETFSI_PETSC(
-          MatShellSetOperation(m_shell, MATOP_MULT, reinterpret_cast<void (*)(void)>(&shell_mult)));
-      TETFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &m_ksp));
-      TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, "tetfsi_amg_"));
-      TETFSI_PETSC(KSPSetOperators(m_ksp, m_shell, m_pmat));
-      TETFSI_PETSC(KSPSetType(m_ksp, KSPCG));
-      TETFSI_PETSC(KSPSetNormType(m_ksp, KSP_NORM_UNPRECONDITIONED));
-      TETFSI_PETSC(KSPSetInitialGuessNonzero(m_ksp, PETSC_TRUE));
-      use_boomeramg(m_ksp);
-      TETFSI_PETSC(KSPSetFromOptions(m_ksp));
-      TETFSI_PETSC(KSPSetUp(m_ksp));
+                                             m_csr.innerIndexPtr(), m_csr.valuePtr(), &m_mat));
+      TETFSI_PETSC(MatSetOption(m_mat, MAT_SYMMETRIC, PETSC_TRUE));
+      TETFSI_PETSC(PCCreate(PETSC_COMM_SELF, &m_pc));
+      TETFSI_PETSC(PCSetOptionsPrefix(m_pc, "tetfsi_amg_"));
+      TETFSI_PETSC(PCSetOperators(m_pc, m_mat, m_mat));
+      TETFSI_PETSC(PCSetType(m_pc, PCHYPRE));
+      TETFSI_PETSC(PCHYPRESetType(m_pc, "boomeramg"));
+      TETFSI_PETSC(PCSetFromOptions(m_pc));
+      TETFSI_PETSC(PCSetUp(m_pc));
     } catch (const SolverError& e) {
       release();
-      throw SolverError(fmt::format("amg_operator: {}", e.what()));
+      throw SolverError(fmt::format("amg preconditioner: {}", e.what()));
     }
     m_setup_s = now_seconds() - t0;
   }
 
-  SolveReport solve(const VecX& b, VecX& x) override {
-    TETFSI_CHECK(m_ksp != nullptr, "amg_operator: solve() called before setup()");
-    TETFSI_CHECK(b.size() == m_n, "amg_operator: right-hand side has length {}, operator is {}",
-                 b.size(), m_n);
-    const double t0 = now_seconds();
-    SolveReport rep{"amg_operator", true, 0, 0.0, m_setup_s, 0.0};
-    if (x.size() != m_n || !x.allFinite()) x = VecX::Zero(m_n);
-    const double bnorm = b.norm();
-    if (bnorm == 0.0) {
-      x.setZero();
-      rep.solve_s = now_seconds() - t0;
-      return rep;
-    }
-    VecX y(m_n);
-    try {
-      krylov_with_restarts(m_ksp, b, x, m_opts, "amg_operator", rep, [&] {
-        m_op(x, y);
-        return (b - y).norm() / bnorm;
-      });
-    } catch (const SolverError& e) {
-      throw SolverError(fmt::format("amg_operator: {}", e.what()));
-    }
-    rep.converged = rep.residual <= m_opts.rel_tol;
-    rep.solve_s = now_seconds() - t0;
-    return rep;
+  void apply(const VecX& r, VecX& z) override {
+    TETFSI_CHECK(m_pc != nullptr && r.size() == m_n,
+                 "amg preconditioner: apply before setup or wrong size ({} for {})", r.size(), m_n);
+    z.resize(m_n);
+    WrappedVec vr(m_n, r.data());
+    WrappedVec vz(m_n, z.data());
+    TETFSI_PETSC(PCApply(m_pc, vr.v, vz.v));
   }
+
+  double setup_seconds() const override { return m_setup_s; }
 
  private:
-  static PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
-    void* ctx = nullptr;
-    PetscErrorCode ierr = MatShellGetContext(A, &ctx);
-    if (ierr) return ierr;
-    auto* self = static_cast<PetscOperatorSolver*>(ctx);
-    const PetscScalar* xa = nullptr;
-    PetscScalar* ya = nullptr;
-    ierr = VecGetArrayRead(x, &xa);
-    if (ierr) return ierr;
-    ierr = VecGetArray(y, &ya);
-    if (ierr) return ierr;
-    try {
-      self->m_x = Eigen::Map<const VecX>(xa, self->m_n);
-      self->m_op(self->m_x, self->m_y);
-      Eigen::Map<VecX>(ya, self->m_n) = self->m_y;
-    } catch (...) {
-      VecRestoreArray(y, &ya);
-      VecRestoreArrayRead(x, &xa);
-      return PETSC_ERR_LIB;
-    }
-    ierr = VecRestoreArray(y, &ya);
-    if (ierr) return ierr;
-    return VecRestoreArrayRead(x, &xa);
-  }
-
   void release() {
     if (!petsc_finalized()) {
-      if (m_ksp) KSPDestroy(&m_ksp);
-      if (m_shell) MatDestroy(&m_shell);
-      if (m_pmat) MatDestroy(&m_pmat);
+      if (m_pc) PCDestroy(&m_pc);
+      if (m_mat) MatDestroy(&m_mat);
     }
-    m_ksp = nullptr;
-    m_shell = nullptr;
-    m_pmat = nullptr;
+    m_pc = nullptr;
+    m_mat = nullptr;
   }
-
-  SolverOptions m_opts;
   Index m_n = 0;
-  LinearOperator m_op;
-  VecX m_x, m_y;  ///< shell product buffers
   Eigen::SparseMatrix<double, Eigen::RowMajor, Index> m_csr;
-  Mat m_pmat = nullptr, m_shell = nullptr;
-  KSP m_ksp = nullptr;
+  Mat m_mat = nullptr;
+  PC m_pc = nullptr;
   double m_setup_s = 0.0;
 };
 
@@ -431,8 +369,8 @@ std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOpt
   return std::make_unique<PetscAmgSolver>(kind, opts);
 }
 
-std::unique_ptr<OperatorSolver> make_petsc_operator_solver(const SolverOptions& opts) {
-  return std::make_unique<PetscOperatorSolver>(opts);
+std::unique_ptr<AmgPreconditioner> make_petsc_preconditioner() {
+  return std::make_unique<PetscAmgPreconditioner>();
 }
 
 }  // namespace tetfsi::detail

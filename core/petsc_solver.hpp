@@ -18,7 +18,7 @@ namespace tetfsi::detail {
 /// @throws SolverError if PETSc cannot be initialised.
 std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOptions& opts);
 
-/// CG on a shell operator with BoomerAMG on P (see tetfsi::make_amg_operator_solver).
-std::unique_ptr<OperatorSolver> make_petsc_operator_solver(const SolverOptions& opts);
+/// BoomerAMG as a preconditioner (see tetfsi::make_amg_preconditioner).
+std::unique_ptr<AmgPreconditioner> make_petsc_preconditioner();
 
 }  // namespace tetfsi::detail

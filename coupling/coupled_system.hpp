@@ -67,9 +67,13 @@ struct CoupledBody {
   bool free = false;
   SparseMatrix A;  ///< free: [Chentanez06, Eq. (4)], 3n × 3n, fixed DOFs eliminated
   VecX b;          ///< free: 3n, without fluid forces
-  std::vector<std::uint8_t> fixed;  ///< free: per DOF, 1 if fixed (its u stays 0)
-  MatX3 x;                          ///< free: node positions at tⁿ (#n × 3; enclosed volumes)
-  VecX u;                           ///< free: uⁿ (3n; enclosed volumes)
+  std::vector<std::uint8_t> fixed;  ///< free: per DOF, 1 if its velocity is prescribed
+  /// free: the prescribed uⁿ⁺¹ of the fixed DOFs (3n; empty: 0, pins). A contact constraint
+  /// puts a node on the floor this way; A and b must already have the DOF eliminated
+  /// (A's row and column zero but the diagonal, b = A_ii v, the column moved into b).
+  VecX prescribed;
+  MatX3 x;  ///< free: node positions at tⁿ (#n × 3; enclosed volumes)
+  VecX u;   ///< free: uⁿ (3n; enclosed volumes)
 };
 
 struct CoupledOptions {
