@@ -192,7 +192,9 @@ struct FluidStepStats {
 struct CoupledStepStats {
   int iterations = 0;            ///< coupled_iterations: of the coupled solve (1 for LU)
   double residual = NAN;         ///< coupled_residual: its worst relative residual
-  double interface_power = NAN;  ///< W, pᵀ Jᵀ uⁿ⁺¹ (CoupledReport::interface_power)
+  /// W, pᵀ Jᵀ uⁿ⁺¹ of the dynamic pressure on the free bodies (CoupledReport::
+  /// interface_power); 0 in the splitting scheme, whose solve holds every body.
+  double interface_power = NAN;
   /// total_energy_coupled: fluid kinetic + solid kinetic + elastic after the step (J)
   double total_energy = NAN;
   double enclosed_volume = 0.0;  ///< m³, Σ over enclosed regions of their volume after the step
