@@ -389,7 +389,8 @@ void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression c
   write_xml_atomic(writer, grid, path, compression);
 }
 
-void write_interface_vtp(const fs::path& path, const mesh::TetMesh& m, Compression compression) {
+void write_interface_vtp(const fs::path& path, const mesh::TetMesh& m, Compression compression,
+                         const FluidFrameFields* fields) {
   install_vtk_output_window();
   const Index nf = m.num_faces();
   TETFSI_CHECK(m.face_kind.size() == static_cast<size_t>(nf),
@@ -447,6 +448,19 @@ void write_interface_vtp(const fs::path& path, const mesh::TetMesh& m, Compressi
   cd->AddArray(scalar_array("dual_length", dual));
   cd->AddArray(vector_array("normal", normal.data(), n));
   cd->AddArray(vector_array("bary", bary.data(), n));
+  if (fields) {
+    TETFSI_CHECK(fields->pressure.size() == m.num_tets() && fields->face_velocity.size() == nf,
+                 "interface fields have {} pressures / {} face velocities for {} cells / {} faces",
+                 fields->pressure.size(), fields->face_velocity.size(), m.num_tets(), nf);
+    VecX pressure(n), normal_velocity(n);
+    for (Index i = 0; i < n; ++i) {
+      const Index f = faces[static_cast<size_t>(i)];
+      pressure[i] = fields->pressure[m.face_tets(f, 0)];  // the fluid cell: n_f points out of it
+      normal_velocity[i] = fields->face_velocity[f];
+    }
+    cd->AddArray(scalar_array("pressure", pressure));
+    cd->AddArray(scalar_array("normal_velocity", normal_velocity));
+  }
 
   vtkNew<vtkXMLPolyDataWriter> writer;
   write_xml_atomic(writer, poly, path, compression);
@@ -476,19 +490,30 @@ void PvdWriter::add(double time, const std::string& relative_file) {
 
 // ---- stats.csv -----------------------------------------------------------------------------
 
-const std::vector<std::string>& StatsWriter::phase_columns(bool fluid) {
+const std::vector<std::string>& StatsWriter::phase_columns(bool fluid, bool coupled) {
   static const std::vector<std::string> p = {"assemble", "solve", "update", "output", "total"};
   static const std::vector<std::string> pf = {
       "assemble", "solve",          "update",         "remesh", "transfer",
       "forces",   "pressure_assembly", "pressure_solve", "output", "total"};
-  return fluid ? pf : p;
+  static const std::vector<std::string> pc = {"remesh",           "transfer",      "forces",
+                                              "coupled_assembly", "coupled_solve", "solid",
+                                              "update",           "output",        "total"};
+  return fluid ? (coupled ? pc : pf) : p;
 }
 
 namespace {
 
-std::vector<std::string> make_columns(bool fluid) {
+/// The coupling columns (CoupledStepStats), after the fluid columns.
+const std::vector<std::string>& coupling_columns() {
+  static const std::vector<std::string> c = {"coupled_iterations", "coupled_residual",
+                                             "interface_power",    "total_energy_coupled",
+                                             "enclosed_volume",    "enclosed_volume_drift"};
+  return c;
+}
+
+std::vector<std::string> make_columns(bool fluid, bool coupled) {
   std::vector<std::string> v = {"step", "time", "dt"};
-  for (const auto& p : StatsWriter::phase_columns(fluid)) v.push_back(p);
+  for (const auto& p : StatsWriter::phase_columns(fluid, coupled)) v.push_back(p);
   for (const char* s : {"solver_iterations", "solver_residual", "contacts", "kinetic_energy",
                         "elastic_energy", "gravity_potential", "total_energy"})
     v.emplace_back(s);
@@ -502,6 +527,8 @@ std::vector<std::string> make_columns(bool fluid) {
                           "divergence", "fluid_kinetic_energy", "smoke_mass", "inflow_flux",
                           "outflow_flux", "solid_flux", "max_speed", "cfl", "traces_clamped"})
       v.emplace_back(s);
+    if (coupled)
+      for (const auto& c : coupling_columns()) v.push_back(c);
   }
   return v;
 }
@@ -514,18 +541,20 @@ size_t num_quality_columns() {
 
 }  // namespace
 
-const std::vector<std::string>& StatsWriter::columns(bool fluid) {
-  static const std::vector<std::string> c = make_columns(false);
-  static const std::vector<std::string> cf = make_columns(true);
-  return fluid ? cf : c;
+const std::vector<std::string>& StatsWriter::columns(bool fluid, bool coupled) {
+  static const std::vector<std::string> c = make_columns(false, false);
+  static const std::vector<std::string> cf = make_columns(true, false);
+  static const std::vector<std::string> cc = make_columns(true, true);
+  return fluid ? (coupled ? cc : cf) : c;
 }
 
-StatsWriter::StatsWriter(const fs::path& path, bool fluid) : m_path(path), m_fluid(fluid) {
+StatsWriter::StatsWriter(const fs::path& path, bool fluid, bool coupled)
+    : m_path(path), m_fluid(fluid), m_coupled(fluid && coupled) {
   m_file = std::fopen(path.c_str(), "w");
   if (!m_file)
     throw InputError(fmt::format("cannot write '{}': {}", path.string(), std::strerror(errno)));
   std::string header;
-  for (const auto& c : columns(fluid)) {
+  for (const auto& c : columns(m_fluid, m_coupled)) {
     if (!header.empty()) header += ',';
     header += c;
   }
@@ -540,7 +569,8 @@ StatsWriter::~StatsWriter() {
 
 void StatsWriter::write(const StepStats& r) {
   std::string line = fmt::format("{},{:.17g},{:.17g}", r.step, r.time, r.dt);
-  for (const auto& p : phase_columns(m_fluid)) line += fmt::format(",{:.6g}", r.phases.get(p));
+  for (const auto& p : phase_columns(m_fluid, m_coupled))
+    line += fmt::format(",{:.6g}", r.phases.get(p));
   line += fmt::format(",{},{:.17g},{},{:.17g},{:.17g},{:.17g},{:.17g}", r.solver_iterations,
                       r.solver_residual, r.contacts, r.kinetic_energy, r.elastic_energy,
                       r.gravity_potential, r.total_energy());
@@ -560,6 +590,16 @@ void StatsWriter::write(const StepStats& r) {
                           f.outflow_flux, f.solid_flux, f.max_speed, f.cfl, f.traces_clamped);
     } else {
       for (size_t k = 0; k < 5 + nq + 12; ++k) line += ",nan";
+    }
+  }
+  if (m_coupled) {
+    if (r.coupled) {
+      const CoupledStepStats& c = *r.coupled;
+      line += fmt::format(",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.6g}", c.iterations, c.residual,
+                          c.interface_power, c.total_energy, c.enclosed_volume,
+                          c.enclosed_volume_drift);
+    } else {
+      for (size_t k = 0; k < coupling_columns().size(); ++k) line += ",nan";
     }
   }
   line += '\n';
@@ -594,7 +634,7 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
                            const solid::SolidWorld& world)
     : m_out(prepare_out_dir(out_dir)),
       m_compression(parse_compression(scene.output.compression)),
-      m_stats(m_out / "stats.csv", scene.fluid.has_value()) {
+      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way()) {
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
@@ -641,18 +681,23 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
                                const FluidFrameFields* fluid_fields) {
   TETFSI_CHECK(world.bodies.size() == m_pvd.size(), "world has {} bodies, output has {}",
                world.bodies.size(), m_pvd.size());
+  // Every file first, then the collections: a frame that fails half-way is in none of them.
+  std::vector<std::string> rel(world.bodies.size());
   for (size_t i = 0; i < world.bodies.size(); ++i) {
     const std::string& name = m_file_names[i];
-    const std::string rel = fmt::format("{}/{}_{:06d}.vtu", name, name, step);
-    write_body_vtu(m_out / rel, world.bodies[i], world.gravity, m_compression);
-    m_pvd[i].add(time, rel);
+    rel[i] = fmt::format("{}/{}_{:06d}.vtu", name, name, step);
+    write_body_vtu(m_out / rel[i], world.bodies[i], world.gravity, m_compression);
   }
-  if (m_fluid_pvd && fluid) {
-    const std::string rel = fmt::format("fluid/fluid_{:06d}.vtu", step);
-    write_fluid_vtu(m_out / rel, *fluid, m_compression, fluid_fields);
-    m_fluid_pvd->add(time, rel);
-    const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
-    write_interface_vtp(m_out / rel_i, *fluid, m_compression);
+  const bool with_fluid = m_fluid_pvd && fluid;
+  const std::string rel_f = fmt::format("fluid/fluid_{:06d}.vtu", step);
+  const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
+  if (with_fluid) {
+    write_fluid_vtu(m_out / rel_f, *fluid, m_compression, fluid_fields);
+    write_interface_vtp(m_out / rel_i, *fluid, m_compression, fluid_fields);
+  }
+  for (size_t i = 0; i < world.bodies.size(); ++i) m_pvd[i].add(time, rel[i]);
+  if (with_fluid) {
+    m_fluid_pvd->add(time, rel_f);
     m_interface_pvd->add(time, rel_i);
   }
   ++m_frames;

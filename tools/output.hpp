@@ -16,6 +16,12 @@
 /// OUT/stats.csv                    one row per step (see StatsWriter::columns())
 /// OUT/summary.json                 written by the run loop at the end (tools/run.hpp)
 /// ```
+/// Every collection lists the same times (a frame's files are all written before any `.pvd`
+/// lists it), except that frames without a fluid mesh (none could be built at t = 0) are in
+/// the bodies' collections only. The fluid mesh of a frame is the one its state lives on: in
+/// a two-way simultaneous run it was built around the predicted surfaces x* = xⁿ + h uⁿ
+/// (coupling/coupled_step.hpp), so its interface faces follow the body's frame at xⁿ⁺¹ only
+/// to O(h² |du/dt|), not exactly as in a one-way run.
 /// Robustness: every file is written under a temporary name and renamed into place, and the
 /// `.pvd` is rewritten after every frame, so a run killed at any moment leaves a collection
 /// that ParaView can open, listing only complete frames. (Atomic against a killed process;
@@ -89,6 +95,7 @@ struct FluidFrameFields {
   VecX divergence;        ///< #T (D u)_t (1/s)
   MatX3 cell_velocity;    ///< #T × 3 reconstructed at the centroids (m/s)
   MatX3 vertex_velocity;  ///< #V × 3 reconstructed at the vertices (m/s)
+  VecX face_velocity;     ///< #F u_f, the normal velocity along n_f (m/s)
 };
 
 /// With `fields`, also: cell data `pressure`, `smoke_density`, `temperature`, `vorticity`,
@@ -105,12 +112,15 @@ void write_fluid_vtu(const std::filesystem::path& path, const mesh::TetMesh& flu
 /// the triangle of that body's SolidSurface, TetMesh::face_triangle), `area` (m²),
 /// `dual_length` d_f (m), `normal` n_f (3 components), `bary` (3 components: barycentric
 /// weights of the face centroid on that triangle). Point data: `fluid_vertex` (Int32: the
-/// point's index in the fluid mesh). A mesh without solid faces gives an empty, valid file.
+/// point's index in the fluid mesh). With `fields`, also cell data `pressure` (Pa: the
+/// pressure of the face's fluid cell, face_tets(f, 0), dynamic + hydrostatic as
+/// FluidState::p) and `normal_velocity` (m/s: u_f along n_f, > 0 into the solid). A mesh
+/// without solid faces gives an empty, valid file.
 ///
 /// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
 /// @throws InputError naming the file if it cannot be written.
 void write_interface_vtp(const std::filesystem::path& path, const mesh::TetMesh& fluid,
-                         Compression compression);
+                         Compression compression, const FluidFrameFields* fields = nullptr);
 
 /// Write `text` to `path` atomically: `<path>.tmp`, flush, close, rename over `path`.
 /// @throws InputError naming the file if it cannot be written.
@@ -178,6 +188,19 @@ struct FluidStepStats {
   Index traces_clamped = 0;           ///< back-traces stopped at the fluid boundary
 };
 
+/// The two-way coupling part of a stats.csv row (coupling::CoupledStepReport of the step).
+struct CoupledStepStats {
+  int iterations = 0;            ///< coupled_iterations: of the coupled solve (1 for LU)
+  double residual = NAN;         ///< coupled_residual: its worst relative residual
+  /// W, pᵀ Jᵀ uⁿ⁺¹ of the dynamic pressure on the free bodies (CoupledReport::
+  /// interface_power); 0 in the splitting scheme, whose solve holds every body.
+  double interface_power = NAN;
+  /// total_energy_coupled: fluid kinetic + solid kinetic + elastic after the step (J)
+  double total_energy = NAN;
+  double enclosed_volume = 0.0;  ///< m³, Σ over enclosed regions of their volume after the step
+  double enclosed_volume_drift = 0.0;  ///< max over enclosed regions of |after − target| / target
+};
+
 /// One row of stats.csv.
 struct StepStats {
   int step = 0;       ///< step number, 1-based (0 would be the initial state)
@@ -192,6 +215,8 @@ struct StepStats {
   double gravity_potential = 0.0;  ///< J, −Σ m g·x
   /// Fluid scenes: figures of the fluid mesh (a row without them writes "nan" there).
   std::optional<FluidStepStats> fluid;
+  /// Two-way coupled runs: the coupling figures (a row without them writes "nan" there).
+  std::optional<CoupledStepStats> coupled;
   /// kinetic + elastic + gravity potential (J); the work of applied loads is not included.
   double total_energy() const { return kinetic_energy + elastic_energy + gravity_potential; }
 };
@@ -202,8 +227,9 @@ class StatsWriter {
  public:
   /// Creates (truncates) the file and writes the header.
   /// @param fluid write the fluid columns too (columns(true))
+  /// @param coupled (with `fluid`) a two-way coupled run: columns(true, true)
   /// @throws InputError naming the file if it cannot be opened.
-  explicit StatsWriter(const std::filesystem::path& path, bool fluid = false);
+  explicit StatsWriter(const std::filesystem::path& path, bool fluid = false, bool coupled = false);
   ~StatsWriter();
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
@@ -216,20 +242,27 @@ class StatsWriter {
   /// steiner_points, recovery_rounds, remesh_s, the names of mesh::quality_columns
   /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...), then pressure_iterations,
   /// pressure_residual, divergence_before, divergence, fluid_kinetic_energy, smoke_mass,
-  /// inflow_flux, outflow_flux, solid_flux, max_speed, cfl, traces_clamped.
-  static const std::vector<std::string>& columns(bool fluid = false);
+  /// inflow_flux, outflow_flux, solid_flux, max_speed, cfl, traces_clamped; with `coupled`
+  /// then coupled_iterations, coupled_residual, interface_power, total_energy_coupled,
+  /// enclosed_volume, enclosed_volume_drift (CoupledStepStats).
+  static const std::vector<std::string>& columns(bool fluid = false, bool coupled = false);
   /// The timed phases that get a column (seconds): assemble, solve, update, output (frames,
   /// and in fluid scenes the quality summary of the fluid mesh), total; with `fluid`, after
   /// update: remesh (gathering the solid surfaces and mesh::remesh), transfer (advection onto
-  /// the new mesh), forces (and sources), pressure_assembly, pressure_solve.
-  static const std::vector<std::string>& phase_columns(bool fluid = false);
+  /// the new mesh), forces (and sources), pressure_assembly, pressure_solve. With `coupled`
+  /// (coupling::CoupledStepper::step's phases): remesh, transfer, forces, coupled_assembly
+  /// (the bodies' Eq. (4) and the coupled matrix), coupled_solve, solid (splitting: the
+  /// bodies' own solves), update (Eq. (5), collisions), output, total.
+  static const std::vector<std::string>& phase_columns(bool fluid = false, bool coupled = false);
 
   bool has_fluid() const { return m_fluid; }
+  bool has_coupling() const { return m_coupled; }
 
  private:
   std::filesystem::path m_path;
   std::FILE* m_file = nullptr;
   bool m_fluid = false;
+  bool m_coupled = false;
 };
 
 /// Owns the output folder of one run: writes scene.resolved.json, the frames and their
@@ -238,7 +271,8 @@ class OutputWriter {
  public:
   /// Creates `out_dir` (and parents) and one subfolder per body (and `fluid/`, `interface/`
   /// if the scene has a fluid), writes `scene.resolved.json` and starts `stats.csv` (with
-  /// the fluid columns if the scene has a fluid). If the folder holds an earlier run
+  /// the fluid columns if the scene has a fluid, the coupling columns if it is coupled two
+  /// ways, Scene::two_way). If the folder holds an earlier run
   /// (a stats.csv, summary.json or scene.resolved.json), logs a warning: our files are
   /// overwritten, nothing else is touched or deleted.
   /// @throws InputError if the folder cannot be created or written, if two body names map
@@ -250,7 +284,9 @@ class OutputWriter {
   /// Write one `.vtu` per body for the world's current state, labelled `step` (file name)
   /// and `time` (in the `.pvd`), and update every `.pvd`. In a fluid scene, also the fluid
   /// mesh and its interface faces (fluid.pvd, interface.pvd) if `fluid` is given; without it
-  /// (no mesh could be built) the frame has bodies only.
+  /// (no mesh could be built) the frame has bodies only. Every file of the frame is written
+  /// before any `.pvd` lists it, so that a frame that fails half-way is in no collection and
+  /// the collections keep the same times.
   void write_frame(const solid::SolidWorld& world, int step, double time,
                    const mesh::TetMesh* fluid = nullptr,
                    const FluidFrameFields* fluid_fields = nullptr);

@@ -240,15 +240,27 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
     const double t0 = now_seconds();
     last_good.save(world);
     try {
-      const solid::SolidStepReport rep = world.step(dt, row.phases);
-      row.solver_iterations = rep.iterations;
-      row.solver_residual = rep.residual;
-      row.contacts = rep.contacts;
-      r.solver_iterations += rep.iterations;
-      if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
-      if (fluid) {
-        fluid->step(world, dt, row.phases);
+      if (fluid && fluid->coupled()) {
+        // two-way: the bodies and the fluid advance together (coupling/coupled_step.hpp)
+        const coupling::CoupledStepReport rep = fluid->step_coupled(world, dt, row.phases);
+        row.solver_iterations = rep.solve.iterations + rep.solid_iterations;
+        row.solver_residual = rep.solve.residual;
+        row.contacts = rep.contacts;
+        r.solver_iterations += row.solver_iterations;
+        if (!rep.solve.converged) ++r.unconverged_steps;  // FluidDriver has logged it
         row.fluid = fluid->stats();
+        row.coupled = fluid->coupled_stats();
+      } else {
+        const solid::SolidStepReport rep = world.step(dt, row.phases);
+        row.solver_iterations = rep.iterations;
+        row.solver_residual = rep.residual;
+        row.contacts = rep.contacts;
+        r.solver_iterations += rep.iterations;
+        if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
+        if (fluid) {
+          fluid->step(world, dt, row.phases);
+          row.fluid = fluid->stats();
+        }
       }
       if (step % every == 0 || step == n) {
         ScopedTimer timer(row.phases, "output");
@@ -283,6 +295,11 @@ void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid
   if (!world.obstacles.empty())
     logger().warn("scene '{}' is static: its {} obstacle(s) are ignored", scene.name,
                   world.obstacles.size());
+  if (scene.coupling && scene.coupling->two_way)
+    logger().warn(
+        "scene '{}' is static: its coupling ({}) is ignored, the fluid is meshed "
+        "around the bodies' equilibrium",
+        scene.name, scene.coupling->scheme_name());
   solid::StaticSolveOptions so;
   so.rel_tol = scene.statics.rel_tol;
   so.max_iterations = scene.statics.max_iterations;
@@ -351,7 +368,11 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
                 world.bodies.size() == 1 ? "y" : "ies", r.build_s);
 
   std::optional<FluidDriver> fluid;
-  if (scene.fluid) fluid.emplace(*scene.fluid, world);
+  if (scene.fluid) {
+    std::optional<coupling::CouplingParams> coupling;
+    if (scene.two_way()) coupling = scene.coupling->params;
+    fluid.emplace(*scene.fluid, world, coupling);
+  }
 
   t = now_seconds();
   OutputWriter out(opt.out_dir, scene, world);
@@ -376,7 +397,10 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   r.wall_s = now_seconds() - t;
   r.frames_written = out.frames_written();
   fill_final(world, r);
-  if (fluid) r.fluid = fluid->summary();
+  if (fluid) {
+    r.fluid = fluid->summary();
+    r.coupling = fluid->coupling_summary();
+  }
   try {
     out.write_summary(summary_json(r));
   } catch (const Error& e) {
@@ -434,6 +458,22 @@ std::string summary_json(const RunResult& r) {
                   {"smoke_mass", f.smoke_mass},
                   {"kinetic_energy", f.fluid_kinetic_energy}};
   }
+  if (r.coupling) {
+    const CouplingSummary& c = *r.coupling;
+    j["coupling"] = {{"scheme", c.scheme},
+                     {"solver", c.solver},
+                     {"coupled_steps", c.coupled_steps},
+                     {"coupled_iterations", c.iterations},
+                     {"max_residual", c.max_residual},
+                     {"unconverged_solves", c.unconverged_solves},
+                     {"max_interface_power", c.max_interface_power},
+                     {"max_enclosed_regions", c.max_enclosed_regions},
+                     {"max_volume_drift", c.max_volume_drift},
+                     {"enclosed_volume", c.enclosed_volume},
+                     {"unpredicted_meshes", c.unpredicted_meshes},
+                     {"solid_iterations", c.solid_iterations},
+                     {"total_energy", c.total_energy}};
+  }
   return j.dump(2) + "\n";
 }
 
@@ -475,6 +515,24 @@ void print_summary(const RunResult& r, std::ostream& out) {
           f.unconverged_pressure_solves > 0
               ? fmt::format("; {} unconverged pressure solves", f.unconverged_pressure_solves)
               : std::string());
+  }
+  if (r.coupling) {
+    const CouplingSummary& c = *r.coupling;
+    out << fmt::format(
+        "coupling: {} ({}), {} coupled steps, {:.3g} iterations per step, max residual {:.3g}, "
+        "max |interface power| {:.3g} W, fluid + solid energy {:.6g} J",
+        c.scheme, c.solver, c.coupled_steps,
+        c.coupled_steps > 0 ? static_cast<double>(c.iterations) / c.coupled_steps : 0.0,
+        c.max_residual, c.max_interface_power, c.total_energy);
+    if (c.max_enclosed_regions > 0)
+      out << fmt::format("; {} enclosed region{}, {:.6g} m^3, max volume drift {:.3g}",
+                         c.max_enclosed_regions, c.max_enclosed_regions == 1 ? "" : "s",
+                         c.enclosed_volume, c.max_volume_drift);
+    if (c.unpredicted_meshes > 0)
+      out << fmt::format("; {} step(s) meshed around t^n (x* not meshable)", c.unpredicted_meshes);
+    if (c.unconverged_solves > 0)
+      out << fmt::format("; {} unconverged coupled solves", c.unconverged_solves);
+    out << "\n";
   }
   if (r.unconverged_steps > 0)
     out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",
@@ -522,6 +580,20 @@ void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std
         fluid::to_string(fp.reconstruction), to_string(fp.solver), fp.sources.size(),
         fp.sources.size() == 1 ? "" : "s",
         fp.refine.size > 0 ? fmt::format(", refine to {:.6g} m", fp.refine.size) : std::string());
+    if (fp.enclosed_density > 0)
+      out << fmt::format("fluid enclosed in closed bodies: density {:.6g} kg/m^3\n",
+                         fp.enclosed_density);
+    if (scene.coupling && scene.coupling->two_way) {
+      const coupling::CoupledOptions& o = scene.coupling->params.solve;
+      out << fmt::format(
+          "coupling: {} two-way{}, solver {}, rel_tol {:.3g}, max_iterations {}, volume of "
+          "enclosed regions {}\n",
+          scene.coupling->scheme_name(), scene.two_way() ? "" : " (ignored: static)",
+          coupling::to_string(o.solver), o.rel_tol, o.max_iterations,
+          o.conserve_volume ? "conserved" : "not corrected");
+    } else {
+      out << "coupling: none (one-way: the bodies move the fluid)\n";
+    }
   }
 }
 

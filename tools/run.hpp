@@ -66,13 +66,15 @@ struct RunResult {
   double gravity_potential = 0.0;  ///< final, J
   std::vector<BodySummary> bodies;
   std::optional<FluidSummary> fluid;  ///< set for a scene with a fluid
+  std::optional<CouplingSummary> coupling;  ///< set for a two-way coupled run
 
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
 };
 
 /// Run a scene. Writes frame 0 at t = 0, then
-///  - dynamic: `world.step(dt)` per step; a frame every `output.every` steps and always the
-///    last one; a stats row every step;
+///  - dynamic: `world.step(dt)` per step (then the fluid, one-way), or, two-way coupled
+///    (Scene::two_way), FluidDriver::step_coupled; a frame every `output.every` steps and
+///    always the last one; a stats row every step;
 ///  - static: `solid::solve_static` on each body with f_e = external_forces(gravity) and the
 ///    scene's static options (kinematic bodies stay at their t = 0 pose), then frame 1 at
 ///    pseudo-time 1.0 and one stats row.

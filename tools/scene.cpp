@@ -650,9 +650,9 @@ class Parser {
 
   /// The fluid section; `gravity` is the scene's (for FluidParams::gravity and ::up).
   FluidSpec fluid(const Node& n, const Vec3& gravity) const {
-    expect_object(
-        n, {"domain", "mesh", "density", "gravity", "buoyancy", "vorticity_confinement", "decay",
-            "reconstruction", "min_dual_fraction", "solver", "sources", "refine"});
+    expect_object(n, {"domain", "mesh", "density", "enclosed_density", "gravity", "buoyancy",
+                      "vorticity_confinement", "decay", "reconstruction", "min_dual_fraction",
+                      "solver", "sources", "refine"});
     FluidSpec f;
     fluid::FluidParams& fp = f.params;
     const Node d = require(n, "domain");
@@ -703,6 +703,8 @@ class Parser {
     fp.density = number(n, "density", fp.density);
     if (fp.density <= 0)
       fail(child_path(n.path, "density"), fmt::format("must be > 0 (kg/m^3), got {}", fp.density));
+    fp.enclosed_density = non_negative(n, "enclosed_density", fp.enclosed_density,
+                                       " (kg/m^3; 0: the same as density)");
     if (has(n, "gravity")) {
       const Node g = child(n, "gravity");
       if (!g.j.is_boolean())
@@ -780,6 +782,40 @@ class Parser {
           non_negative(r, "vorticity_threshold", rp.vorticity_threshold, " (1/s)");
     }
     return f;
+  }
+
+  /// The coupling section (`n` may be null: not given). `deformable`: the scene has a
+  /// non-kinematic body; `dynamic`: its mode. Only called for a scene with a fluid.
+  CouplingSpec coupling_spec(const Node* n, bool deformable, bool dynamic) const {
+    CouplingSpec c;
+    c.two_way = deformable && dynamic;  // the default, DESIGN.md §2: the simultaneous solve
+    if (!n) return c;
+    expect_object(*n, {"scheme", "solver", "rel_tol", "max_iterations", "conserve_volume"});
+    if (has(*n, "scheme")) {
+      const std::string s =
+          choice(child(*n, "scheme"), {"simultaneous", "splitting", "none"}, "coupling scheme");
+      c.two_way = s != "none";
+      if (c.two_way) c.params.scheme = coupling::parse_scheme(s);
+    }
+    coupling::CoupledOptions& o = c.params.solve;
+    if (has(*n, "solver"))
+      o.solver = coupling::parse_coupled_solver(
+          choice(child(*n, "solver"), coupling::coupled_solver_names(), "coupled solver"));
+    o.rel_tol = number(*n, "rel_tol", o.rel_tol);
+    if (o.rel_tol <= 0)
+      fail(child_path(n->path, "rel_tol"), fmt::format("must be > 0, got {}", o.rel_tol));
+    o.max_iterations = integer(*n, "max_iterations", o.max_iterations);
+    if (o.max_iterations < 1)
+      fail(child_path(n->path, "max_iterations"),
+           fmt::format("must be >= 1, got {}", o.max_iterations));
+    if (has(*n, "conserve_volume")) {
+      const Node v = child(*n, "conserve_volume");
+      if (!v.j.is_boolean())
+        fail(v.path,
+             "expected true (enclosed regions keep their volume) or false, got " + describe(v.j));
+      o.conserve_volume = v.j.get<bool>();
+    }
+    return c;
   }
 
  private:
@@ -939,6 +975,7 @@ json resolve(const Scene& s) {
                     {"grading", z.grading},
                     {"max_cells", z.max_cells}}},
                   {"density", fp.density},
+                  {"enclosed_density", fp.enclosed_density},
                   {"gravity", s.fluid->gravity},
                   {"buoyancy",
                    {{"alpha", fp.buoyancy_alpha},
@@ -958,6 +995,14 @@ json resolve(const Scene& s) {
                     {"density_threshold", fp.refine.density_threshold},
                     {"vorticity_threshold", fp.refine.vorticity_threshold}}}};
   }
+  if (s.coupling) {
+    const coupling::CoupledOptions& o = s.coupling->params.solve;
+    j["coupling"] = {{"scheme", s.coupling->scheme_name()},
+                     {"solver", coupling::to_string(o.solver)},
+                     {"rel_tol", o.rel_tol},
+                     {"max_iterations", o.max_iterations},
+                     {"conserve_volume", o.conserve_volume}};
+  }
   return j;
 }
 
@@ -970,7 +1015,7 @@ Scene parse_scene(const json& j, const fs::path& file) {
   using Node = Parser::Node;
   const Node root{j, ""};
   p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver",
-                         "solid", "static", "bodies", "obstacles", "fluid"});
+                         "solid", "static", "bodies", "obstacles", "fluid", "coupling"});
 
   Scene s;
   s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
@@ -1091,6 +1136,23 @@ Scene parse_scene(const json& j, const fs::path& file) {
   }
 
   if (has_fluid) s.fluid = p.fluid(Parser::child(root, "fluid"), s.gravity);
+
+  const bool has_coupling = Parser::has(root, "coupling");
+  if (has_coupling && !has_fluid)
+    p.fail("coupling",
+           "a scene without a 'fluid' section has nothing to couple the bodies to: add 'fluid' "
+           "or remove 'coupling'");
+  if (has_fluid) {
+    const bool deformable = std::any_of(s.bodies.begin(), s.bodies.end(),
+                                        [](const BodySpec& b) { return !b.kinematic; });
+    const bool dynamic = s.mode == Mode::Dynamic;
+    if (has_coupling) {
+      const Node c = Parser::child(root, "coupling");
+      s.coupling = p.coupling_spec(&c, deformable, dynamic);
+    } else {
+      s.coupling = p.coupling_spec(nullptr, deformable, dynamic);
+    }
+  }
 
   s.resolved = resolve(s);
   return s;

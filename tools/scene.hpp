@@ -56,6 +56,7 @@
 ///                                "pressure": 0 } ] }, // open only: prescribed pressure (Pa)
 ///     "mesh":   { "surface_size": 0.05, "far_size": 0.2, "grading": 0.5, "max_cells": 0 },
 ///     "density": 1.2,                                       // kg/m^3
+///     "enclosed_density": 0,     // kg/m^3 of liquid sealed inside closed bodies; 0: density
 ///     "gravity": false,          // true: the fluid feels the scene's gravity (liquids)
 ///     "buoyancy": { "alpha": 0, "beta": 0, "ambient_temperature": 0 },
 ///     "vorticity_confinement": 0,
@@ -66,6 +67,12 @@
 ///     "sources": [ { "name": "src0", "box": { "lo": [..], "hi": [..] },
 ///                    "smoke": 1.0, "temperature": 310 } ],  // temperature: optional
 ///     "refine": { "size": 0, "density_threshold": 0.01, "vorticity_threshold": 0 }
+///   },
+///   "coupling": {                   // fluid scenes only: how the fluid and the bodies interact
+///     "scheme": "simultaneous" | "splitting" | "none",
+///     "solver": "schur_amg" | "umfpack" | "bicgstab_ilut" | "symmetric_umfpack",
+///     "rel_tol": 1e-10, "max_iterations": 500,              // of the coupled solve
+///     "conserve_volume": true    // enclosed regions keep their volume (coupled_system.hpp)
 ///   }
 /// }
 /// ```
@@ -83,11 +90,18 @@
 /// 0 < surface_size <= far_size (m), grading > 0, max_cells >= 0 (0: no budget). Whether the
 /// bodies lie inside the box is checked by the run (their positions change every step).
 /// Fluid physics (fluid::FluidParams, units there): speed, smoke >= 0; density > 0;
-/// buoyancy alpha, beta >= 0; vorticity_confinement, decay rates >= 0; 0 < min_dual_fraction
+/// enclosed_density >= 0 (0: the same as density); buoyancy alpha, beta >= 0;
+/// vorticity_confinement, decay rates >= 0; 0 < min_dual_fraction
 /// <= 0.1; solver.linear one of solver_names(), rel_tol > 0, max_iterations >= 1; a source box
 /// has lo < hi, overlaps the fluid box and a unique name (default "source<i>"), smoke >= 0;
 /// refine.size >= 0 (0: off) and <= mesh.far_size, thresholds >= 0. FluidParams::up is
 /// −gravity / |gravity| (+z for zero gravity) whatever "gravity" says.
+/// Coupling (coupling/coupled_step.hpp): only with a "fluid" section. "simultaneous" (the
+/// default of a dynamic scene with at least one deformable, i.e. non-kinematic, body) and
+/// "splitting" are two-way: the fluid pushes the bodies. "none" (the default otherwise) is
+/// one-way: the bodies step alone and the fluid follows them. solver one of
+/// coupling::coupled_solver_names(), rel_tol > 0, max_iterations >= 1, conserve_volume a
+/// boolean. A static scene ignores the coupling (the run warns if it is two-way).
 /// Bodies: a scene with a "fluid" section may have none ("bodies": [] or no key). A kinematic
 /// body has no pins, no loads and no (nonzero) initial_velocity; its material still must be
 /// valid (mass, energies).
@@ -107,6 +121,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/types.hpp"
+#include "coupling/coupled_step.hpp"
 #include "fluid/params.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/material.hpp"
@@ -226,6 +241,15 @@ struct FluidSpec {
   bool gravity = false;  ///< the scene key fluid.gravity
 };
 
+/// How the fluid and the bodies of a fluid scene interact (the scene key "coupling").
+struct CouplingSpec {
+  /// true: two-way, `params.scheme` (simultaneous or splitting); false: "none", one-way (the
+  /// bodies step alone, the fluid follows them, FluidDriver::step).
+  bool two_way = false;
+  coupling::CouplingParams params;  ///< the scheme and the coupled solve's options
+  std::string scheme_name() const { return two_way ? coupling::to_string(params.scheme) : "none"; }
+};
+
 enum class Mode { Dynamic, Static };
 
 struct Scene {
@@ -242,6 +266,10 @@ struct Scene {
   std::vector<BodySpec> bodies;
   std::vector<solid::Obstacle> obstacles;
   std::optional<FluidSpec> fluid;  ///< set if the scene has a "fluid" section
+  std::optional<CouplingSpec> coupling;  ///< set iff `fluid` is (resolved default, see above)
+  /// True if the run couples the fluid and the bodies both ways (a dynamic fluid scene whose
+  /// coupling scheme is not "none").
+  bool two_way() const { return fluid && coupling && coupling->two_way && mode == Mode::Dynamic; }
   nlohmann::json resolved;  ///< the scene with every default filled in (written to the output)
 };
 

@@ -660,6 +660,119 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
   CHECK(lines[2].substr(lines[2].rfind(',') + 1) == "nan");
 }
 
+TEST_CASE("write_interface_vtp with fields: pressure of the face's fluid cell, normal velocity") {
+  TempDir dir("interface_fields");
+  const mesh::TetMesh m = make_fluid_mesh();
+  FluidFrameFields f;
+  f.pressure.resize(m.num_tets());
+  for (Index t = 0; t < m.num_tets(); ++t) f.pressure[t] = 100.0 + t;
+  f.face_velocity.resize(m.num_faces());
+  for (Index k = 0; k < m.num_faces(); ++k) f.face_velocity[k] = 0.5 * k;
+  const fs::path p = dir.path / "i.vtp";
+  write_interface_vtp(p, m, Compression::LZ4, &f);
+  auto poly = read_vtp(p);
+  REQUIRE(poly->GetNumberOfCells() == 8);
+  vtkDataArray* pressure = poly->GetCellData()->GetArray("pressure");
+  vtkDataArray* un = poly->GetCellData()->GetArray("normal_velocity");
+  REQUIRE(pressure != nullptr);
+  REQUIRE(un != nullptr);
+  Index i = 0;
+  for (Index k = 0; k < m.num_faces(); ++k) {
+    if (m.face_kind[static_cast<size_t>(k)] != mesh::FaceKind::Solid) continue;
+    CAPTURE(k);
+    CHECK(pressure->GetComponent(i, 0) == f.pressure[m.face_tets(k, 0)]);
+    CHECK(un->GetComponent(i, 0) == f.face_velocity[k]);
+    ++i;
+  }
+  // Without fields: neither array.
+  write_interface_vtp(p, m, Compression::LZ4);
+  CHECK(read_vtp(p)->GetCellData()->GetArray("pressure") == nullptr);
+  // Fields of another mesh: an internal error naming the sizes.
+  f.face_velocity.resize(3);
+  CHECK_THROWS_AS(write_interface_vtp(p, m, Compression::LZ4, &f), Error);
+}
+
+TEST_CASE("OutputWriter: a frame that fails half-way is in no collection") {
+  TempDir dir("layout_half_frame");
+  const fs::path out = dir.path / "run";
+  Scene scene;
+  scene.name = "unit";
+  scene.fluid = FluidSpec{};
+  solid::SolidWorld world;
+  world.bodies.push_back(make_test_body());
+  const mesh::TetMesh m = make_fluid_mesh();
+  OutputWriter w(out, scene, world);
+  w.write_frame(world, 0, 0.0, &m);
+  FluidFrameFields bad;  // sized for no mesh: the fluid file of frame 1 cannot be written
+  CHECK_THROWS_AS(w.write_frame(world, 1, 0.5, &m, &bad), Error);
+  for (const char* pvd : {"block.pvd", "fluid.pvd", "interface.pvd"}) {
+    CAPTURE(pvd);
+    CHECK(parse_pvd(out / pvd).times == std::vector<double>{0.0});
+  }
+}
+
+TEST_CASE("StatsWriter of a coupled run: its phases and the coupling columns") {
+  TempDir dir("stats_coupled");
+  const fs::path p = dir.path / "stats.csv";
+  const auto& cols = StatsWriter::columns(true, true);
+  const auto& fluid_cols = StatsWriter::columns(true);
+  const auto& phases = StatsWriter::phase_columns(true, true);
+  CHECK(phases == std::vector<std::string>{"remesh", "transfer", "forces", "coupled_assembly",
+                                           "coupled_solve", "solid", "update", "output", "total"});
+  // the fluid columns with the coupled phases, then the coupling columns
+  CHECK(cols.size() ==
+        fluid_cols.size() - StatsWriter::phase_columns(true).size() + phases.size() + 6);
+  const std::vector<std::string> tail(cols.end() - 6, cols.end());
+  CHECK(tail == std::vector<std::string>{"coupled_iterations", "coupled_residual",
+                                         "interface_power", "total_energy_coupled",
+                                         "enclosed_volume", "enclosed_volume_drift"});
+  const mesh::TetMesh m = make_fluid_mesh();
+  {
+    StatsWriter s(p, true, true);
+    CHECK(s.has_coupling());
+    StepStats r;
+    r.step = 1;
+    r.phases.add("coupled_solve", 0.25);
+    FluidStepStats f;
+    f.quality = mesh::quality_columns(mesh::summarize_quality(m));
+    r.fluid = f;
+    CoupledStepStats c;
+    c.iterations = 14;
+    c.residual = 3e-11;
+    c.interface_power = -1.25;
+    c.total_energy = 0.5;
+    c.enclosed_volume = 0.125;
+    c.enclosed_volume_drift = 1e-9;
+    r.coupled = c;
+    s.write(r);
+    r.coupled.reset();  // "nan" in the coupling columns
+    s.write(r);
+  }
+  CHECK_FALSE(StatsWriter(dir.path / "no_fluid.csv", false, true).has_coupling());
+  const auto lines = read_lines(p);
+  REQUIRE(lines.size() == 3);
+  std::vector<std::string> row;
+  {
+    std::stringstream ss(lines[1]);
+    for (std::string c; std::getline(ss, c, ',');) row.push_back(c);
+  }
+  REQUIRE(row.size() == cols.size());
+  auto value = [&](const std::string& name) {
+    const auto it = std::find(cols.begin(), cols.end(), name);
+    REQUIRE(it != cols.end());
+    return std::stod(row[static_cast<size_t>(it - cols.begin())]);
+  };
+  CHECK(value("coupled_solve") == 0.25);
+  CHECK(value("coupled_iterations") == 14);
+  CHECK(value("coupled_residual") == 3e-11);
+  CHECK(value("interface_power") == -1.25);
+  CHECK(value("total_energy_coupled") == 0.5);
+  CHECK(value("enclosed_volume") == 0.125);
+  CHECK(value("enclosed_volume_drift") == 1e-9);
+  CHECK(count_fields(lines[2]) == cols.size());
+  CHECK(lines[2].substr(lines[2].rfind(',') + 1) == "nan");
+}
+
 TEST_CASE("OutputWriter with a fluid: fluid.pvd and interface.pvd next to the body's") {
   TempDir dir("layout_fluid");
   const fs::path out = dir.path / "run";

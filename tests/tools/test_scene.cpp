@@ -1021,6 +1021,144 @@ TEST_CASE("kinematic bodies: keys, defaults, resolved scene, errors and build_wo
       {"bodies[0].material.density: must be > 0"});
 }
 
+TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene") {
+  // A fluid and a deformable body: simultaneous two-way coupling with the solve's defaults.
+  const Scene s = parse_scene(fluid_json(), "scene.json");
+  REQUIRE(s.coupling);
+  const coupling::CoupledOptions defaults;
+  CHECK(s.coupling->two_way);
+  CHECK(s.coupling->params.scheme == coupling::Scheme::Simultaneous);
+  CHECK(s.coupling->params.solve.solver == defaults.solver);
+  CHECK(s.coupling->params.solve.rel_tol == defaults.rel_tol);
+  CHECK(s.coupling->params.solve.max_iterations == defaults.max_iterations);
+  CHECK(s.coupling->params.solve.conserve_volume == defaults.conserve_volume);
+  CHECK(s.two_way());
+  CHECK(s.fluid->params.enclosed_density == 0.0);
+  CHECK(s.resolved["fluid"]["enclosed_density"] == 0.0);
+  CHECK(s.resolved["coupling"] == json::parse(R"({ "scheme": "simultaneous",
+      "solver": "schur_amg", "rel_tol": 1e-10, "max_iterations": 500,
+      "conserve_volume": true })"));
+
+  // Only kinematic bodies (or none): one-way; a static scene: one-way too.
+  json k = fluid_json();
+  k["bodies"][0].erase("pins");
+  k["bodies"][0].erase("loads");
+  k["bodies"][0].erase("initial_velocity");
+  k["bodies"][0]["kinematic"] = {{"velocity", {0, 0, 1}}};
+  const Scene ks = parse_scene(k, "scene.json");
+  REQUIRE(ks.coupling);
+  CHECK_FALSE(ks.coupling->two_way);
+  CHECK_FALSE(ks.two_way());
+  CHECK(ks.resolved["coupling"]["scheme"] == "none");
+  json st = fluid_json();
+  st["mode"] = "static";
+  CHECK(parse_scene(st, "scene.json").resolved["coupling"]["scheme"] == "none");
+  st["coupling"] = {{"scheme", "splitting"}};  // given: kept, the run ignores it (a warning)
+  const Scene sts = parse_scene(st, "scene.json");
+  CHECK(sts.coupling->two_way);
+  CHECK_FALSE(sts.two_way());
+  // Without a fluid: no coupling at all.
+  CHECK_FALSE(parse_scene(sheet_json(), "scene.json").coupling);
+  CHECK_FALSE(parse_scene(sheet_json(), "scene.json").resolved.contains("coupling"));
+
+  // Every key given, resolved back and parsed again to the same.
+  json j = fluid_json();
+  j["fluid"]["density"] = 1.2;
+  j["fluid"]["enclosed_density"] = 1000;
+  j["coupling"] = json::parse(R"({ "scheme": "splitting", "solver": "bicgstab_ilut",
+      "rel_tol": 1e-9, "max_iterations": 80, "conserve_volume": false })");
+  const Scene c = parse_scene(j, "scene.json");
+  CHECK(c.fluid->params.enclosed_density == 1000.0);
+  CHECK(c.coupling->two_way);
+  CHECK(c.coupling->params.scheme == coupling::Scheme::Splitting);
+  CHECK(c.coupling->params.solve.solver == coupling::CoupledSolverKind::BiCgStabIlut);
+  CHECK(c.coupling->params.solve.rel_tol == 1e-9);
+  CHECK(c.coupling->params.solve.max_iterations == 80);
+  CHECK_FALSE(c.coupling->params.solve.conserve_volume);
+  CHECK(c.resolved["coupling"] == j["coupling"]);
+  CHECK(c.resolved["fluid"]["enclosed_density"] == 1000.0);
+  const Scene back = parse_scene(c.resolved, "scene.json");
+  CHECK(back.resolved == c.resolved);
+  for (const std::string& name : coupling::coupled_solver_names()) {
+    j["coupling"]["solver"] = name;
+    CHECK(coupling::to_string(parse_scene(j, "scene.json").coupling->params.solve.solver) == name);
+  }
+  // "none" with a deformable body: one-way, the other keys still checked and kept.
+  j["coupling"]["scheme"] = "none";
+  const Scene none = parse_scene(j, "scene.json");
+  CHECK_FALSE(none.two_way());
+  CHECK(none.resolved["coupling"]["scheme"] == "none");
+  CHECK(none.resolved["coupling"]["max_iterations"] == 80);
+}
+
+TEST_CASE("coupling and enclosed_density errors name the JSON path and the problem") {
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "simultanous"}};
+      },
+      {"scene.json: coupling.scheme: unknown coupling scheme 'simultanous' "
+       "(did you mean 'simultaneous'?)"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "monolithic"}};
+      },
+      {"coupling.scheme: unknown coupling scheme 'monolithic'", "simultaneous", "splitting",
+       "none"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"solver", "cg"}};
+      },
+      {"scene.json: coupling.solver: unknown coupled solver 'cg'", "schur_amg", "umfpack",
+       "bicgstab_ilut", "symmetric_umfpack"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"solver", "umfpak"}};
+      },
+      {"coupling.solver: unknown coupled solver 'umfpak' (did you mean "
+       "'umfpack'?)"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"rel_tol", 0}};
+      },
+      {"scene.json: coupling.rel_tol: must be > 0, got 0"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"max_iterations", 0}};
+      },
+      {"scene.json: coupling.max_iterations: must be >= 1, got 0"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"max_iterations", 2.5}};
+      },
+      {"coupling.max_iterations: expected an integer, got number 2.5"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"conserve_volume", 1}};
+      },
+      {"scene.json: coupling.conserve_volume: expected true", "got number 1"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"shceme", "splitting"}};
+      },
+      {"scene.json: coupling.shceme: unknown key (did you mean 'scheme'?)"});
+  check_fluid_rejected([](json& j) { j["coupling"] = "simultaneous"; },
+                       {"scene.json: coupling: expected an object, got string"});
+  check_fluid_rejected([](json& j) { j["fluid"]["enclosed_density"] = -1; },
+                       {"scene.json: fluid.enclosed_density: must be >= 0 (kg/m^3; 0: the same "
+                        "as density), got -1"});
+  check_fluid_rejected([](json& j) { j["fluid"]["enclosed_density"] = "water"; },
+                       {"fluid.enclosed_density: expected a number, got string \"water\""});
+  check_fluid_rejected([](json& j) { j["fluid"]["enclosed_densty"] = 1000; },
+                       {"fluid.enclosed_densty: unknown key (did you mean 'enclosed_density'?)"});
+  // Without a fluid there is nothing to couple to.
+  check_edit_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "simultaneous"}};
+      },
+      {"scene.json: coupling: a scene without a 'fluid' section has nothing to "
+       "couple the bodies to"});
+}
+
 TEST_CASE("the shipped scenes parse") {
   for (const char* name : {"sheet_sag.json", "csm1.json", "remesh_sheet.json"}) {
     INFO(name);
