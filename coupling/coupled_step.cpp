@@ -236,6 +236,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
       in.p_open = &pred.p_open;
       in.h = h;
       in.gravity = g_fluid;
+      in.hydrostatic_origin = fluid.params().hydrostatic_origin;
       in.bodies = &cb;
       in.volume_targets = &m_targets;
       sol = solve_coupled(in, m_params.solve);
@@ -272,8 +273,10 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
         VecX p_dyn = fluid.state().p;
         for (Index t = 0; t < m0.num_tets(); ++t)
           p_dyn[t] -=
-              fluid::hydrostatic_pressure(rho[t], g_fluid, m0.circumcentres.row(t).transpose());
-        m_held_force = fluid_forces(m0, ifaces, p_dyn, rho, g_fluid);
+              fluid::hydrostatic_pressure(rho[t], g_fluid, fluid.params().hydrostatic_origin,
+                                          m0.circumcentres.row(t).transpose());
+        m_held_force =
+            fluid_forces(m0, ifaces, p_dyn, rho, g_fluid, fluid.params().hydrostatic_origin);
       }
       {
         ScopedTimer timer(phases, "solid");
@@ -316,6 +319,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
       in.p_open = &pred.p_open;
       in.h = h;
       in.gravity = g_fluid;
+      in.hydrostatic_origin = fluid.params().hydrostatic_origin;
       in.bodies = &cb;
       sol = solve_coupled(in, m_params.solve);
       solve_phases(sol.report);

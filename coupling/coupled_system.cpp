@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <memory>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
@@ -51,14 +52,15 @@ const char* to_string(CoupledSolverKind k) {
 }
 
 std::vector<VecX> fluid_forces(const TetMesh& m, const std::vector<BodyInterface>& bodies,
-                               const VecX& p, const VecX& rho, const Vec3& gravity) {
+                               const VecX& p, const VecX& rho, const Vec3& gravity,
+                               const Vec3& origin) {
   const std::vector<Index> off = node_offsets(bodies);
   std::vector<VecX> F(bodies.size());
   for (size_t b = 0; b < bodies.size(); ++b) F[b] = VecX::Zero(3 * bodies[b].num_nodes);
   for (const InterfaceFace& i : interface_faces(m, bodies)) {
     const Index f = i.face, t = m.face_tets(f, 0), b = m.face_body[f];
     const Vec3 x = m.face_centroids.row(f).transpose();
-    const double pf = p[t] + fluid::hydrostatic_pressure(rho[t], gravity, x);
+    const double pf = p[t] + fluid::hydrostatic_pressure(rho[t], gravity, origin, x);
     const Vec3 an = m.face_areas[f] * pf * m.face_normals.row(f).transpose();
     for (int k = 0; k < 3; ++k) F[b].segment<3>(3 * (i.node[k] - off[b])) += i.weight[k] * an;
   }
@@ -73,6 +75,7 @@ std::unique_ptr<LinearSolver> factor_body(const SparseMatrix& A) {
   try {
     s->setup(A);
   } catch (const SolverError&) {
+    logger().debug("coupled solve: a body's A is not positive definite; its block is solved by LU");
     s = make_linear_solver(SolverKind::Umfpack);
     s->setup(A);
   }
@@ -195,9 +198,10 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
     if (!bodies[m.face_body[f]].free) continue;
     const Index g = groups.cell_group[t];
     const Vec3 n = m.face_normals.row(f).transpose();
-    const double ph = liquid ? fluid::hydrostatic_pressure((*in.rho)[t], in.gravity,
-                                                           m.face_centroids.row(f).transpose())
-                             : 0.0;
+    const double ph =
+        liquid ? fluid::hydrostatic_pressure((*in.rho)[t], in.gravity, in.hydrostatic_origin,
+                                             m.face_centroids.row(f).transpose())
+               : 0.0;
     for (int k = 0; k < 3; ++k)
       for (int d = 0; d < 3; ++d) {
         const Index dof = free_dof(i.node[k], d);
@@ -304,6 +308,50 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
     rep.solve_s += s.solve_s;
   };
   rep.converged = true;
+  // The assembled system (paper or symmetric form) with a general sparse solver.
+  auto solve_direct = [&](CoupledSolverKind which) {
+    t0 = now_seconds();
+    const bool paper = which != CoupledSolverKind::SymmetricUmfpack;
+    // Rows of the second block: −Jᵀ u − C p (symmetric), scaled by 1/V_g (paper form).
+    const VecX rowscale = paper ? VecX(gvol.cwiseInverse()) : VecX(VecX::Ones(ng));
+    Triplets kt;
+    for (Index b = 0; b < nb; ++b) {
+      if (!bodies[b].free) continue;
+      const SparseMatrix& A = bodies[b].A;
+      for (Index c = 0; c < A.outerSize(); ++c)
+        for (SparseMatrix::InnerIterator it(A, c); it; ++it)
+          kt.emplace_back(dof0[b] + it.row(), dof0[b] + it.col(), it.value());
+    }
+    for (Index c = 0; c < J.outerSize(); ++c)
+      for (SparseMatrix::InnerIterator it(J, c); it; ++it) {
+        kt.emplace_back(it.row(), ns + it.col(), -it.value());
+        kt.emplace_back(ns + it.col(), it.row(), -it.value() * rowscale[it.col()]);
+      }
+    for (Index c = 0; c < C.outerSize(); ++c)
+      for (SparseMatrix::InnerIterator it(C, c); it; ++it)
+        kt.emplace_back(ns + it.row(), ns + it.col(), -it.value() * rowscale[it.row()]);
+    SparseMatrix K(ns + ng, ns + ng);
+    K.setFromTriplets(kt.begin(), kt.end());
+    SolverOptions so;
+    so.rel_tol = opt.rel_tol;
+    so.max_iterations = opt.max_iterations;
+    so.symmetric = !paper;
+    const SolverKind kind =
+        which == CoupledSolverKind::BiCgStabIlut ? SolverKind::BiCgStabIlut : SolverKind::Umfpack;
+    auto solver = make_linear_solver(kind, so);
+    solver->setup(K);
+    rep.setup_s = now_seconds() - t0;
+    for (Index k = 0; k <= ne; ++k) {
+      VecX rhs(ns + ng);
+      rhs.head(ns) = k == 0 ? bs : VecX(VecX::Zero(ns));
+      rhs.tail(ng) = R2[k].cwiseProduct(rowscale);
+      VecX x = VecX::Zero(ns + ng);
+      merge(solver->solve(rhs, x));
+      U[k] = x.head(ns);
+      P[k] = x.tail(ng);
+    }
+  };
+  bool breakdown = false;  // the Schur CG met dᵀ S d ≤ 0 (a body's A is indefinite)
   if (opt.solver == CoupledSolverKind::SchurAmg) {
     t0 = now_seconds();
     std::vector<std::unique_ptr<LinearSolver>> fac(nb);
@@ -403,7 +451,12 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
         while (sr.iterations < opt.max_iterations && r.norm() > opt.rel_tol * bn) {
           S2(da, dy, q);
           const double dq = dot_z(q, da, dy);
-          if (!(dq > 0)) break;  // breakdown: S not positive definite along d
+          if (!(dq > 0)) {  // breakdown: S not positive definite along d
+            breakdown = true;
+            logger().debug("coupled solve: CG breakdown after {} iterations (d^T S d = {:.3g})",
+                           sr.iterations, dq);
+            break;
+          }
           const double alpha = rz / dq;
           xy += alpha * dy;
           if (nz) xa += alpha * da;
@@ -442,47 +495,22 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
       P[k] = py;
       Pa[k] = pa;
     }
+    if (breakdown) {
+      // S is not positive definite: a body's A = M/h + C + (h/2) K' is indefinite (StVK under
+      // strong compression, or a soft body under a large pressure whose follower stiffness the
+      // linearisation leaves out). LU of the symmetric form still solves the step.
+      logger().warn(
+          "coupled solve: the Schur complement is not positive definite (a body's "
+          "stiffness is indefinite); this step is solved by LU (symmetric_umfpack)");
+      rep.backend = "schur_amg+symmetric_umfpack";
+      rep.iterations = 0;
+      rep.residual = 0.0;
+      rep.converged = true;
+      for (auto& v : Pa) v = VecX();
+      solve_direct(CoupledSolverKind::SymmetricUmfpack);
+    }
   } else {
-    t0 = now_seconds();
-    const bool paper = opt.solver != CoupledSolverKind::SymmetricUmfpack;
-    // Rows of the second block: −Jᵀ u − C p (symmetric), scaled by 1/V_g (paper form).
-    const VecX rowscale = paper ? VecX(gvol.cwiseInverse()) : VecX(VecX::Ones(ng));
-    Triplets kt;
-    for (Index b = 0; b < nb; ++b) {
-      if (!bodies[b].free) continue;
-      const SparseMatrix& A = bodies[b].A;
-      for (Index c = 0; c < A.outerSize(); ++c)
-        for (SparseMatrix::InnerIterator it(A, c); it; ++it)
-          kt.emplace_back(dof0[b] + it.row(), dof0[b] + it.col(), it.value());
-    }
-    for (Index c = 0; c < J.outerSize(); ++c)
-      for (SparseMatrix::InnerIterator it(J, c); it; ++it) {
-        kt.emplace_back(it.row(), ns + it.col(), -it.value());
-        kt.emplace_back(ns + it.col(), it.row(), -it.value() * rowscale[it.col()]);
-      }
-    for (Index c = 0; c < C.outerSize(); ++c)
-      for (SparseMatrix::InnerIterator it(C, c); it; ++it)
-        kt.emplace_back(ns + it.row(), ns + it.col(), -it.value() * rowscale[it.row()]);
-    SparseMatrix K(ns + ng, ns + ng);
-    K.setFromTriplets(kt.begin(), kt.end());
-    SolverOptions so;
-    so.rel_tol = opt.rel_tol;
-    so.max_iterations = opt.max_iterations;
-    so.symmetric = !paper;
-    const SolverKind kind = opt.solver == CoupledSolverKind::BiCgStabIlut ? SolverKind::BiCgStabIlut
-                                                                          : SolverKind::Umfpack;
-    auto solver = make_linear_solver(kind, so);
-    solver->setup(K);
-    rep.setup_s = now_seconds() - t0;
-    for (Index k = 0; k <= ne; ++k) {
-      VecX rhs(ns + ng);
-      rhs.head(ns) = k == 0 ? bs : VecX(VecX::Zero(ns));
-      rhs.tail(ng) = R2[k].cwiseProduct(rowscale);
-      VecX x = VecX::Zero(ns + ng);
-      merge(solver->solve(rhs, x));
-      U[k] = x.head(ns);
-      P[k] = x.tail(ng);
-    }
+    solve_direct(opt.solver);
   }
   for (Index k = 0; k <= ne; ++k)
     TETFSI_REQUIRE(SolverError, U[k].allFinite() && P[k].allFinite(),
@@ -602,7 +630,7 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
       nt ? (fluid::net_flux(m, sol.u_face) - source).cwiseQuotient(m.volumes).cwiseAbs().maxCoeff()
          : 0.0;
   // The fluid's forces on every body (J p + hydrostatic), for reports and time splitting.
-  sol.fluid_force = fluid_forces(m, ifaces, sol.p, *in.rho, in.gravity);
+  sol.fluid_force = fluid_forces(m, ifaces, sol.p, *in.rho, in.gravity, in.hydrostatic_origin);
   rep.assembly_s += now_seconds() - t0;
   return sol;
 }

@@ -101,6 +101,7 @@ struct CoupledInput {
   /// The fluid's gravity (liquids): the hydrostatic pressure ρ g·x pushes the free bodies
   /// exactly (face_pressure_forces), J carries only the dynamic pressure.
   Vec3 gravity = Vec3::Zero();
+  Vec3 hydrostatic_origin = Vec3::Zero();            ///< as fluid::FluidParams
   const std::vector<CoupledBody>* bodies = nullptr;  ///< every body of the mesh, by index
   VolumeTargets* volume_targets = nullptr;           ///< may be null: no volume correction
 };
@@ -146,9 +147,11 @@ struct CoupledSolution {
 CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt);
 
 /// The fluid's force on every node of every body (3n each, N) of a pressure p (#T, dynamic,
-/// Pa) on mesh m, with the hydrostatic part ρ g·x at the face centroids: J p + F_hydro.
+/// Pa) on mesh m, with the hydrostatic part ρ g·(x − origin) at the face centroids:
+/// J p + F_hydro.
 /// Time splitting holds it over the next solid step.
 std::vector<VecX> fluid_forces(const mesh::TetMesh& m, const std::vector<BodyInterface>& bodies,
-                               const VecX& p, const VecX& rho, const Vec3& gravity);
+                               const VecX& p, const VecX& rho, const Vec3& gravity,
+                               const Vec3& origin = Vec3::Zero());
 
 }  // namespace tetfsi::coupling

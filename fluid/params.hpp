@@ -25,7 +25,9 @@ struct PatchConditions {
   /// volume flux is speed × area exactly although the mesh covers the rectangle only up to its
   /// edge length. 0: no scaling.
   double area = 0.0;
-  /// Open patches: prescribed pressure (Pa, relative to ambient; total pressure for liquids).
+  /// Open patches: prescribed pressure (Pa, relative to ambient). For liquids it is the
+  /// pressure above the hydrostatic one, ρ g·(x − hydrostatic_origin): 0 makes a still
+  /// outlet at any height (a vertical side open to a reservoir, or the free top).
   double pressure = 0.0;
 };
 
@@ -69,6 +71,10 @@ struct FluidParams {
   /// pure gradient and is carried by the hydrostatic part of the pressure: p = p_dyn + ρ g·x
   /// (exact; the velocity never sees it). Smoke scenes use buoyancy instead.
   Vec3 gravity = Vec3::Zero();
+  /// Where the hydrostatic pressure ρ g·(x − origin) is zero (m). Scenes put it at the top
+  /// of the fluid box (the box corner highest against gravity), so that a liquid's total
+  /// pressure is 0 at an open top and positive below.
+  Vec3 hydrostatic_origin = Vec3::Zero();
   Vec3 up = Vec3(0.0, 0.0, 1.0);  ///< unit "up" for buoyancy (scenes: −gravity direction)
   /// Boussinesq buoyancy on the faces, (−α ρ_smoke + β (T − T_ambient)) up
   /// [Fedkiw01, Eq. (8)]: α in m⁴/(kg s²) (so that α ρ_smoke is m/s²),

@@ -48,11 +48,6 @@ void check_params(const FluidParams& p) {
                  "min_dual_fraction must be in (0, 1), got {}", p.min_dual_fraction);
 }
 
-/// Hydrostatic part ρ g·x of the total pressure at x in the outer fluid (Open faces).
-double hydrostatic(const FluidParams& p, const Vec3& x) {
-  return hydrostatic_pressure(p.density, p.gravity, x);
-}
-
 }  // namespace
 
 struct FluidSimulation::Impl {
@@ -130,7 +125,7 @@ struct FluidSimulation::Impl {
       const double p = pi >= 0 && pi < static_cast<Index>(params.patches.size())
                            ? params.patches[pi].pressure
                            : 0.0;
-      q[f] = s * (p - hydrostatic(params, m.face_centroids.row(f).transpose()));
+      q[f] = s * p;  // the pressure above the hydrostatic one
     }
     return q;
   }
@@ -159,8 +154,8 @@ void FluidSimulation::initialize(TetMesh m) {
   I.apply_sources(m, I.state);
   const VecX rho = cell_fluid_density(m, I.params);
   for (Index t = 0; t < m.num_tets(); ++t)
-    I.state.p[t] =
-        hydrostatic_pressure(rho[t], I.params.gravity, m.circumcentres.row(t).transpose());
+    I.state.p[t] = hydrostatic_pressure(rho[t], I.params.gravity, I.params.hydrostatic_origin,
+                                        m.circumcentres.row(t).transpose());
   I.mesh = std::move(m);
   I.time = 0.0;
   I.initialized = true;
@@ -285,7 +280,8 @@ FluidStepReport FluidSimulation::commit(FluidPrediction pred, VecX u, VecX p_dyn
   s.temperature = std::move(pred.temperature);
   s.p = std::move(p_dyn);
   for (Index t = 0; t < nm.num_tets(); ++t)
-    s.p[t] += hydrostatic_pressure(pred.rho[t], P.gravity, nm.circumcentres.row(t).transpose());
+    s.p[t] += hydrostatic_pressure(pred.rho[t], P.gravity, P.hydrostatic_origin,
+                                   nm.circumcentres.row(t).transpose());
   rep.divergence_after = nm.num_tets() ? divergence(nm, s.u).cwiseAbs().maxCoeff() : 0.0;
   I.mesh = std::move(nm);
   I.state = std::move(s);

@@ -72,9 +72,11 @@ struct FluidPrediction {
 /// Solid faces when it is set, `density` elsewhere.
 VecX cell_fluid_density(const mesh::TetMesh& m, const FluidParams& p);
 
-/// Hydrostatic part ρ g·x of a liquid's pressure (Pa) at x (0 if the fluid has no gravity).
-inline double hydrostatic_pressure(double rho, const Vec3& gravity, const Vec3& x) {
-  return rho * gravity.dot(x);
+/// Hydrostatic part ρ g·(x − origin) of a liquid's pressure (Pa) at x (0 if the fluid has no
+/// gravity).
+inline double hydrostatic_pressure(double rho, const Vec3& gravity, const Vec3& origin,
+                                   const Vec3& x) {
+  return rho * gravity.dot(x - origin);
 }
 
 /// A function "desired edge length at x" for mesh::Sizing::refine (≤ 0: no request).

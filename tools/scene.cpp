@@ -713,6 +713,8 @@ class Parser {
       f.gravity = g.j.get<bool>();
     }
     fp.gravity = f.gravity ? gravity : Vec3::Zero();
+    for (int a = 0; a < 3; ++a)  // the box corner highest against gravity
+      fp.hydrostatic_origin[a] = fp.gravity[a] < 0 ? f.domain.hi[a] : f.domain.lo[a];
     const double g_norm = gravity.norm();
     fp.up = g_norm > 0 ? Vec3(-gravity / g_norm) : Vec3(Vec3::UnitZ());
     if (has(n, "buoyancy")) {

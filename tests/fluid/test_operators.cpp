@@ -85,7 +85,7 @@ TEST_CASE("projection removes a discrete gradient field entirely (random mesh, r
   const ProjectionReport r = project(m, 1e-6, VecX(), u, q, *solver);
   CHECK(r.converged);
   MESSAGE("gradient field max " << before << " -> " << u.cwiseAbs().maxCoeff() << ", "
-                                 << r.internal_faces << " internal faces");
+                                << r.internal_faces << " internal faces");
   CHECK(r.divergence_after <= 1e-9 * r.divergence_before);
   CHECK(u.cwiseAbs().maxCoeff() <= 1e-9 * before);
   // and q is φ up to a constant
@@ -105,8 +105,7 @@ TEST_CASE("projection removes a uniform acceleration exactly across co-spherical
   VecX q;
   const ProjectionReport r = project(m, 1e-6, VecX(), u, q, *solver);
   CHECK(r.internal_faces > 1000);
-  MESSAGE("uniform acceleration left " << u.cwiseAbs().maxCoeff() << " (|a| = " << a.norm()
-                                       << ")");
+  MESSAGE("uniform acceleration left " << u.cwiseAbs().maxCoeff() << " (|a| = " << a.norm() << ")");
   CHECK(u.cwiseAbs().maxCoeff() <= 1e-9 * a.norm());
   // q = a·c + const at the circumcentres
   const double c0 = q[0] - a.dot(m.circumcentres.row(0).transpose());
@@ -125,8 +124,8 @@ TEST_CASE("projection with Open faces: divergence-free, prescribed pressure resp
   open.lo = Vec2(0, 0);
   open.hi = Vec2(1, 1);
   d.patches.push_back(open);
-  const mesh::TetMesh m = mesh::remesh(d, {sphere_surface(Vec3(0.8, 0.5, 0.5), 0.2, 2)},
-                                       sizing(0.05, 0.2));
+  const mesh::TetMesh m =
+      mesh::remesh(d, {sphere_surface(Vec3(0.8, 0.5, 0.5), 0.2, 2)}, sizing(0.05, 0.2));
   // A linear pressure p = a·x on the open face and a zero field: the solution is q = a·x and
   // u = −a·n_f (the field the pressure drives).
   const Vec3 a(0.5, 0.0, 0.0);
@@ -150,7 +149,8 @@ TEST_CASE("projection with Open faces: divergence-free, prescribed pressure resp
   // A random interior field: divergence-free afterwards.
   std::mt19937 rng(1);
   std::normal_distribution<double> N;
-  for (Index f = 0; f < m.num_faces(); ++f) u[f] = m.face_kind[f] == FaceKind::Interior ? N(rng) : 0;
+  for (Index f = 0; f < m.num_faces(); ++f)
+    u[f] = m.face_kind[f] == FaceKind::Interior ? N(rng) : 0;
   const ProjectionReport r2 = project(m, 1e-6, VecX(), u, q, *solver);
   CHECK(r2.divergence_after <= 1e-8 * r2.divergence_before);
 }
@@ -160,9 +160,9 @@ TEST_CASE("multigrid iterations stay flat as the cell count grows 8x") {
   std::vector<int> iters;
   std::vector<Index> cells;
   for (double h : {0.1, 0.05}) {
-    const mesh::TetMesh m = mesh::remesh(box_domain(Vec3::Zero(), Vec3::Ones()),
-                                         {sphere_surface(Vec3(0.5, 0.5, 0.5), 0.2, 3)},
-                                         sizing(h, h));
+    const mesh::TetMesh m =
+        mesh::remesh(box_domain(Vec3::Zero(), Vec3::Ones()),
+                     {sphere_surface(Vec3(0.5, 0.5, 0.5), 0.2, 3)}, sizing(h, h));
     std::mt19937 rng(2);
     std::normal_distribution<double> N;
     VecX u(m.num_faces());
@@ -175,7 +175,7 @@ TEST_CASE("multigrid iterations stay flat as the cell count grows 8x") {
     cells.push_back(m.num_tets());
   }
   MESSAGE("AMG iterations (rel_tol 1e-8): " << iters[0] << " at " << cells[0] << " cells, "
-                                           << iters[1] << " at " << cells[1] << " cells");
+                                            << iters[1] << " at " << cells[1] << " cells");
   CHECK(cells[1] >= 6 * cells[0]);
   CHECK(iters[1] <= 1.5 * iters[0]);
 }
@@ -199,8 +199,8 @@ TEST_CASE("reconstruction: uniform flow exact for both; rotation and shear error
   for (int fi = 0; fi < 2; ++fi) {
     const VecX uf = fi == 0 ? face_field(m, rot) : face_field(m, shear);
     for (int ki = 0; ki < 2; ++ki) {
-      const VelocityField f(m, uf, ki == 0 ? Reconstruction::VertexLeastSquares
-                                           : Reconstruction::Whitney);
+      const VelocityField f(m, uf,
+                            ki == 0 ? Reconstruction::VertexLeastSquares : Reconstruction::Whitney);
       const MatX3 c = f.cell_velocities();
       double s = 0, w = 0;
       for (Index t = 0; t < m.num_tets(); ++t) {
@@ -212,9 +212,10 @@ TEST_CASE("reconstruction: uniform flow exact for both; rotation and shear error
       rms[fi][ki] = std::sqrt(s / w);
     }
   }
-  std::printf("reconstruction rms error at centroids (|u| ~ 0.5 m/s): rotation vertex_ls %.3g "
-              "whitney %.3g; shear vertex_ls %.3g whitney %.3g\n",
-              rms[0][0], rms[0][1], rms[1][0], rms[1][1]);
+  std::printf(
+      "reconstruction rms error at centroids (|u| ~ 0.5 m/s): rotation vertex_ls %.3g "
+      "whitney %.3g; shear vertex_ls %.3g whitney %.3g\n",
+      rms[0][0], rms[0][1], rms[1][0], rms[1][1]);
   // Both are first-order for linear fields on this mesh (edge 0.04–0.16 m): errors of a few %.
   for (auto& r : rms)
     for (double e : r) CHECK(e < 0.05);
