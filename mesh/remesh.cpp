@@ -1076,11 +1076,10 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     }
     return false;
   };
-  // A flat cell on a surface: four surface points of one body with |6V| ≤ kFlat l³
-  // (coplanar up to round-off; a co-circular coplanar quad of the surface, e.g. a square of
-  // a box face, once rotated and rounded, is a valid but flat Delaunay cell with a
+  // A flat cell: four surface points of one body with |6V| ≤ kFlat l³ (coplanar up to
+  // round-off; a co-circular coplanar quad is a valid but flat Delaunay cell with a
   // meaningless circumcentre).
-  const auto is_flat_surface_cell = [&](int v0, int v1, int v2, int v3) {
+  const auto is_flat_cell = [&](int v0, int v1, int v2, int v3) {
     if (v0 < nL || v1 < nL || v2 < nL || v3 < nL) return false;
     const int body = surf->points[surface_id(v0)].body;
     if (surf->points[surface_id(v1)].body != body || surf->points[surface_id(v2)].body != body ||
@@ -1091,26 +1090,105 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
         {e1.norm(), e2.norm(), e3.norm(), (e2 - e1).norm(), (e3 - e1).norm(), (e3 - e2).norm()});
     return std::abs(e1.dot(e2.cross(e3))) <= kFlat * l * l * l;
   };
-  // Sub-triangles that are faces of a flat cell straddling coplanar triangles (no triangle
-  // holds all four of its points).
-  const auto straddled_subs = [&](const MatX4i& cells) {
+  // A flat cell on a surface: its plane is that of a triangle of one of its points (a
+  // co-circular quad of the surface, e.g. a square of a box face, once rotated and rounded).
+  // A flat cell whose points lie on two faces meeting at a crease is not: an isosceles
+  // trapezoid of points mirrored across the crease (the two sides of a cavity's edge, where
+  // both faces are sampled alike) is co-circular, and its plane cuts through the fluid.
+  const auto is_flat_surface_cell = [&](int v0, int v1, int v2, int v3) {
+    if (!is_flat_cell(v0, v1, v2, v3)) return false;
+    const int v[4] = {v0, v1, v2, v3};
+    double scale = 0.0;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) scale = std::max(scale, (pts[v[i]] - pts[v[j]]).norm());
+    for (int i = 0; i < 4; ++i)
+      for (const auto& e : surf->points[surface_id(v[i])].on) {
+        const auto& T = set.corners[e.first];
+        const Vec3 n = (T[1] - T[0]).cross(T[2] - T[0]).normalized();
+        bool all = true;
+        for (int j = 0; j < 4 && all; ++j)
+          all = std::abs((pts[v[j]] - T[0]).dot(n)) <= 1e-9 * scale;
+        if (all) return true;
+      }
+    return false;
+  };
+  // Sub-triangles to split under flat cells: the faces of a flat cell straddling coplanar
+  // triangles (no triangle holds all four of its points), and for a flat cell off the surface
+  // and in the fluid (a zero-volume fluid cell), the sub-triangles on one of its edges that
+  // lie in the surface: the edge on the lowest triangle id, so one face of the crease only
+  // (splitting both sides alike keeps the mirror symmetry, and the trapezoids come back); if
+  // it has no such edge, the sub-triangles at its points.
+  const auto flat_cell_subs = [&](const MatX4i& cells) {
     std::unordered_map<TripleKey, int, TripleHash> sub_of;
+    std::unordered_map<std::uint64_t, std::vector<int>> subs_on_edge;
+    std::unordered_map<int, std::vector<int>> subs_at_point;
+    const auto alive_subs = [&](auto&& f) {
+      for (std::size_t sub = 0; sub < surf->subs.size(); ++sub)
+        if (surf->subs[sub].alive) f(surf->subs[sub], static_cast<int>(sub));
+    };
     std::vector<int> out;
     for (Index t = 0; t < cells.rows(); ++t) {
       const int v0 = cells(t, 0), v1 = cells(t, 1), v2 = cells(t, 2), v3 = cells(t, 3);
-      if (!is_flat_surface_cell(v0, v1, v2, v3)) continue;
+      if (!is_flat_cell(v0, v1, v2, v3)) continue;
+      if (!is_flat_surface_cell(v0, v1, v2, v3)) {
+        // Inside the solid (at a convex edge of it) it goes with the solid's cells: the side of
+        // a triangle holding one of its edges, else the winding number.
+        const int c[4] = {v0, v1, v2, v3};
+        int side = 0;
+        for (int i = 0; i < 4 && side == 0; ++i)
+          for (int j = i + 1; j < 4 && side == 0; ++j) {
+            const int g = common_triangle(c[i], c[j], c[j]);
+            if (g < 0) continue;
+            const auto& T = set.corners[g];
+            const Vec3 n = (T[1] - T[0]).cross(T[2] - T[0]);
+            double d = 0.0;
+            for (int k = 0; k < 4; ++k) {
+              const double dk = (pts[c[k]] - T[0]).dot(n);
+              if (std::abs(dk) > std::abs(d)) d = dk;
+            }
+            side = d > 0 ? 1 : -1;
+          }
+        if (side == 0) {
+          const int b = surf->points[surface_id(v0)].body;
+          const Vec3 x = 0.25 * (pts[v0] + pts[v1] + pts[v2] + pts[v3]);
+          side = winding_number(x, solids[b].vertices, solids[b].triangles) > 0.5 ? -1 : 1;
+        }
+        if (side < 0) continue;
+        if (subs_on_edge.empty())
+          alive_subs([&](const SubTri& st, int sub) {
+            for (int k = 0; k < 3; ++k) {
+              subs_on_edge[edge_key(st.v[k] + nL, st.v[(k + 1) % 3] + nL)].push_back(sub);
+              subs_at_point[st.v[k] + nL].push_back(sub);
+            }
+          });
+        int best_g = std::numeric_limits<int>::max();
+        std::uint64_t best_e = 0;
+        for (int i = 0; i < 4; ++i)
+          for (int j = i + 1; j < 4; ++j) {
+            const std::uint64_t e = edge_key(cells(t, i), cells(t, j));
+            const int g = common_triangle(cells(t, i), cells(t, j), cells(t, j));
+            if (g >= 0 && g < best_g && subs_on_edge.count(e)) best_g = g, best_e = e;
+          }
+        if (best_g != std::numeric_limits<int>::max()) {
+          const auto& on = subs_on_edge.at(best_e);
+          out.insert(out.end(), on.begin(), on.end());
+        } else {
+          for (int k = 0; k < 4; ++k) {
+            const auto& at = subs_at_point[cells(t, k)];
+            out.insert(out.end(), at.begin(), at.end());
+          }
+        }
+        continue;
+      }
       const int g = common_triangle(v0, v1, v2);
       bool common = false;
       if (g >= 0)
         for (const auto& e : surf->points[surface_id(v3)].on) common |= e.first == g;
       if (common) continue;  // flat on one triangle: handled by classification, no straddle
       if (sub_of.empty())
-        for (std::size_t sub = 0; sub < surf->subs.size(); ++sub)
-          if (surf->subs[sub].alive) {
-            const SubTri& st = surf->subs[sub];
-            sub_of.emplace(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL),
-                           static_cast<int>(sub));
-          }
+        alive_subs([&](const SubTri& st, int sub) {
+          sub_of.emplace(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL), sub);
+        });
       for (int k = 0; k < 4; ++k) {
         auto it = sub_of.find(
             sorted_key(cells(t, (k + 1) % 4), cells(t, (k + 2) % 4), cells(t, (k + 3) % 4)));
@@ -1237,7 +1315,7 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
       // co-circular quad of a rotated box face) would leave fluid faces straddling both:
       // split the sub-triangles under it instead (their shared edge, by LEPP), within the
       // round budget.
-      split = straddled_subs(near);
+      split = flat_cell_subs(near);
       if (split.empty() || round >= options.max_recovery_rounds) {
         // Slivers are removed by deleting a lattice vertex of each, then conformity is
         // checked again. They come from points that are coplanar in exact arithmetic but not

@@ -18,7 +18,8 @@
 ///  4. conformity recovery: every solid boundary triangle must be exactly a union of mesh
 ///     faces. A triangle that is not is split by Steiner points inserted on the solid surface
 ///     (recording triangle and barycentric position), and the check repeats; flat cells over
-///     two coplanar triangles are split away the same way; slivers touching a solid lose a
+///     two coplanar triangles are split away the same way, and so are flat cells of surface
+///     points across an edge of a cavity (in the fluid); slivers touching a solid lose a
 ///     lattice vertex, cells away from the solids under 10° get one perturbed;
 ///  5. cells inside any solid are removed by a flood fill between solid faces and one winding
 ///     number per region (a fluid region enclosed by a solid stays fluid); the fluid volume is

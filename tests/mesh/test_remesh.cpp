@@ -51,6 +51,30 @@ SolidSurface box_surface(const Vec3& lo, const Vec3& hi, const Vec3i& cells, int
   return s;
 }
 
+/// A body's boundary as the fluid driver passes it: mesh::boundary_triangles of its tets,
+/// with the vertices those triangles use, compacted in order of first use.
+SolidSurface body_surface(const VolumeMesh& body, int id = 0) {
+  const MatX3i tri = boundary_triangles(body);
+  std::vector<int> node(body.num_vertices(), -1);
+  std::vector<Vec3> xs;
+  SolidSurface s;
+  s.body = id;
+  s.triangles.resize(tri.rows(), 3);
+  for (Index f = 0; f < tri.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      int& v = node[tri(f, k)];
+      if (v < 0) {
+        v = static_cast<int>(xs.size());
+        xs.push_back(body.vertices.row(tri(f, k)).transpose());
+      }
+      s.triangles(f, k) = v;
+    }
+  }
+  s.vertices.resize(static_cast<Index>(xs.size()), 3);
+  for (std::size_t i = 0; i < xs.size(); ++i) s.vertices.row(i) = xs[i].transpose();
+  return s;
+}
+
 /// Signed volume enclosed by a closed surface (divergence theorem).
 double enclosed_volume(const SolidSurface& s) {
   double v6 = 0;
@@ -533,24 +557,7 @@ TEST_SUITE("unit") {
     // centre) with its surface nodes, as the fluid driver passes a body.
     const Vec3 c(0.5, 0.5, 0.5);
     const double ri = 0.22, ro = 0.3;
-    const VolumeMesh body = make_spherical_shell(c, ri, ro, 3, 2);
-    const MatX3i tri = boundary_triangles(body);
-    std::vector<int> node(body.num_vertices(), -1);
-    SolidSurface shell;
-    std::vector<Vec3> xs;
-    shell.triangles.resize(tri.rows(), 3);
-    for (Index f = 0; f < tri.rows(); ++f) {
-      for (int k = 0; k < 3; ++k) {
-        int& v = node[tri(f, k)];
-        if (v < 0) {
-          v = static_cast<int>(xs.size());
-          xs.push_back(body.vertices.row(tri(f, k)).transpose());
-        }
-        shell.triangles(f, k) = v;
-      }
-    }
-    shell.vertices.resize(static_cast<Index>(xs.size()), 3);
-    for (std::size_t i = 0; i < xs.size(); ++i) shell.vertices.row(i) = xs[i].transpose();
+    const SolidSurface shell = body_surface(make_spherical_shell(c, ri, ro, 3, 2));
     CHECK(shell.vertices.rows() == 2 * 642);  // the middle layer's nodes are not on the surface
 
     const FluidDomain d = unit_box();
@@ -584,6 +591,52 @@ TEST_SUITE("unit") {
     CHECK(cavity_cells > 50);
     CHECK(cavity == doctest::Approx(polyhedral).epsilon(1e-10));
     CHECK(cavity == doctest::Approx(4.0 / 3.0 * M_PI * ri * ri * ri).epsilon(0.0085));
+  }
+
+  TEST_CASE("remesh: a make_hollow_box body with a one-cell wall keeps its cavity as fluid") {
+    // A wall one cell (0.04) thick under cavity cells 0.053-0.16 long: its surface triangles
+    // are long and thin (up to 4:1) on both sides of the wall. These cell counts leaked
+    // ("boundary face ... neither on the domain box nor on a solid triangle").
+    const Vec3 lo(0.3, 0.3, 0.2), hi(0.7, 0.7, 0.6);
+    const double t = 0.04;
+    const FluidDomain d = unit_box();
+    Sizing s;
+    s.surface_size = 0.04;
+    s.far_size = 0.15;
+    s.grading = 0.5;
+    for (const Vec3i& cells :
+         {Vec3i(6, 6, 2), Vec3i(5, 5, 2), Vec3i(4, 4, 2), Vec3i(4, 4, 3), Vec3i(3, 3, 3)}) {
+      CAPTURE(cells.transpose());
+      const SolidSurface body = body_surface(make_hollow_box(lo, hi, t, cells));
+      RemeshReport r;
+      const TetMesh m = remesh(d, {body}, s, &r);
+      check_invariants(m, d, {body}, r);  // volume = box − walls: the cavity is fluid
+      // Cavity cells: the fluid cells with their centroid inside the body's outer box.
+      double cavity = 0.0;
+      for (Index c = 0; c < m.num_tets(); ++c) {
+        const Vec3 x = (m.vertices.row(m.tets(c, 0)) + m.vertices.row(m.tets(c, 1)) +
+                        m.vertices.row(m.tets(c, 2)) + m.vertices.row(m.tets(c, 3))) /
+                       4.0;
+        if ((x.array() > lo.array()).all() && (x.array() < hi.array()).all())
+          cavity +=
+              std::abs(signed_volume(m.vertices.row(m.tets(c, 0)), m.vertices.row(m.tets(c, 1)),
+                                     m.vertices.row(m.tets(c, 2)), m.vertices.row(m.tets(c, 3))));
+      }
+      CHECK(cavity == doctest::Approx((hi - lo - Vec3::Constant(2 * t)).prod()).epsilon(1e-9));
+      // No flat fluid cell is left (four surface points on both sides of a cavity edge, coplanar
+      // to round-off: |6V| <= 1e-9 l^3, as the remesher's kFlat).
+      Index flat = 0;
+      for (Index c = 0; c < m.num_tets(); ++c) {
+        double l = 0.0;
+        for (int i = 0; i < 4; ++i)
+          for (int j = i + 1; j < 4; ++j)
+            l = std::max(l, (m.vertices.row(m.tets(c, i)) - m.vertices.row(m.tets(c, j))).norm());
+        flat += 6.0 * m.volumes(c) <= 1e-9 * l * l * l;
+      }
+      CHECK(flat == 0);
+      MESSAGE(cells.transpose(), ": ", m.num_tets(), " cells, ", r.recovery_rounds, " rounds, ",
+              r.steiner_points, " Steiner points");
+    }
   }
 
   TEST_CASE("remesh: refinement field and cell budget") {
