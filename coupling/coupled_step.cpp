@@ -255,7 +255,10 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
         for (const Contact& c : contacts[b]) {
           const double mu = c.obstacle->friction;
           Vec3 u = body.velocity.row(c.node).transpose();
-          const double dun = std::abs(c.sign * u[c.axis]) + std::max(0.0, -c.incoming);
+          // the normal speed the floor takes away this step: the approach, and what gravity
+          // would have added (a resting node's weight, for Coulomb friction)
+          const double dun = std::abs(c.sign * u[c.axis]) + std::max(0.0, -c.incoming) +
+                             h * std::max(0.0, -c.sign * world.gravity[c.axis]);
           u[c.axis] = 0.0;
           const double tn = u.norm();
           if (tn > 0) u *= std::max(0.0, 1.0 - mu * dun / tn);
