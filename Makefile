@@ -1,12 +1,12 @@
 # Convenience front end: every target sets up (apt-get, only what is missing) and builds first.
-#   make run        run the default scene, frames in out/smoke_jet/
+#   make run        run the default scene, frames in out/smoke_sheets/
 #   make test       build and run the unit/validation tests (skips the "long" label)
 #   make test-long  the long cases only
 #   make bench      the solver benchmark
 BUILD ?= build
 JOBS ?= $(shell nproc)
-SCENE ?= data/scenes/smoke_jet.json
-OUT ?= out/smoke_jet
+SCENE ?= data/scenes/smoke_sheets.json
+OUT ?= out/smoke_sheets
 
 .PHONY: setup configure build run test test-long test-all bench format clean
 
