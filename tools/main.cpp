@@ -6,6 +6,7 @@
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
 ///   tetfsi bench remesh [--json FILE] [--max-cells N]
 ///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
+///   tetfsi bench coupled SCENE [--json FILE] [--time T] [--steps-down N] [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
@@ -24,6 +25,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "tools/bench_coupled.hpp"
 #include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/bench_step.hpp"
@@ -82,6 +84,7 @@ int main(int argc, char** argv) {
       "  tetfsi run data/scenes/remesh_sheet.json -o out/rs   # the fluid mesh follows the sheet\n"
       "  tetfsi bench remesh --json remesh.json\n"
       "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
+      "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
       "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
@@ -211,6 +214,39 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->type_name("A,B,C");
 
+  CLI::App* bench_coupled_cmd = bench->add_subcommand(
+      "coupled",
+      "the two coupling schemes side by side: each one's largest stable step, seconds per step, "
+      "and the coupled solve against a fluid-only projection on the same mesh");
+  std::string bench_coupled_scene;
+  tools::BenchCoupledOptions bench_coupled_opt;
+  std::string bench_coupled_json;
+  bench_coupled_cmd->add_option("SCENE", bench_coupled_scene, "two-way fluid scene file (JSON)")
+      ->required()
+      ->type_name("FILE");
+  bench_coupled_cmd
+      ->add_option("--json", bench_coupled_json, "also write the results to this JSON file")
+      ->type_name("FILE");
+  bench_coupled_cmd
+      ->add_option("--time", bench_coupled_opt.time,
+                   "simulated seconds of each stability run (> 0)")
+      ->type_name("T")
+      ->capture_default_str();
+  bench_coupled_cmd
+      ->add_option("--steps-down", bench_coupled_opt.steps_down,
+                   "halvings of the largest step 2 dt tried: h = 2 dt / 2^k, k = 0..N (0..12)")
+      ->type_name("N")
+      ->capture_default_str();
+  bench_coupled_cmd
+      ->add_option("--timed-steps", bench_coupled_opt.timed_steps,
+                   "steps per scheme at dt for the seconds per step, the first a warm-up (>= 4)")
+      ->type_name("N")
+      ->capture_default_str();
+  bench_coupled_cmd
+      ->add_option("--set", bench_coupled_opt.overrides, "override a scene value (repeatable)")
+      ->allow_extra_args(false)
+      ->type_name("KEY=VALUE");
+
   // ---- quality ----
   CLI::App* quality = app.add_subcommand(
       "quality",
@@ -281,6 +317,10 @@ int main(int argc, char** argv) {
       o.steps = bench_step_steps;
       o.scales = bench_step_sizes;
       return tools::bench_step(bench_step_scene, o, std::cout);
+    }
+    if (*bench_coupled_cmd) {
+      bench_coupled_opt.json_path = bench_coupled_json;
+      return tools::bench_coupled(bench_coupled_scene, bench_coupled_opt, std::cout);
     }
     if (*quality) {
       return tools::quality_command(quality_file, quality_json, quality_png, std::cout);

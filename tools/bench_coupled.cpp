@@ -1,0 +1,351 @@
+/// @file bench_coupled.cpp
+/// `tetfsi bench coupled` (bench_coupled.hpp).
+#include "tools/bench_coupled.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <fmt/ostream.h>
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "core/linear_solver.hpp"
+#include "core/log.hpp"
+#include "core/timer.hpp"
+#include "coupling/coupled_system.hpp"
+#include "fluid/operators.hpp"
+#include "mesh/remesh.hpp"
+#include "solid/integrator.hpp"
+#include "tools/fluid_driver.hpp"
+#include "tools/output.hpp"
+#include "tools/scene.hpp"
+
+namespace tetfsi::tools {
+
+namespace {
+
+using coupling::Scheme;
+constexpr double k_inf = std::numeric_limits<double>::infinity();
+
+/// One run of a scheme from the scene's initial state.
+struct Run {
+  double h = 0.0, bound = k_inf, max_energy = 0.0;
+  int steps = 0, completed = 0, exceeded_at = 0;  ///< exceeded_at: first step with E > bound
+  std::string failure;                            ///< what() of the step that threw
+  std::vector<double> step_s;                     ///< wall seconds of each completed step
+  bool stable() const { return failure.empty() && exceeded_at == 0; }
+  std::string outcome() const {
+    if (!failure.empty()) return fmt::format("failed at step {}", completed + 1);
+    if (exceeded_at > 0) return fmt::format("E > bound at step {}", exceeded_at);
+    return "stable";
+  }
+};
+
+/// `steps` coupled steps of `scheme` at h; stops at a failed step, and at the first step with
+/// E > bound if `stop_at_bound`.
+Run run_scheme(const Scene& scene, const solid::SolidWorld& world0, Scheme scheme, double h,
+               int steps, double bound, bool stop_at_bound) {
+  Run r;
+  r.h = h;
+  r.steps = steps;
+  r.bound = bound;
+  solid::SolidWorld world = world0;
+  coupling::CouplingParams p = scene.coupling->params;
+  p.scheme = scheme;
+  FluidDriver driver(*scene.fluid, world, p);
+  PhaseTimes phases;
+  driver.start(world, phases);  // a scene that cannot be meshed at t = 0 is an error
+  try {
+    for (int k = 0; k < steps; ++k) {
+      const double t0 = now_seconds();
+      const coupling::CoupledStepReport rep = driver.step_coupled(world, h, phases);
+      r.step_s.push_back(now_seconds() - t0);
+      ++r.completed;
+      const double e = rep.solid_kinetic_energy + rep.elastic_energy;
+      r.max_energy = std::max(r.max_energy, e);
+      if (!(e <= bound) && r.exceeded_at == 0) r.exceeded_at = k + 1;
+      if (r.exceeded_at > 0 && stop_at_bound) break;
+    }
+  } catch (const Error& e) {
+    r.failure = e.what();
+  }
+  logger().info("bench coupled: {} at h = {:.6g} s: {} ({}/{} steps, max E {:.4g} J)",
+                coupling::to_string(scheme), h, r.outcome(), r.completed, steps, r.max_energy);
+  return r;
+}
+
+/// (b): mean seconds of the completed steps after the first; unset if fewer than 3.
+std::optional<double> mean_step(const Run& r) {
+  if (r.completed < 4) return std::nullopt;
+  double s = 0.0;
+  for (int k = 1; k < r.completed; ++k) s += r.step_s[k];
+  return s / (r.completed - 1);
+}
+
+struct SolveFigures {
+  double coupled_s = k_inf, fluid_s = k_inf;
+  Index cells = 0, pressure_unknowns = 0, solid_unknowns = 0, groups = 0;
+  int coupled_iterations = 0, fluid_iterations = 0;
+  bool converged = true;
+};
+
+/// (c): the next step's mesh around x* = x + h u after `warm` simultaneous steps at dt, v* on
+/// it, then solve_coupled (schur_amg, bodies free) against fluid::project, best of 3 each.
+SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, int warm) {
+  const double h = scene.time.dt;
+  solid::SolidWorld world = world0;
+  coupling::CouplingParams p = scene.coupling->params;
+  p.scheme = Scheme::Simultaneous;
+  p.solve.solver = coupling::CoupledSolverKind::SchurAmg;
+  FluidDriver driver(*scene.fluid, world, p);
+  PhaseTimes phases;
+  driver.start(world, phases);
+  for (int k = 0; k < warm; ++k) driver.step_coupled(world, h, phases);
+  const fluid::FluidSimulation& sim = driver.simulation();
+
+  // As CoupledStepper::step, without floor contacts (the figures are the solves' seconds).
+  const size_t nb = world.bodies.size();
+  std::vector<mesh::SolidSurface> solids(nb);
+  std::vector<fluid::SolidSurfaceMotion> motion(nb);
+  std::vector<coupling::CoupledBody> cb(nb);
+  for (size_t b = 0; b < nb; ++b) {
+    solid::SolidBody& body = world.bodies[b];
+    if (body.is_kinematic()) body.set_kinematic_state(world.time + h);
+    const coupling::BodySurface s = coupling::body_surface(body);
+    const MatX3 x =
+        body.is_kinematic() ? body.positions() : MatX3(body.positions() + h * body.velocity);
+    solids[b].body = static_cast<int>(b);
+    solids[b].triangles = s.triangles;
+    solids[b].vertices.resize(s.nodes.size(), 3);
+    motion[b].triangles = s.triangles;
+    motion[b].velocity.resize(s.nodes.size(), 3);
+    for (Index k = 0; k < s.nodes.size(); ++k) {
+      solids[b].vertices.row(k) = x.row(s.nodes[k]);
+      motion[b].velocity.row(k) = body.velocity.row(s.nodes[k]);
+    }
+    cb[b].interface = {s.triangles, s.nodes, body.num_nodes()};
+    if (body.is_kinematic()) continue;
+    solid::TrapezoidalSystem sys =
+        solid::assemble_trapezoidal(body, h, body.external_forces(world.gravity), world.trapezoid);
+    cb[b].free = true;
+    cb[b].A = std::move(sys.A);
+    cb[b].b = std::move(sys.b);
+    cb[b].fixed = body.fixed_dofs();
+    cb[b].prescribed = VecX::Zero(body.num_dofs());
+    cb[b].x = body.positions();
+    cb[b].u = flat(body.velocity);
+  }
+  mesh::Sizing sizing = scene.fluid->sizing;
+  sizing.refine = sim.refinement_field();
+  const fluid::FluidPrediction pred =
+      sim.predict(mesh::remesh(scene.fluid->domain, solids, sizing), h, motion, phases);
+  const fluid::FluidParams& fp = sim.params();
+
+  coupling::CoupledInput in;
+  in.mesh = &pred.mesh;
+  in.u_star = &pred.u_star;
+  in.rho = &pred.rho;
+  in.p_open = &pred.p_open;
+  in.h = h;
+  in.gravity = fp.gravity;
+  in.hydrostatic_origin = fp.hydrostatic_origin;
+  in.bodies = &cb;  // no volume targets: no enclosed-volume correction
+
+  SolverOptions o;
+  o.rel_tol = p.solve.rel_tol;
+  o.max_iterations = p.solve.max_iterations;
+  o.symmetric = true;
+  const VecX q_open = pred.p_open * (h / fp.density);
+  SolveFigures f;
+  f.cells = pred.mesh.num_tets();
+  for (int rep = 0; rep < 3; ++rep) {
+    const double t0 = now_seconds();
+    const coupling::CoupledSolution sol = coupling::solve_coupled(in, p.solve);
+    f.coupled_s = std::min(f.coupled_s, now_seconds() - t0);
+    f.coupled_iterations = sol.report.iterations;
+    f.pressure_unknowns = sol.report.pressure_unknowns;
+    f.solid_unknowns = sol.report.solid_unknowns;
+    f.converged = f.converged && sol.report.converged;
+
+    VecX u = pred.u_star, q;  // the Solid faces hold the bodies' velocities (`motion`)
+    const double t1 = now_seconds();
+    const auto solver = make_linear_solver(fp.solver, o);
+    const fluid::ProjectionReport pr =
+        fluid::project(pred.mesh, fp.min_dual_fraction, q_open, u, q, *solver);
+    f.fluid_s = std::min(f.fluid_s, now_seconds() - t1);
+    f.fluid_iterations = pr.iterations;
+    f.groups = pr.groups;
+    f.converged = f.converged && pr.converged;
+  }
+  return f;
+}
+
+nlohmann::json opt_json(const std::optional<double>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+std::string opt_str(const std::optional<double>& v, const char* none) {
+  return v ? fmt::format("{:.6g}", *v) : std::string(none);
+}
+
+}  // namespace
+
+int bench_coupled(const std::filesystem::path& scene_file, const BenchCoupledOptions& opt,
+                  std::ostream& out) {
+  TETFSI_REQUIRE(InputError, std::isfinite(opt.time) && opt.time > 0,
+                 "bench coupled: --time must be a positive number of seconds, got {}", opt.time);
+  TETFSI_REQUIRE(InputError, opt.steps_down >= 0 && opt.steps_down <= 12,
+                 "bench coupled: --steps-down must be in 0..12, got {}", opt.steps_down);
+  TETFSI_REQUIRE(InputError, opt.timed_steps >= 4,
+                 "bench coupled: --timed-steps must be at least 4 (a warm-up + 3), got {}",
+                 opt.timed_steps);
+  const Scene scene = load_scene(scene_file, opt.overrides);
+  const std::string name = scene_file.string();
+  TETFSI_REQUIRE(InputError, scene.fluid.has_value() && scene.coupling.has_value(),
+                 "{}: bench coupled needs a fluid scene (no 'fluid' section)", name);
+  TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic,
+                 "{}: bench coupled needs a dynamic scene (mode is 'static')", name);
+  const solid::SolidWorld world0 = build_world(scene);
+  TETFSI_REQUIRE(InputError,
+                 std::any_of(world0.bodies.begin(), world0.bodies.end(),
+                             [](const solid::SolidBody& b) { return !b.is_kinematic(); }),
+                 "{}: bench coupled needs a deformable (non-kinematic) body", name);
+  const double e0 = world0.kinetic_energy() + world0.elastic_energy();
+  TETFSI_REQUIRE(InputError, e0 > 0,
+                 "{}: the bodies start at rest and unstressed (solid energy 0 J); bench coupled "
+                 "bounds the energy by a multiple of it: give an initial_velocity",
+                 name);
+  const double dt = scene.time.dt;
+  const std::string criterion =
+      "unstable: a step throws, or E = solid kinetic + elastic > 10 * max(E0, E_sim(h)), E0 at "
+      "t = 0, E_sim(h) the max E of the simultaneous run at the same h if it was stable (else "
+      "0; simultaneous runs: 10 * E0)";
+
+  fmt::print(out, "tetfsi bench coupled: {} ('{}'), dt = {:.6g} s (1/{:.4g}), {:.4g} s per run\n",
+             name, scene.name, dt, 1.0 / dt, opt.time);
+  fmt::print(out, "{}; E0 = {:.4g} J\n\n", criterion, e0);
+  fmt::print(out, "(a) largest stable step, h = 2 dt / 2^k, k = 0..{}\n", opt.steps_down);
+  fmt::print(out, "{:<13} {:>10} {:>6} {:>6} {:>10} {:>10}  {}\n", "scheme", "h (s)", "steps",
+             "done", "max E (J)", "bound (J)", "outcome");
+
+  std::optional<double> stable_sim, stable_split;
+  nlohmann::json runs_sim = nlohmann::json::array(), runs_split = nlohmann::json::array();
+  auto record = [&](const Run& r, Scheme s, nlohmann::json& list) {
+    fmt::print(out, "{:<13} {:>10.6g} {:>6} {:>6} {:>10.4g} {:>10.4g}  {}\n",
+               coupling::to_string(s), r.h, r.steps, r.completed, r.max_energy, r.bound,
+               r.outcome());
+    if (!r.failure.empty()) fmt::print(out, "    {}\n", r.failure);
+    out.flush();
+    list.push_back({{"h", r.h},
+                    {"steps", r.steps},
+                    {"completed", r.completed},
+                    {"stable", r.stable()},
+                    {"outcome", r.outcome()},
+                    {"max_energy", r.max_energy},
+                    {"bound", r.bound},
+                    {"failure", r.failure}});
+  };
+  double h_min = 2 * dt;
+  for (int k = 0; k <= opt.steps_down && !(stable_sim && stable_split); ++k) {
+    const double h = 2 * dt / std::pow(2.0, k);
+    const int steps = static_cast<int>(std::ceil(opt.time / h - 1e-9));
+    h_min = h;
+    // simultaneous runs at every h splitting is tried at: its reference E_sim(h)
+    const Run sim = run_scheme(scene, world0, Scheme::Simultaneous, h, steps, 10 * e0, true);
+    record(sim, Scheme::Simultaneous, runs_sim);
+    if (sim.stable() && !stable_sim) stable_sim = h;
+    if (stable_split) continue;
+    const double bound = 10 * std::max(e0, sim.stable() ? sim.max_energy : 0.0);
+    const Run split = run_scheme(scene, world0, Scheme::Splitting, h, steps, bound, true);
+    record(split, Scheme::Splitting, runs_split);
+    if (split.stable()) stable_split = h;
+  }
+  const std::string none = fmt::format("none down to {:.6g}", h_min);
+  fmt::print(out, "largest stable h: simultaneous {}, splitting {}\n\n",
+             opt_str(stable_sim, none.c_str()), opt_str(stable_split, none.c_str()));
+
+  fmt::print(out, "(b) wall seconds per step at dt = {:.6g} s ({} steps, the first a warm-up)\n",
+             dt, opt.timed_steps);
+  std::optional<double> step_s[2];
+  nlohmann::json timing;
+  for (const Scheme s : {Scheme::Simultaneous, Scheme::Splitting}) {
+    const Run r = run_scheme(scene, world0, s, dt, opt.timed_steps, 10 * e0, false);
+    const int i = s == Scheme::Simultaneous ? 0 : 1;
+    step_s[i] = mean_step(r);
+    std::string note;
+    if (!r.failure.empty())
+      note = fmt::format(" (failed at step {}: timed the {} completed after the warm-up)",
+                         r.completed + 1, std::max(0, r.completed - 1));
+    else if (r.exceeded_at > 0)
+      note = fmt::format(" (E > 10 E0 from step {}: blowing up)", r.exceeded_at);
+    fmt::print(out, "{:<13} {:>10} s{}\n", coupling::to_string(s),
+               opt_str(step_s[i], "n/a (< 3 steps)"), note);
+    timing[coupling::to_string(s)] = {{"completed", r.completed},
+                                      {"timed", std::max(0, r.completed - 1)},
+                                      {"failed", !r.failure.empty()},
+                                      {"exceeded_at", r.exceeded_at}};
+  }
+
+  const SolveFigures f = time_solves(scene, world0, opt.warm_steps);
+  const double solve_ratio = f.coupled_s / f.fluid_s;
+  fmt::print(out,
+             "\n(c) one solve after {} simultaneous steps at dt, {} cells ({} pressure unknowns, "
+             "{} solid), best of 3:\n  coupled schur_amg {:.4g} s ({} iterations), fluid-only "
+             "projection {:.4g} s ({} iterations), ratio {:.3g}{}\n",
+             opt.warm_steps, f.cells, f.pressure_unknowns, f.solid_unknowns, f.coupled_s,
+             f.coupled_iterations, f.fluid_s, f.fluid_iterations, solve_ratio,
+             f.converged ? "" : " (a solve did not converge)");
+
+  const bool sim_at_dt = stable_sim && *stable_sim >= dt * (1 - 1e-9);
+  const bool split_at_dt = stable_split && *stable_split >= dt * (1 - 1e-9);
+  const bool goal_stable = sim_at_dt && !split_at_dt;
+  const bool goal_solve = solve_ratio <= 1.5;
+  std::optional<double> step_ratio;
+  if (step_s[0] && step_s[1]) step_ratio = *step_s[0] / *step_s[1];
+  const bool goal_step = step_ratio && *step_ratio <= 1.2;
+  auto met = [](bool b) { return b ? "met" : "NOT met"; };
+  auto yes = [](bool b) { return b ? "yes" : "no"; };
+  fmt::print(out,
+             "\ngoals:\n  simultaneous stable at h = dt = 1/{:.4g} where splitting is not (largest "
+             "stable h >= dt: simultaneous {}, splitting {}) -> {}\n  coupled solve within 1.5x "
+             "of the fluid-only projection: {:.3g}x -> {}\n  simultaneous step within 1.2x of a "
+             "splitting step: {}x -> {}\n",
+             1.0 / dt, yes(sim_at_dt), yes(split_at_dt), met(goal_stable), solve_ratio,
+             met(goal_solve), opt_str(step_ratio, "n/a"), met(goal_step));
+
+  if (!opt.json_path.empty()) {
+    const nlohmann::json j{
+        {"scene", scene.name},
+        {"dt", dt},
+        {"time", opt.time},
+        {"criterion", criterion},
+        {"initial_energy", e0},
+        {"stable_dt",
+         {{"simultaneous", opt_json(stable_sim)}, {"splitting", opt_json(stable_split)}}},
+        {"step_s", {{"simultaneous", opt_json(step_s[0])}, {"splitting", opt_json(step_s[1])}}},
+        {"coupled_solve_s", f.coupled_s},
+        {"fluid_only_solve_s", f.fluid_s},
+        {"solve_ratio", solve_ratio},
+        {"step_ratio", opt_json(step_ratio)},
+        {"runs", {{"simultaneous", runs_sim}, {"splitting", runs_split}}},
+        {"timing", timing},
+        {"solve",
+         {{"cells", f.cells},
+          {"pressure_unknowns", f.pressure_unknowns},
+          {"solid_unknowns", f.solid_unknowns},
+          {"coupled_iterations", f.coupled_iterations},
+          {"fluid_only_iterations", f.fluid_iterations},
+          {"fluid_only_groups", f.groups},
+          {"converged", f.converged}}},
+        {"goals", {{"stable", goal_stable}, {"solve", goal_solve}, {"step", goal_step}}}};
+    write_text_file_atomic(opt.json_path, j.dump(2) + "\n");
+  }
+  return 0;
+}
+
+}  // namespace tetfsi::tools
