@@ -229,17 +229,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
       // 3. transfer, forces: v*
       pred = fluid.predict(std::move(m), h, motion(), phases);
       // 4. [Chentanez06, Eq. (7)]
-      CoupledInput in;
-      in.mesh = &pred.mesh;
-      in.u_star = &pred.u_star;
-      in.rho = &pred.rho;
-      in.p_open = &pred.p_open;
-      in.h = h;
-      in.gravity = g_fluid;
-      in.hydrostatic_origin = fluid.params().hydrostatic_origin;
-      in.bodies = &cb;
-      in.volume_targets = &m_targets;
-      sol = solve_coupled(in, m_params.solve);
+      sol = solve_coupled(make_input(pred, fluid.params(), cb, &m_targets), m_params.solve);
       solve_phases(sol.report);
       // 5. Eq. (5), collisions
       ScopedTimer timer(phases, "update");
@@ -315,16 +305,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
       pred = fluid.predict(std::move(m), h, motion(), phases);
       std::vector<CoupledBody> cb(nb);
       for (Index b = 0; b < nb; ++b) cb[b].interface = ifaces[b];  // all prescribed
-      CoupledInput in;
-      in.mesh = &pred.mesh;
-      in.u_star = &pred.u_star;
-      in.rho = &pred.rho;
-      in.p_open = &pred.p_open;
-      in.h = h;
-      in.gravity = g_fluid;
-      in.hydrostatic_origin = fluid.params().hydrostatic_origin;
-      in.bodies = &cb;
-      sol = solve_coupled(in, m_params.solve);
+      sol = solve_coupled(make_input(pred, fluid.params(), cb), m_params.solve);
       solve_phases(sol.report);
       m_held_force = sol.fluid_force;
       m_have_force = true;

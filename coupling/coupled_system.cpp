@@ -51,6 +51,21 @@ const char* to_string(CoupledSolverKind k) {
   return "?";
 }
 
+CoupledInput make_input(const fluid::FluidPrediction& pred, const fluid::FluidParams& params,
+                        const std::vector<CoupledBody>& bodies, VolumeTargets* targets) {
+  CoupledInput in;
+  in.mesh = &pred.mesh;
+  in.u_star = &pred.u_star;
+  in.rho = &pred.rho;
+  in.p_open = &pred.p_open;
+  in.h = pred.h;
+  in.gravity = params.gravity;
+  in.hydrostatic_origin = params.hydrostatic_origin;
+  in.bodies = &bodies;
+  in.volume_targets = targets;
+  return in;
+}
+
 std::vector<VecX> fluid_forces(const TetMesh& m, const std::vector<BodyInterface>& bodies,
                                const VecX& p, const VecX& rho, const Vec3& gravity,
                                const Vec3& origin) {

@@ -48,6 +48,7 @@
 
 #include "core/types.hpp"
 #include "coupling/interface.hpp"
+#include "fluid/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::coupling {
@@ -105,6 +106,12 @@ struct CoupledInput {
   const std::vector<CoupledBody>* bodies = nullptr;  ///< every body of the mesh, by index
   VolumeTargets* volume_targets = nullptr;           ///< may be null: no volume correction
 };
+
+/// The input of a solve from the fluid's prediction of the step (its mesh, v*, densities,
+/// open pressures, h) and its parameters (gravity, hydrostatic origin). The pointers refer to
+/// `pred` and `bodies`, which must outlive the input.
+CoupledInput make_input(const fluid::FluidPrediction& pred, const fluid::FluidParams& params,
+                        const std::vector<CoupledBody>& bodies, VolumeTargets* targets = nullptr);
 
 /// An enclosed region of this step.
 struct EnclosedRegion {

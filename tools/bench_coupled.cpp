@@ -147,15 +147,8 @@ SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, in
       sim.predict(mesh::remesh(scene.fluid->domain, solids, sizing), h, motion, phases);
   const fluid::FluidParams& fp = sim.params();
 
-  coupling::CoupledInput in;
-  in.mesh = &pred.mesh;
-  in.u_star = &pred.u_star;
-  in.rho = &pred.rho;
-  in.p_open = &pred.p_open;
-  in.h = h;
-  in.gravity = fp.gravity;
-  in.hydrostatic_origin = fp.hydrostatic_origin;
-  in.bodies = &cb;  // no volume targets: no enclosed-volume correction
+  // no volume targets: no enclosed-volume correction
+  const coupling::CoupledInput in = coupling::make_input(pred, fp, cb);
 
   SolverOptions o;
   o.rel_tol = p.solve.rel_tol;

@@ -51,17 +51,9 @@ CoupledRig cube_in_water(double size) {
 struct Problem {
   fluid::FluidPrediction pred;
   std::vector<CoupledBody> bodies;
+  fluid::FluidParams params;
   CoupledInput input(VolumeTargets* targets = nullptr) const {
-    CoupledInput in;
-    in.mesh = &pred.mesh;
-    in.u_star = &pred.u_star;
-    in.rho = &pred.rho;
-    in.p_open = &pred.p_open;
-    in.h = pred.h;
-    in.gravity = Vec3(0, 0, -9.81);
-    in.bodies = &bodies;
-    in.volume_targets = targets;
-    return in;
+    return make_input(pred, params, bodies, targets);
   }
 };
 
@@ -76,6 +68,7 @@ Problem next_problem(CoupledRig& r, double h) {
     motion[b].velocity = MatX3::Zero(r.stepper->surfaces()[b].nodes.size(), 3);
   }
   pb.pred = r.fluid->predict(r.build(x), h, motion, ph);
+  pb.params = r.fluid->params();
   for (size_t b = 0; b < r.world.bodies.size(); ++b) {
     const solid::SolidBody& body = r.world.bodies[b];
     CoupledBody cb;
