@@ -53,6 +53,9 @@ constexpr double kSliverDeg = 5.0;
 constexpr double kAwayDeg = 10.0;
 constexpr int kPerturbRounds = 4;
 constexpr int kSliverRounds = 2;
+/// Further rounds, after the kSliverRounds, that delete a lattice vertex of each degenerate
+/// cell only (is_degenerate below): a cell made by a later perturbation or deletion.
+constexpr int kDegenerateRounds = 6;
 /// A cell of four surface vertices of one body with |6V| below this times (longest edge)³ is
 /// flat (coplanar up to round-off).
 constexpr double kFlat = 1e-9;
@@ -1023,15 +1026,35 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     const double v6 = e1.dot(e2.cross(e3));  // √2 v6 < shape (l2/6)^1.5, without pow
     return v6 <= 0 || 2.0 * v6 * v6 < shape * shape * (l2 / 6.0) * (l2 / 6.0) * (l2 / 6.0);
   };
-  // Lattice vertices to delete, one per sliver (min dihedral < kSliverDeg) that has one: the
-  // lattice vertex nearest to the sliver's surface vertices (or its first), never a box point.
-  const auto sliver_vertices = [&](const MatX4i& T) {
+  // A degenerate cell: its signed volume in metres, in double precision, is at most
+  // kFlat × (longest edge)³. The Delaunay's exact predicates see a positive cell, but in the
+  // Delaunay's own coordinates (lattice units, surface points snapped to lattice planes, see
+  // to_dt): four points coplanar in exact arithmetic (e.g. a lattice edge under a sheet's edge
+  // across its thickness, both parallel to the sheet's normal and symmetric about its mid-plane:
+  // a co-circular trapezoid) make a cell whose volume in metres is round-off of either sign.
+  // In the fluid it has no volume (1/V in the operators; build_tet_mesh rejects V ≤ 0).
+  const auto is_degenerate = [&](const MatX4i& T, Index t) {
+    const Vec3& a = pts[T(t, 0)];
+    const Vec3 e1 = pts[T(t, 1)] - a, e2 = pts[T(t, 2)] - a, e3 = pts[T(t, 3)] - a;
+    const double l2 =
+        std::max({e1.squaredNorm(), e2.squaredNorm(), e3.squaredNorm(), (e2 - e1).squaredNorm(),
+                  (e3 - e1).squaredNorm(), (e3 - e2).squaredNorm()});
+    return e1.dot(e2.cross(e3)) <= kFlat * l2 * std::sqrt(l2);
+  };
+  // Lattice vertices to delete, one per sliver (min dihedral < kSliverDeg; only degenerate
+  // cells if `degenerate_only`) that has one: the lattice vertex nearest to the sliver's
+  // surface vertices (or its first), never a box point.
+  const auto sliver_vertices = [&](const MatX4i& T, bool degenerate_only) {
     std::vector<Index> cand;
+    std::vector<char> degenerate;
     for (Index t = 0; t < T.rows(); ++t) {
       bool lattice = false;
       for (int k = 0; k < 4; ++k) lattice |= T(t, k) < nL;
-      if (!lattice) continue;
-      if (maybe_flat(T, t, 0.3)) cand.push_back(t);
+      if (!lattice || !maybe_flat(T, t, 0.3)) continue;
+      const bool d = is_degenerate(T, t);
+      if (degenerate_only && !d) continue;
+      cand.push_back(t);
+      degenerate.push_back(d);
     }
     MatX4i sub(static_cast<Index>(cand.size()), 4);
     for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
@@ -1040,7 +1063,7 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
     const TetQuality q = tet_quality(P, sub);
     std::vector<int> drop;
     for (Index i = 0; i < sub.rows(); ++i) {
-      if (!(q.min_dihedral_deg(i) < kSliverDeg)) continue;
+      if (!degenerate[i] && !(q.min_dihedral_deg(i) < kSliverDeg)) continue;
       int best = -1;
       double best_d = kInf;
       for (int k = 0; k < 4; ++k) {
@@ -1329,9 +1352,12 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
           report.sliver_points_moved += moved;
           changed |= moved > 0;
         }
-        if (cleanup_rounds < kSliverRounds) {
+        // After the sliver rounds, degenerate cells (is_degenerate) still lose a vertex, once
+        // no vertex was moved in this pass (`tets` is then the current triangulation).
+        const bool degenerate_only = cleanup_rounds >= kSliverRounds;
+        if (cleanup_rounds < kSliverRounds + kDegenerateRounds && !(degenerate_only && changed)) {
           ++cleanup_rounds;
-          const std::vector<int> drop = sliver_vertices(tets);
+          const std::vector<int> drop = sliver_vertices(tets, degenerate_only);
           for (int v : drop) {
             lattice_removed[v] = 1;
             dt.remove(v);
@@ -1472,12 +1498,27 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
                         .dot(Vec3(sol.vertices.row(sol.triangles(t, 1)))
                                  .cross(Vec3(sol.vertices.row(sol.triangles(t, 2))))) /
                     6.0;
+    Index degenerate = -1;  // a fluid cell of no volume that the sliver rounds left
     for (Index t = 0; t < nT; ++t)
-      if (region_fluid[region[t]])
+      if (region_fluid[region[t]]) {
         fluid +=
             (pts[tets(t, 1)] - pts[tets(t, 0)])
                 .dot((pts[tets(t, 2)] - pts[tets(t, 0)]).cross(pts[tets(t, 3)] - pts[tets(t, 0)])) /
             6.0;
+        if (degenerate < 0 && is_degenerate(tets, t)) degenerate = t;
+      }
+    if (degenerate >= 0) {
+      const Vec3 x = 0.25 * (pts[tets(degenerate, 0)] + pts[tets(degenerate, 1)] +
+                             pts[tets(degenerate, 2)] + pts[tets(degenerate, 3)]);
+      int surface = 0;
+      for (int k = 0; k < 4; ++k) surface += tets(degenerate, k) >= nL;
+      throw MeshError(fmt::format(
+          "remesh: a fluid cell at ({:.6g}, {:.6g}, {:.6g}) with {} of its 4 vertices on solids "
+          "is flat (coplanar to round-off) and deleting lattice vertices did not remove it (none "
+          "but box points, or the rounds ran out): change surface_size slightly and report the "
+          "scene",
+          x.x(), x.y(), x.z(), surface));
+    }
     TETFSI_REQUIRE(MeshError, std::abs(fluid - expected) <= 1e-8 * (domain.hi - domain.lo).prod(),
                    "remesh: the fluid cells fill {:.9g} m^3 but the box minus the solids is {:.9g} "
                    "m^3: a solid surface leaks (not recovered); try a smaller surface_size and "

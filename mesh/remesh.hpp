@@ -20,7 +20,10 @@
 ///     (recording triangle and barycentric position), and the check repeats; flat cells over
 ///     two coplanar triangles are split away the same way, and so are flat cells of surface
 ///     points across an edge of a cavity (in the fluid); slivers touching a solid lose a
-///     lattice vertex, cells away from the solids under 10° get one perturbed;
+///     lattice vertex, cells away from the solids under 10° get one perturbed; cells whose
+///     volume in metres is round-off (coplanar points, e.g. a co-circular trapezoid of a
+///     lattice edge and a sheet's edge; positive only in the Delaunay's lattice units) keep
+///     losing a lattice vertex after that, so no fluid cell has V ≤ 0;
 ///  5. cells inside any solid are removed by a flood fill between solid faces and one winding
 ///     number per region (a fluid region enclosed by a solid stays fluid); the fluid volume is
 ///     checked against box − solids;
