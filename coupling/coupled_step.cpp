@@ -284,13 +284,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
             if (body.is_fixed(l)) fe[l] = 0.0;
           const solid::TrapezoidalSystem sys =
               solid::assemble_trapezoidal(body, h, fe, world.trapezoid);
-          std::unique_ptr<LinearSolver> s = make_linear_solver(SolverKind::Cholmod);
-          try {
-            s->setup(sys.A);
-          } catch (const SolverError&) {
-            s = make_linear_solver(SolverKind::Umfpack);
-            s->setup(sys.A);
-          }
+          const std::unique_ptr<LinearSolver> s = factor_body(sys.A);
           VecX u = flat(body.velocity);
           const SolveReport sr = s->solve(sys.b, u);
           rep.solid_iterations += sr.iterations;

@@ -2,10 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <memory>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
@@ -82,20 +80,19 @@ std::vector<VecX> fluid_forces(const TetMesh& m, const std::vector<BodyInterface
   return F;
 }
 
-namespace {
-
-/// A solver of A x = b for one body's A: CHOLMOD, or UMFPACK if A is not SPD.
 std::unique_ptr<LinearSolver> factor_body(const SparseMatrix& A) {
   auto s = make_linear_solver(SolverKind::Cholmod);
   try {
     s->setup(A);
   } catch (const SolverError&) {
-    logger().debug("coupled solve: a body's A is not positive definite; its block is solved by LU");
+    logger().debug("a body's A is not positive definite; it is solved by LU");
     s = make_linear_solver(SolverKind::Umfpack);
     s->setup(A);
   }
   return s;
 }
+
+namespace {
 
 /// The signed volume enclosed by triangles (x0, x1, x2) oriented out of the cavity's solid,
 /// i.e. into the cavity: V = −(1/6) Σ (x0 − c)·((x1 − c) × (x2 − c)).

@@ -43,9 +43,11 @@
 /// V(xⁿ + h/2 (uⁿ + uⁿ⁺¹(c))) = V_target. The target is the region's volume when first seen.
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "core/linear_solver.hpp"
 #include "core/types.hpp"
 #include "coupling/interface.hpp"
 #include "fluid/simulation.hpp"
@@ -147,6 +149,11 @@ struct CoupledSolution {
   std::vector<VecX> fluid_force;
   CoupledReport report;
 };
+
+/// A solver of A x = b for one body's trapezoidal A [Chentanez06, Eq. (4)]: CHOLMOD, or
+/// UMFPACK when A is not positive definite (StVK under strong compression).
+/// @throws SolverError if both factorizations fail.
+std::unique_ptr<LinearSolver> factor_body(const SparseMatrix& A);
 
 /// Assemble and solve, see the file comment.
 /// @throws SolverError if a factorization fails or the result is not finite;

@@ -282,7 +282,6 @@ FluidStepReport FluidSimulation::commit(FluidPrediction pred, VecX u, VecX p_dyn
   for (Index t = 0; t < nm.num_tets(); ++t)
     s.p[t] += hydrostatic_pressure(pred.rho[t], P.gravity, P.hydrostatic_origin,
                                    nm.circumcentres.row(t).transpose());
-  rep.divergence_after = nm.num_tets() ? divergence(nm, s.u).cwiseAbs().maxCoeff() : 0.0;
   I.mesh = std::move(nm);
   I.state = std::move(s);
   I.time += h;

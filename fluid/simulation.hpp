@@ -114,7 +114,7 @@ class FluidSimulation {
   /// End a step from `pred` with the projected face velocities u (#F) and the dynamic
   /// pressure p_dyn (#T, Pa; the hydrostatic part ρ g·x is added here): the new mesh and
   /// state, time += h. Fills the report's diagnostics (energy, fluxes, CFL, smoke mass); the
-  /// solve fields are the caller's.
+  /// solve fields (converged, iterations, residual, divergence) are the caller's.
   /// @throws SolverError if u or p_dyn is not finite (the simulation is then unchanged).
   FluidStepReport commit(FluidPrediction pred, VecX u, VecX p_dyn);
 

@@ -3,8 +3,6 @@
 /// A fluid box with solid bodies, stepped by coupling::CoupledStepper: the remesher builds the
 /// fluid mesh around the bodies' surfaces as the run loop does (tools/fluid_driver.cpp).
 #include <utility>
-
-#include <Eigen/Geometry>
 #include <vector>
 
 #include "coupling/coupled_step.hpp"
@@ -53,19 +51,5 @@ struct CoupledRig {
         world, *fluid, [this](const std::vector<MatX3>& x) { return build(x); }, h, phases);
   }
 };
-
-/// Volume enclosed by a body's boundary triangles at its current positions (outward
-/// triangles: the solid's own volume; with a cavity, minus the cavity).
-inline double signed_boundary_volume(const solid::SolidBody& b, bool inner_only_sign = false) {
-  (void)inner_only_sign;
-  const MatX3 x = b.positions();
-  const MatX3i& T = b.boundary_triangles();
-  double v = 0.0;
-  for (Index t = 0; t < T.rows(); ++t) {
-    const Vec3 a = x.row(T(t, 0)), c = x.row(T(t, 1)), d = x.row(T(t, 2));
-    v += a.dot(c.cross(d));
-  }
-  return v / 6.0;
-}
 
 }  // namespace tetfsi::test
