@@ -8,7 +8,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -58,6 +60,30 @@ inline std::vector<std::string> lines_of(const std::string& text) {
   std::stringstream ss(text);
   for (std::string l; std::getline(ss, l);) lines.push_back(l);
   return lines;
+}
+
+/// A CSV file with a header line (stats.csv) as columns: name → one value per row.
+/// @throws std::runtime_error naming the row if its field count differs from the header's.
+inline std::map<std::string, std::vector<double>> read_csv_columns(const std::filesystem::path& p) {
+  const std::vector<std::string> lines = lines_of(read_text(p));
+  auto split = [](const std::string& line) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    return f;
+  };
+  std::map<std::string, std::vector<double>> cols;
+  if (lines.empty()) return cols;
+  const std::vector<std::string> names = split(lines[0]);
+  for (const std::string& n : names) cols[n];
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const std::vector<std::string> f = split(lines[i]);
+    if (f.size() != names.size())
+      throw std::runtime_error(fmt::format("{}: row {} has {} fields, the header {}", p.string(), i,
+                                           f.size(), names.size()));
+    for (size_t k = 0; k < f.size(); ++k) cols[names[k]].push_back(std::stod(f[k]));
+  }
+  return cols;
 }
 
 /// What a CLI run left: exit code (−1 if it did not exit normally), stdout, stderr.

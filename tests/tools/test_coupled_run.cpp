@@ -63,21 +63,9 @@ using Stats = std::map<std::string, std::vector<double>>;
 
 /// stats.csv as columns: name → one value per step.
 Stats read_stats(const fs::path& p) {
-  const auto lines = lines_of(read_text(p));
-  REQUIRE(lines.size() == kSteps + 1);
-  auto split = [](const std::string& line) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
-    return f;
-  };
-  const auto names = split(lines[0]);
-  Stats cols;
-  for (size_t i = 1; i < lines.size(); ++i) {
-    const auto f = split(lines[i]);
-    REQUIRE(f.size() == names.size());
-    for (size_t k = 0; k < f.size(); ++k) cols[names[k]].push_back(std::stod(f[k]));
-  }
+  const Stats cols = tetfsi::test::read_csv_columns(p);
+  REQUIRE(!cols.empty());
+  for (const auto& [name, v] : cols) REQUIRE(v.size() == kSteps);
   return cols;
 }
 

@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,7 +17,6 @@
 namespace fs = std::filesystem;
 using namespace tetfsi;
 using namespace tetfsi::tools;
-using tetfsi::test::lines_of;
 using tetfsi::test::read_text;
 using tetfsi::test::TempDir;
 
@@ -32,20 +30,10 @@ struct Variant {
 
 /// Column `name` of stats.csv.
 std::vector<double> column(const fs::path& csv, const std::string& name) {
-  const auto lines = lines_of(read_text(csv));
-  auto split = [](const std::string& l) {
-    std::vector<std::string> f;
-    std::stringstream ss(l);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
-    return f;
-  };
-  const auto names = split(lines.at(0));
-  size_t k = 0;
-  while (k < names.size() && names[k] != name) ++k;
-  REQUIRE(k < names.size());
-  std::vector<double> v;
-  for (size_t i = 1; i < lines.size(); ++i) v.push_back(std::stod(split(lines[i]).at(k)));
-  return v;
+  const auto cols = tetfsi::test::read_csv_columns(csv);
+  const auto it = cols.find(name);
+  REQUIRE(it != cols.end());
+  return it->second;
 }
 
 /// Number of <DataSet> entries of a .pvd.

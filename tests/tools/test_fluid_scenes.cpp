@@ -11,7 +11,6 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -31,7 +30,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using tetfsi::test::lines_of;
 using tetfsi::test::read_text;
 using tetfsi::test::TempDir;
 using Result = tetfsi::test::CliResult;
@@ -55,21 +53,9 @@ void run_scene(const fs::path& dir, const std::string& scene, const std::string&
 
 /// stats.csv as columns: name → one value per step (row order).
 std::map<std::string, std::vector<double>> read_stats(const fs::path& p) {
-  const auto lines = lines_of(read_text(p));
-  REQUIRE(lines.size() >= 2);
-  auto split = [](const std::string& line) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
-    return f;
-  };
-  const auto names = split(lines[0]);
-  std::map<std::string, std::vector<double>> cols;
-  for (size_t i = 1; i < lines.size(); ++i) {
-    const auto f = split(lines[i]);
-    REQUIRE(f.size() == names.size());
-    for (size_t k = 0; k < f.size(); ++k) cols[names[k]].push_back(std::stod(f[k]));
-  }
+  const auto cols = tetfsi::test::read_csv_columns(p);
+  REQUIRE(!cols.empty());
+  REQUIRE(!cols.begin()->second.empty());  // at least one step
   return cols;
 }
 
