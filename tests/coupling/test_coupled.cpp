@@ -20,13 +20,8 @@ using solid::testing::make_material;
 
 namespace {
 
-/// A soft cube (ρ_s = 2000) in a water box open at the top, with a swirl in the water.
-CoupledRig cube_in_water(double size) {
-  CoupledRig r;
-  r.world.gravity = Vec3(0, 0, -9.81);
-  r.world.bodies.emplace_back(
-      "cube", mesh::make_box(Vec3(0.4, 0.4, 0.35), Vec3(0.6, 0.6, 0.55), Vec3i(3, 3, 3)),
-      make_material(2000, 2e4, 0.3, 0.0, 0.01));
+/// The fluid of a rig: water with gravity in the unit box, open (pressure 0) at the top.
+void water_box_open_top(CoupledRig& r) {
   r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
   mesh::DomainPatch top;
   top.kind = mesh::FaceKind::Open;
@@ -34,10 +29,20 @@ CoupledRig cube_in_water(double size) {
   top.lo = Vec2(0, 0);
   top.hi = Vec2(1, 1);
   r.domain.patches.push_back(top);
-  r.sizing = sizing(size, 3 * size);
   r.fluid_params.density = 1000;
   r.fluid_params.gravity = Vec3(0, 0, -9.81);
   r.fluid_params.patches.resize(1);
+}
+
+/// A soft cube (ρ_s = 2000) in a water box open at the top, with a swirl in the water.
+CoupledRig cube_in_water(double size) {
+  CoupledRig r;
+  r.world.gravity = Vec3(0, 0, -9.81);
+  r.world.bodies.emplace_back(
+      "cube", mesh::make_box(Vec3(0.4, 0.4, 0.35), Vec3(0.6, 0.6, 0.55), Vec3i(3, 3, 3)),
+      make_material(2000, 2e4, 0.3, 0.0, 0.01));
+  water_box_open_top(r);
+  r.sizing = sizing(size, 3 * size);
   r.start();
   // a swirl about the vertical axis, so that v* is not zero
   const mesh::TetMesh& m = r.fluid->mesh();
@@ -427,17 +432,8 @@ CoupledRig light_plate(Scheme scheme) {
     const double x = b.rest_positions()(i, 0);
     if (x < 0.3 + 1e-9 || x > 0.7 - 1e-9) b.pin_node(i);  // clamped at x = 0.3 and 0.7
   }
-  r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
-  mesh::DomainPatch top;
-  top.kind = mesh::FaceKind::Open;
-  top.side = 5;
-  top.lo = Vec2(0, 0);
-  top.hi = Vec2(1, 1);
-  r.domain.patches.push_back(top);
+  water_box_open_top(r);
   r.sizing = sizing(0.04, 0.15);
-  r.fluid_params.density = 1000;
-  r.fluid_params.gravity = Vec3(0, 0, -9.81);
-  r.fluid_params.patches.resize(1);
   r.coupling.scheme = scheme;
   r.start();
   return r;
