@@ -307,3 +307,19 @@ std::unique_ptr<AmgPreconditioner> make_amg_preconditioner() {
 }
 
 }  // namespace tetfsi
+
+namespace tetfsi {
+
+std::unique_ptr<LinearSolver> factor_symmetric(const SparseMatrix& A) {
+  auto s = make_linear_solver(SolverKind::Cholmod);
+  try {
+    s->setup(A);
+  } catch (const SolverError&) {
+    logger().debug("a symmetric matrix is not positive definite; it is solved by LU");
+    s = make_linear_solver(SolverKind::Umfpack);
+    s->setup(A);
+  }
+  return s;
+}
+
+}  // namespace tetfsi

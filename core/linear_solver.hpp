@@ -77,6 +77,12 @@ class LinearSolver {
 
 std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts = {});
 
+/// A direct solver set up for a symmetric A that is usually positive definite (a body's
+/// trapezoidal or tangent matrix): CHOLMOD, or UMFPACK when CHOLMOD finds A not positive
+/// definite (StVK under strong compression).
+/// @throws SolverError if both factorizations fail.
+std::unique_ptr<LinearSolver> factor_symmetric(const SparseMatrix& A);
+
 /// One application of hypre BoomerAMG (a V-cycle, tuned as for `amg`, options prefix
 /// `tetfsi_amg_`) as a preconditioner z ≈ P⁻¹ r, for Krylov methods written outside the
 /// solver layer (coupling/coupled_system.cpp).

@@ -80,17 +80,7 @@ std::vector<VecX> fluid_forces(const TetMesh& m, const std::vector<BodyInterface
   return F;
 }
 
-std::unique_ptr<LinearSolver> factor_body(const SparseMatrix& A) {
-  auto s = make_linear_solver(SolverKind::Cholmod);
-  try {
-    s->setup(A);
-  } catch (const SolverError&) {
-    logger().debug("a body's A is not positive definite; it is solved by LU");
-    s = make_linear_solver(SolverKind::Umfpack);
-    s->setup(A);
-  }
-  return s;
-}
+std::unique_ptr<LinearSolver> factor_body(const SparseMatrix& A) { return factor_symmetric(A); }
 
 namespace {
 

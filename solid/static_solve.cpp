@@ -6,6 +6,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "solid/nonlinear_trapezoid.hpp"
 
 namespace tetfsi::solid {
 
@@ -153,6 +154,62 @@ StaticSolveReport solve_static(SolidBody& body, const VecX& f_e, const StaticSol
   logger().debug("body '{}': static solve converged in {} Newton iterations (residual {:.3g})",
                  body.name(), report.iterations, report.residual);
   return report;
+}
+
+EquilibriumReport solve_static_iterated(SolidBody& body, const VecX& f_e,
+                                        const EquilibriumOptions& opt, int load_steps) {
+  TETFSI_REQUIRE(InputError, load_steps >= 1, "body '{}': load_steps must be >= 1, got {}",
+                 body.name(), load_steps);
+  const Index ndof = body.num_dofs();
+  TETFSI_CHECK(f_e.size() == ndof, "f_e has size {}, expected {}", f_e.size(), ndof);
+  const auto& fixed = body.fixed_dofs();
+  const MatX3& X = body.rest_positions();
+  const VecX d_fixed = flat(body.displacement);
+  auto positions = [&](const VecX& d) {
+    MatX3 x = X;
+    flat(x) += d;
+    return x;
+  };
+  double load = 0.0;  // the fraction of f_e applied
+  EquilibriumProblem problem;
+  problem.residual = [&](const VecX& d) {
+    VecX r = load * f_e - body.elasticity().forces(positions(d));
+    for (Index i = 0; i < ndof; ++i)
+      if (fixed[i]) r[i] = 0.0;
+    return r;
+  };
+  problem.factor = [&](const VecX& d) {
+    SparseMatrix Kp = body.elasticity().jacobian(positions(d));
+    const double scale = Kp.diagonal().cwiseAbs().mean();
+    for (Index c = 0; c < ndof; ++c)
+      for (SparseMatrix::InnerIterator it(Kp, c); it; ++it)
+        if (fixed[it.row()] || fixed[c]) it.valueRef() = it.row() == c ? scale : 0.0;
+    return factor_inverse(Kp);
+  };
+  EquilibriumHistory history;
+  VecX d = d_fixed;
+  EquilibriumReport rep;
+  rep.converged = true;
+  for (int step = 1; step <= load_steps && rep.converged; ++step) {
+    load = static_cast<double>(step) / load_steps;
+    const EquilibriumReport r = solve_equilibrium(problem, d, opt, history);
+    rep.converged = r.converged;
+    rep.iterations += r.iterations;
+    rep.evaluations += r.evaluations;
+    rep.factorizations += r.factorizations;
+    rep.updates += r.updates;
+    rep.skipped_updates += r.skipped_updates;
+    rep.line_searches += r.line_searches;
+    rep.force_ratio = r.force_ratio;
+    rep.energy_ratio = r.energy_ratio;
+    if (!r.converged)
+      rep.failure = fmt::format("load step {}/{}: {}", step, load_steps, r.failure);
+  }
+  if (rep.converged) {
+    flat(body.displacement) = d;
+    body.velocity.setZero();
+  }
+  return rep;
 }
 
 }  // namespace tetfsi::solid

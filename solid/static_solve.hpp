@@ -2,6 +2,7 @@
 /// @file static_solve.hpp
 /// Static equilibrium K(d) = f_e by Newton's method with a backtracking line search on the
 /// total potential Π(d) = W(X + d) − f_eᵀ d; used for the CSM benchmarks.
+#include "core/equilibrium.hpp"
 #include "core/linear_solver.hpp"
 #include "solid/solid_body.hpp"
 
@@ -29,5 +30,17 @@ struct StaticSolveReport {
 /// @throws SolverError if Newton does not converge, naming the body and residual.
 StaticSolveReport solve_static(SolidBody& body, const VecX& f_e,
                                const StaticSolveOptions& opts = {});
+
+/// Static equilibrium by the iterations of [BatheSonnad80, Eqs. (8)–(13)] with the inertia
+/// left out (as the seed says they apply): g(d) = f_e − K(d) on the free DOFs, coefficient
+/// matrix K'(d) (Newton: at every iterate; modified Newton and BFGS: the tangent
+/// matrix at the start of each load step, or the first one's with opt.keep_matrix), line
+/// search and RTOL/ETOL as in `opt`; f_e applied in `load_steps` equal increments (an
+/// incremental static analysis). Starts from the current displacement, sets the result
+/// (velocity zero) if every increment converged.
+/// @return the report (iterations etc. summed over increments; the first failure's message);
+///   the body is unchanged if an increment did not converge.
+EquilibriumReport solve_static_iterated(SolidBody& body, const VecX& f_e,
+                                        const EquilibriumOptions& opt, int load_steps = 1);
 
 }  // namespace tetfsi::solid

@@ -35,10 +35,35 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
   for (const SolidBody& body : bodies) {
     if (body.is_kinematic()) check_kinematic(body);
   }
-  for (SolidBody& body : bodies) {
+  if (m_history.size() != bodies.size()) m_history.resize(bodies.size());
+  for (size_t bi = 0; bi < bodies.size(); ++bi) {
+    SolidBody& body = bodies[bi];
     if (body.is_kinematic()) {
       ScopedTimer timer(times, "update");
       body.set_kinematic_state(t_new);  // exact: evaluated at t, not integrated
+      continue;
+    }
+    if (integrator != Integrator::Linearized) {
+      EquilibriumOptions opt = equilibrium;
+      opt.method = iteration_method(integrator);
+      EquilibriumReport er;
+      {
+        ScopedTimer timer(times, "solve");
+        er = step_nonlinear(body, h, body.external_forces(gravity), opt, m_history[bi]);
+      }
+      TETFSI_REQUIRE(SolverError, er.converged,
+                     "body '{}': the {} iteration {} at t = {:.6g} s (h = {:.3g} s); raise "
+                     "solid.max_iterations, reduce time.dt, or use solid.integrator bfgs or newton",
+                     body.name(), to_string(integrator), er.failure, time, h);
+      report.equilibrium_iterations = std::max(report.equilibrium_iterations, er.iterations);
+      report.equilibrium_evaluations += er.evaluations;
+      {
+        ScopedTimer timer(times, "update");
+        report.contacts += resolve_collisions(body, obstacles);
+      }
+      TETFSI_REQUIRE(SolverError, body.displacement.allFinite() && body.velocity.allFinite(),
+                     "body '{}': state became non-finite at step with h = {}; reduce time.dt",
+                     body.name(), h);
       continue;
     }
     TrapezoidalSystem sys;

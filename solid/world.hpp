@@ -8,7 +8,9 @@
 
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
+#include "core/equilibrium.hpp"
 #include "solid/integrator.hpp"
+#include "solid/nonlinear_trapezoid.hpp"
 #include "solid/obstacles.hpp"
 #include "solid/solid_body.hpp"
 
@@ -19,6 +21,10 @@ struct SolidStepReport {
   int iterations = 0;     ///< linear-solver iterations summed over bodies
   double residual = 0.0;  ///< worst relative residual over bodies
   Index contacts = 0;     ///< nodes in contact with obstacles after the step
+  /// Nonlinear integrators: the most iterations any body took ([BatheSonnad80], Table I's
+  /// count) and the residual evaluations summed over bodies.
+  int equilibrium_iterations = 0;
+  int equilibrium_evaluations = 0;
 };
 
 class SolidWorld {
@@ -28,17 +34,24 @@ class SolidWorld {
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< m/s²
   SolverKind linear_solver = SolverKind::Cholmod;
   SolverOptions solver_options;
-  Trapezoid trapezoid = Trapezoid::Paper;  ///< see integrator.hpp
+  Trapezoid trapezoid = Trapezoid::Paper;  ///< linearized integrator: see integrator.hpp
+  /// `Linearized`: [Chentanez06, Eqs. (4)–(5)], one linear solve per step. The others iterate
+  /// the nonlinear trapezoidal rule to equilibrium (nonlinear_trapezoid.hpp) with
+  /// `equilibrium`'s tolerances (its `method` is taken from the integrator).
+  Integrator integrator = Integrator::Linearized;
+  EquilibriumOptions equilibrium;
   /// Simulated time (s): advanced by h at the end of every successful `step`. Kinematic
   /// bodies are evaluated at it (set_kinematic_states).
   double time = 0.0;
 
   /// Advance every body by h. A deformable body: assemble [Chentanez06, Eq. (4)], solve,
-  /// apply Eq. (5), resolve collisions. A kinematic body: d and u set exactly from its motion
+  /// apply Eq. (5) (or, with a nonlinear integrator, iterate [BatheSonnad80, Eq. (6)] to
+  /// equilibrium), resolve collisions. A kinematic body: d and u set exactly from its motion
   /// at time + h (timed as "update"; no solve, no collisions, nothing in the report). Then
   /// time += h. Phases "assemble", "solve", "update" are timed into `times`.
   /// @throws InputError naming a kinematic body that has fixed DOFs or applied loads;
-  ///   SolverError if a solve fails or the state becomes non-finite, naming the body.
+  ///   SolverError if a solve fails, an iteration does not converge or the state becomes
+  ///   non-finite, naming the body (bodies not yet advanced stay at tⁿ).
   SolidStepReport step(double h, PhaseTimes& times);
 
   /// Set every kinematic body's d and u from its motion at `time` (e.g. after building the
@@ -50,6 +63,7 @@ class SolidWorld {
 
  private:
   bool m_warned_fallback = false;  ///< the CHOLMOD → UMFPACK fallback was logged once
+  std::vector<EquilibriumHistory> m_history;  ///< per body, nonlinear integrators
 };
 
 }  // namespace tetfsi::solid

@@ -1,0 +1,235 @@
+#include "core/equilibrium.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/error.hpp"
+
+namespace tetfsi {
+
+IterationMethod parse_iteration_method(const std::string& name) {
+  if (name == "newton") return IterationMethod::Newton;
+  if (name == "modified_newton") return IterationMethod::ModifiedNewton;
+  if (name == "bfgs") return IterationMethod::Bfgs;
+  throw InputError(
+      fmt::format("unknown iteration method '{}': use newton, modified_newton or bfgs", name));
+}
+
+const char* to_string(IterationMethod m) {
+  switch (m) {
+    case IterationMethod::Newton:
+      return "newton";
+    case IterationMethod::ModifiedNewton:
+      return "modified_newton";
+    case IterationMethod::Bfgs:
+      return "bfgs";
+  }
+  return "?";
+}
+
+double rank_one_condition(const VecX& v, const VecX& w) {
+  const double s = w.dot(v);
+  const double sum = 2.0 + 2.0 * s + v.squaredNorm() * w.squaredNorm();  // σ₁² + σ₂²
+  const double prod = (1.0 + s) * (1.0 + s);                              // σ₁² σ₂²
+  if (prod == 0.0) return std::numeric_limits<double>::infinity();
+  const double disc = std::max(0.0, sum * sum - 4.0 * prod);
+  const double big = 0.5 * (sum + std::sqrt(disc));
+  const double small = prod / big;
+  return std::sqrt(std::max(big, 1.0) / std::min(small, 1.0));
+}
+
+VecX BfgsInverse::apply(const VecX& r) const {
+  VecX s = r;
+  for (auto it = m_vw.rbegin(); it != m_vw.rend(); ++it) s += it->first * it->second.dot(s);  // A s
+  s = m_h0(s);
+  for (const auto& [v, w] : m_vw) s += w * v.dot(s);  // Aᵀ s
+  return s;
+}
+
+bool BfgsInverse::update(const VecX& delta, const VecX& gamma, const VecX& k_delta,
+                         double max_condition) {
+  const double dg = delta.dot(gamma), dk = delta.dot(k_delta);
+  if (!(dg > 0.0) || !(dk > 0.0)) {
+    m_last_condition = std::numeric_limits<double>::infinity();
+    return false;
+  }
+  const double c = std::sqrt(dg / dk);
+  VecX v = -c * k_delta - gamma;
+  VecX w = delta / dg;
+  m_last_condition = rank_one_condition(v, w);
+  if (!(m_last_condition <= max_condition)) return false;
+  m_vw.emplace_back(std::move(v), std::move(w));
+  return true;
+}
+
+void BfgsInverse::reset(InverseOperator k0_inverse) {
+  m_vw.clear();
+  if (k0_inverse) m_h0 = std::move(k0_inverse);
+}
+
+LineSearchResult line_search(const std::function<VecX(const VecX&)>& residual, const VecX& x,
+                             const VecX& dx, const VecX& g, const EquilibriumOptions& opt) {
+  const double phi0 = dx.dot(g);
+  const double target = opt.stol * std::abs(phi0);
+  LineSearchResult best;
+  double best_phi = std::numeric_limits<double>::infinity();
+  auto at = [&](double beta) {
+    VecX xb = x + beta * dx;
+    VecX gb = residual(xb);
+    ++best.evaluations;
+    const double phi = gb.allFinite() ? dx.dot(gb) : std::numeric_limits<double>::quiet_NaN();
+    if (std::isfinite(phi) && std::abs(phi) < best_phi) {
+      best_phi = std::abs(phi);
+      best.beta = beta;
+      best.x = std::move(xb);
+      best.g = std::move(gb);
+    }
+    return phi;
+  };
+  auto done = [&] {
+    best.satisfied = best_phi <= target;
+    return best;
+  };
+  double b_hi = 1.0, f_hi = at(1.0);
+  if (!best.x.size()) {  // non-finite at β = 1: return it as it is, the caller fails
+    best.x = x + dx;
+    best.g = residual(best.x);
+    return best;
+  }
+  if (std::abs(f_hi) <= target) return done();
+  // Same sign as φ₀: the step is too short; extend until the sign changes.
+  double b_lo = 0.0, f_lo = phi0;
+  while (f_hi > 0.0 && b_hi < opt.max_step && best.evaluations <= opt.max_line_search) {
+    b_lo = b_hi;
+    f_lo = f_hi;
+    b_hi = std::min(2.0 * b_hi, opt.max_step);
+    f_hi = at(b_hi);
+    if (std::abs(f_hi) <= target) return done();
+  }
+  if (!(f_hi < 0.0)) return done();  // no sign change (or not finite): the best β so far
+  // Regula falsi, Illinois variant, on [b_lo (φ > 0), b_hi (φ < 0)].
+  int side = 0;
+  while (best.evaluations <= opt.max_line_search) {
+    const double b = b_hi - f_hi * (b_hi - b_lo) / (f_hi - f_lo);
+    const double f = at(b);
+    if (!std::isfinite(f) || std::abs(f) <= target) break;
+    if (f > 0.0) {
+      b_lo = b;
+      f_lo = f;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      b_hi = b;
+      f_hi = f;
+      if (side == 1) f_lo *= 0.5;
+      side = 1;
+    }
+  }
+  return done();
+}
+
+EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
+                                    const EquilibriumOptions& opt, EquilibriumHistory& history) {
+  TETFSI_REQUIRE(InputError,
+                 opt.rtol > 0 && opt.etol > 0 && opt.stol > 0 && opt.stol < 1 &&
+                     opt.max_iterations >= 1 && opt.max_updates >= 1 && opt.max_condition > 1,
+                 "equilibrium iteration: need rtol > 0, etol > 0, 0 < stol < 1, max_iterations "
+                 ">= 1, max_updates >= 1, max_condition > 1 (got {}, {}, {}, {}, {}, {})",
+                 opt.rtol, opt.etol, opt.stol, opt.max_iterations, opt.max_updates,
+                 opt.max_condition);
+  EquilibriumReport rep;
+  auto evaluate = [&](const VecX& y) {
+    ++rep.evaluations;
+    return problem.residual(y);
+  };
+  auto factor = [&](const VecX& y) {
+    ++rep.factorizations;
+    return problem.factor(y);
+  };
+  VecX g = evaluate(x);
+  if (!g.allFinite()) {
+    rep.failure = "the out-of-balance force is not finite at the start";
+    return rep;
+  }
+  history.max_force = std::max(history.max_force, g.norm());
+  if (history.max_force == 0.0) {  // nothing to balance
+    rep.converged = true;
+    return rep;
+  }
+  const bool newton = opt.method == IterationMethod::Newton;
+  const bool bfgs = opt.method == IterationMethod::Bfgs;
+  InverseOperator start;
+  if (!newton && opt.keep_matrix && history.kept) {
+    start = history.kept;
+  } else {
+    start = factor(x);
+    if (!newton && opt.keep_matrix) history.kept = start;
+  }
+  BfgsInverse H(start);
+  double e1 = 0.0;
+  for (int i = 1; i <= opt.max_iterations; ++i) {
+    rep.iterations = i;
+    if ((newton && i > 1) || (bfgs && H.updates() >= opt.max_updates)) H.reset(factor(x));
+    VecX dx = H.apply(g);
+    double phi0 = dx.dot(g);
+    if (bfgs && H.updates() > 0 && !(phi0 > 0.0)) {
+      // The updated matrix lost positive definiteness along g: start again from the tangent.
+      H.reset(factor(x));
+      dx = H.apply(g);
+      phi0 = dx.dot(g);
+    }
+    if (!dx.allFinite()) {
+      rep.failure = fmt::format("the increment of iteration {} is not finite (singular matrix)", i);
+      return rep;
+    }
+    if (i == 1) e1 = std::abs(phi0);
+    rep.force_ratio = g.norm() / history.max_force;
+    rep.energy_ratio = e1 > 0.0 ? std::abs(phi0) / e1 : 0.0;
+    // [BatheSonnad80, Eqs. (12), (13)] on g⁽ⁱ⁻¹⁾ and Δx⁽ⁱ⁾: x⁽ⁱ⁻¹⁾ is the solution.
+    if (i > 1 && rep.force_ratio <= opt.rtol && rep.energy_ratio <= opt.etol) {
+      rep.converged = true;
+      return rep;
+    }
+    VecX xn, gn;
+    double beta = 1.0;
+    if (opt.line_search && phi0 > 0.0) {  // [BatheSonnad80, Eqs. (9), (10)]
+      LineSearchResult ls = line_search(problem.residual, x, dx, g, opt);
+      rep.evaluations += ls.evaluations;
+      beta = ls.beta;
+      xn = std::move(ls.x);
+      gn = std::move(ls.g);
+      if (beta != 1.0) ++rep.line_searches;
+    } else {
+      xn = x + dx;
+      gn = evaluate(xn);
+    }
+    if (!gn.allFinite()) {
+      rep.failure = fmt::format("the out-of-balance force became non-finite at iteration {}", i);
+      return rep;
+    }
+    if (bfgs) {  // [BatheSonnad80, Eq. (11)]: K̂⁽ⁱ⁻¹⁾ δ = β g⁽ⁱ⁻¹⁾
+      if (H.update(xn - x, g - gn, beta * g, opt.max_condition))
+        ++rep.updates;
+      else
+        ++rep.skipped_updates;
+    }
+    x = std::move(xn);
+    g = std::move(gn);
+    if (g.norm() > 1e12 * history.max_force) {
+      rep.force_ratio = g.norm() / history.max_force;
+      rep.failure = fmt::format("diverged: the out-of-balance force grew to {:.3g} times the "
+                                "largest seen, at iteration {}",
+                                rep.force_ratio, i);
+      return rep;
+    }
+  }
+  rep.force_ratio = g.norm() / history.max_force;
+  rep.failure = fmt::format(
+      "did not converge in {} iterations (force ratio {:.3g}, RTOL {:.3g}; energy ratio {:.3g}, "
+      "ETOL {:.3g})",
+      opt.max_iterations, rep.force_ratio, opt.rtol, rep.energy_ratio, opt.etol);
+  return rep;
+}
+
+}  // namespace tetfsi

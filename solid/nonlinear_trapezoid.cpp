@@ -1,0 +1,140 @@
+#include "solid/nonlinear_trapezoid.hpp"
+
+#include <cmath>
+#include <memory>
+
+#include "core/error.hpp"
+#include "core/linear_solver.hpp"
+
+namespace tetfsi::solid {
+
+Integrator parse_integrator(const std::string& name) {
+  if (name == "linearized") return Integrator::Linearized;
+  if (name == "newton") return Integrator::Newton;
+  if (name == "modified_newton") return Integrator::ModifiedNewton;
+  if (name == "bfgs") return Integrator::Bfgs;
+  throw InputError(fmt::format(
+      "unknown solid integrator '{}': use linearized, newton, modified_newton or bfgs", name));
+}
+
+const char* to_string(Integrator i) {
+  switch (i) {
+    case Integrator::Linearized:
+      return "linearized";
+    case Integrator::Newton:
+      return "newton";
+    case Integrator::ModifiedNewton:
+      return "modified_newton";
+    case Integrator::Bfgs:
+      return "bfgs";
+  }
+  return "?";
+}
+
+IterationMethod iteration_method(Integrator i) {
+  TETFSI_CHECK(i != Integrator::Linearized, "the linearized integrator does not iterate");
+  return i == Integrator::Newton           ? IterationMethod::Newton
+         : i == Integrator::ModifiedNewton ? IterationMethod::ModifiedNewton
+                                           : IterationMethod::Bfgs;
+}
+
+TrapezoidalEquilibrium::TrapezoidalEquilibrium(const SolidBody& body, double h, const VecX& f_e)
+    : m_body(body), m_h(h), m_mass(body.lumped_mass()), m_fe(f_e) {
+  TETFSI_REQUIRE(InputError, h > 0.0 && std::isfinite(h), "body '{}': time step h = {} must be > 0",
+                 body.name(), h);
+  TETFSI_CHECK(f_e.size() == body.num_dofs(), "f_e has size {}, expected {}", f_e.size(),
+               body.num_dofs());
+  m_d0 = flat(body.displacement);
+  m_u0 = flat(body.velocity);
+  VecX K0;
+  SparseMatrix Kp;
+  const double beta = body.material().rayleigh_beta;
+  if (beta != 0.0) {
+    body.elasticity().forces_and_jacobian(body.positions(), K0, Kp);
+    m_C = beta * Kp;
+  } else {
+    K0 = body.elasticity().forces(body.positions());
+  }
+  m_fs0 = f_e - K0;
+  const double alpha = body.material().rayleigh_alpha;
+  for (Index i = 0; i < m_u0.size(); ++i) m_fs0[i] -= alpha * m_mass[i / 3] * m_u0[i];
+  if (m_C.size()) m_fs0 -= m_C * m_u0;
+}
+
+VecX TrapezoidalEquilibrium::displacement(const VecX& u1) const {
+  return m_d0 + (0.5 * m_h) * (m_u0 + u1);  // [BatheSonnad80, Eq. (3)]
+}
+
+VecX TrapezoidalEquilibrium::residual(const VecX& u1) const {
+  MatX3 x = m_body.rest_positions();
+  flat(x) += displacement(u1);
+  const VecX K1 = m_body.elasticity().forces(x);
+  const double alpha = m_body.material().rayleigh_alpha;
+  // g = ½ (f_s⁰ + f_s¹) − M (u¹ − uⁿ)/h, f_s¹ = f_e − C u¹ − K(d¹)   [BatheSonnad80, Eq. (6)] / 2
+  VecX g = 0.5 * (m_fs0 + m_fe - K1);
+  if (m_C.size()) g -= 0.5 * (m_C * u1);
+  const auto& fixed = m_body.fixed_dofs();
+  for (Index i = 0; i < g.size(); ++i) {
+    const double m = m_mass[i / 3];
+    g[i] -= 0.5 * alpha * m * u1[i] + m * (u1[i] - m_u0[i]) / m_h;
+    if (fixed[i]) g[i] = 0.0;
+  }
+  return g;
+}
+
+SparseMatrix TrapezoidalEquilibrium::tangent(const VecX& u1) const {
+  MatX3 x = m_body.rest_positions();
+  flat(x) += displacement(u1);
+  SparseMatrix A = m_body.elasticity().jacobian(x);
+  // (h/4) K̂ = M/h + C/2 + (h/4) K'(d¹)   [BatheSonnad80, Eq. (7)]
+  A *= 0.25 * m_h;
+  if (m_C.size()) A += 0.5 * m_C;
+  const double alpha = m_body.material().rayleigh_alpha;
+  const auto& fixed = m_body.fixed_dofs();
+  for (Index col = 0; col < A.outerSize(); ++col) {
+    for (SparseMatrix::InnerIterator it(A, col); it; ++it) {
+      const Index row = it.row();
+      const double m = m_mass[col / 3];
+      if (fixed[row] || fixed[col])
+        it.valueRef() = row == col ? m / m_h : 0.0;
+      else if (row == col)
+        it.valueRef() += m / m_h + 0.5 * alpha * m;
+    }
+  }
+  return A;
+}
+
+VecX TrapezoidalEquilibrium::start() const {
+  VecX u = -m_u0;
+  const auto& fixed = m_body.fixed_dofs();
+  for (Index i = 0; i < u.size(); ++i)
+    if (fixed[i]) u[i] = 0.0;
+  return u;
+}
+
+InverseOperator factor_inverse(const SparseMatrix& A) {
+  auto a = std::make_shared<const SparseMatrix>(A);  // the solver refers to it
+  std::shared_ptr<LinearSolver> s = factor_symmetric(*a);
+  return [a, s](const VecX& r) -> VecX {
+    VecX x = VecX::Zero(r.size());
+    s->solve(r, x);
+    return x;
+  };
+}
+
+EquilibriumReport step_nonlinear(SolidBody& body, double h, const VecX& f_e,
+                                 const EquilibriumOptions& opt, EquilibriumHistory& history) {
+  const TrapezoidalEquilibrium eq(body, h, f_e);
+  EquilibriumProblem problem;
+  problem.residual = [&](const VecX& u) { return eq.residual(u); };
+  problem.factor = [&](const VecX& u) { return factor_inverse(eq.tangent(u)); };
+  VecX u = eq.start();
+  const EquilibriumReport rep = solve_equilibrium(problem, u, opt, history);
+  if (!rep.converged) return rep;
+  const VecX d = eq.displacement(u);
+  flat(body.displacement) = d;
+  flat(body.velocity) = u;
+  return rep;
+}
+
+}  // namespace tetfsi::solid
