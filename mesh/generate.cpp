@@ -1,6 +1,7 @@
 /// @file generate.cpp
 /// Structured tet meshes: boxes and hollow boxes (Kuhn/Freudenthal split of a hexahedral
-/// grid), balls (a Kuhn cube mapped onto the ball), spherical shells (icosphere prisms).
+/// grid), balls (a Kuhn cube mapped onto the ball), spherical shells (icosphere prisms), tubes
+/// (a Kuhn-split (r, θ, axis) grid, periodic in θ).
 #include "mesh/generate.hpp"
 
 #include <algorithm>
@@ -382,6 +383,86 @@ VolumeMesh make_hollow_box(const Vec3& lo, const Vec3& hi, double wall_thickness
       "make_hollow_box: walls {} thick ({} {} {} cells), cavity {} x {} x {} cells, "
       "{} vertices, {} tets",
       t, wall_cells(0), wall_cells(1), wall_cells(2), cells(0), cells(1), cells(2),
+      m.num_vertices(), m.num_tets());
+  return m;
+}
+
+VolumeMesh make_tube(const Vec3& centre, int axis, double inner_radius, double outer_radius,
+                     double length, int radial_cells, int around_cells, int axial_cells) {
+  TETFSI_REQUIRE(InputError,
+                 centre.allFinite() && std::isfinite(inner_radius) && std::isfinite(outer_radius) &&
+                     std::isfinite(length),
+                 "make_tube: centre, radii and length must be finite, got centre ({} {} {}), "
+                 "inner_radius {}, outer_radius {}, length {}",
+                 centre.x(), centre.y(), centre.z(), inner_radius, outer_radius, length);
+  TETFSI_REQUIRE(InputError, inner_radius > 0 && inner_radius < outer_radius,
+                 "make_tube: need 0 < inner_radius < outer_radius, got inner_radius {} and "
+                 "outer_radius {}",
+                 inner_radius, outer_radius);
+  TETFSI_REQUIRE(InputError, length > 0, "make_tube: length must be > 0, got {}", length);
+  TETFSI_REQUIRE(InputError, axis >= 0 && axis <= 2,
+                 "make_tube: axis must be 0, 1 or 2 (x, y, z), got {}", axis);
+  TETFSI_REQUIRE(InputError, around_cells >= 6,
+                 "make_tube: around_cells must be >= 6 (sectors around the axis), got {}",
+                 around_cells);
+  TETFSI_REQUIRE(InputError, radial_cells >= 1,
+                 "make_tube: radial_cells must be >= 1 (layers across the wall), got {}",
+                 radial_cells);
+  TETFSI_REQUIRE(InputError, axial_cells >= 1,
+                 "make_tube: axial_cells must be >= 1 (slices along the axis), got {}",
+                 axial_cells);
+  check_grid_size(Vec3i(radial_cells, around_cells, axial_cells), "make_tube");
+
+  const int nr = radial_cells + 1, nt = around_cells, ns = axial_cells + 1;
+  std::vector<double> radii, along;
+  append_uniform(radii, inner_radius, outer_radius, radial_cells);
+  append_uniform(along, -0.5 * length, 0.5 * length, axial_cells);
+  // (u, v, w) = (e_(axis+1), e_(axis+2), e_axis) is right-handed (a cyclic shift of x, y, z),
+  // so (r, θ, s) ↦ centre + r (cos θ u + sin θ v) + s w has Jacobian determinant r > 0.
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3, w = axis;
+  const auto vertex = [&](long long i, long long j, long long k) {
+    return static_cast<Index>(i + nr * ((j % nt) + nt * k));  // θ wraps: j = nt is j = 0
+  };
+  VolumeMesh m;
+  m.vertices.resize(static_cast<Index>(static_cast<long long>(nr) * nt * ns), 3);
+  for (int k = 0; k < ns; ++k) {
+    for (int j = 0; j < nt; ++j) {
+      const double theta = 2.0 * M_PI * j / nt;
+      const double c = std::cos(theta), sn = std::sin(theta);
+      for (int i = 0; i < nr; ++i) {
+        Vec3 x = centre;
+        x(u) += radii[i] * c;
+        x(v) += radii[i] * sn;
+        x(w) += along[k];
+        m.vertices.row(vertex(i, j, k)) = x.transpose();
+      }
+    }
+  }
+  // Kuhn split in index space (positive there; the cell's corners map to a prism over a
+  // trapezoid, convex as a sector spans 2π / n ≤ 60° < 180°, where every corner triangle
+  // keeps its index-space orientation, so the tets stay positive). Index j + 1 of the last
+  // sector is taken mod nt: every cell is split the same way, so the seam's faces are cut
+  // alike from both sides.
+  const auto local = kuhn_local();
+  m.tets.resize(static_cast<Index>(6LL * radial_cells * around_cells * axial_cells), 4);
+  Index t = 0;
+  for (long long k = 0; k < axial_cells; ++k) {
+    for (long long j = 0; j < around_cells; ++j) {
+      for (long long i = 0; i < radial_cells; ++i) {
+        for (int p = 0; p < 6; ++p) {
+          for (int c = 0; c < 4; ++c) {
+            const int code = local[p][c];
+            m.tets(t, c) = vertex(i + (code & 1), j + ((code >> 1) & 1), k + ((code >> 2) & 1));
+          }
+          ++t;
+        }
+      }
+    }
+  }
+  logger().debug(
+      "make_tube: radii {} .. {}, length {} along {}, {} x {} x {} cells, {} vertices, "
+      "{} tets",
+      inner_radius, outer_radius, length, "xyz"[axis], radial_cells, around_cells, axial_cells,
       m.num_vertices(), m.num_tets());
   return m;
 }

@@ -317,8 +317,8 @@ class Parser {
   }
 
   MeshSpec mesh(const Node& n) const {
-    const std::vector<std::string> kinds = {"box",    "file",  "surface",
-                                            "sphere", "shell", "hollow_box"};
+    const std::vector<std::string> kinds = {"box",   "file",       "surface", "sphere",
+                                            "shell", "hollow_box", "tube"};
     std::vector<std::string> allowed = kinds;
     allowed.push_back("cell_size");
     expect_object(n, allowed);
@@ -328,7 +328,8 @@ class Parser {
     }
     if (given.size() != 1) {
       const std::string what =
-          "give exactly one of 'box', 'file', 'surface', 'sphere', 'shell' or 'hollow_box'";
+          "give exactly one of 'box', 'file', 'surface', 'sphere', 'shell', 'hollow_box' or "
+          "'tube'";
       fail(n.path, given.empty() ? what : what + ", got " + join(given, " and "));
     }
     MeshSpec m;
@@ -369,6 +370,29 @@ class Parser {
       m.subdivisions = bounded_integer(b, "subdivisions", m.subdivisions, 0, 7,
                                        "icosphere levels: surface edges about radius / 2^s");
       m.layers = bounded_integer(b, "layers", m.layers, 1, 10000, "tets across the wall: 3 each");
+    } else if (has(n, "tube")) {
+      m.kind = MeshSpec::Kind::Tube;
+      const Node b = child(n, "tube");
+      expect_object(b, {"center", "axis", "inner_radius", "outer_radius", "length", "cells"});
+      m.center = vec3(require(b, "center"));
+      if (has(b, "axis")) {
+        const std::string a = choice(child(b, "axis"), {"x", "y", "z"}, "axis");
+        m.axis = a[0] - 'x';
+      }
+      m.inner_radius = positive(b, "inner_radius", "m");
+      m.outer_radius = positive(b, "outer_radius", "m");
+      if (m.inner_radius >= m.outer_radius) {
+        fail(child_path(b.path, "inner_radius"),
+             fmt::format("must be < outer_radius, got inner_radius {} and outer_radius {}",
+                         m.inner_radius, m.outer_radius));
+      }
+      m.length = positive(b, "length", "m, along the axis");
+      const Node c = require(b, "cells");
+      m.cells = cells(c);
+      if (m.cells[1] < 6) {
+        fail(index_path(c.path, 1),
+             fmt::format("must be >= 6 (sectors around the axis), got {}", m.cells[1]));
+      }
     } else {
       m.kind = MeshSpec::Kind::HollowBox;
       const Node b = child(n, "hollow_box");
@@ -894,6 +918,15 @@ json resolve(const Scene& s) {
                         {"thickness", b.mesh.thickness},
                         {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
         break;
+      case MeshSpec::Kind::Tube:
+        jb["mesh"] = {{"tube",
+                       {{"center", to_json(b.mesh.center)},
+                        {"axis", std::string(1, "xyz"[b.mesh.axis])},
+                        {"inner_radius", b.mesh.inner_radius},
+                        {"outer_radius", b.mesh.outer_radius},
+                        {"length", b.mesh.length},
+                        {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
+        break;
     }
     jb["transform"] = {{"scale", b.transform.scale},
                        {"rotate_deg", to_json(b.transform.rotate_deg)},
@@ -1330,6 +1363,9 @@ mesh::VolumeMesh make_mesh(const MeshSpec& m) {
                                         m.layers);
     case MeshSpec::Kind::HollowBox:
       return mesh::make_hollow_box(m.box.lo, m.box.hi, m.thickness, m.cells);
+    case MeshSpec::Kind::Tube:
+      return mesh::make_tube(m.center, m.axis, m.inner_radius, m.outer_radius, m.length,
+                             m.cells.x(), m.cells.y(), m.cells.z());
   }
   throw InternalError("unknown mesh kind");
 }

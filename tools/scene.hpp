@@ -26,7 +26,10 @@
 ///             | { "shell": { "center": [..], "inner_radius": 0.08, "outer_radius": 0.1,
 ///                            "subdivisions": 2, "layers": 1 } }   // cavity: fluid inside
 ///             | { "hollow_box": { "lo": [..], "hi": [..], "thickness": 0.01,
-///                                 "cells": [nx, ny, nz] } },      // one closed box cavity
+///                                 "cells": [nx, ny, nz] } }       // one closed box cavity
+///             | { "tube": { "center": [..], "axis": "z", "inner_radius": 0.08,
+///                           "outer_radius": 0.1, "length": 0.8,
+///                           "cells": [radial, around, axial] } },  // open at both ends
 ///       "transform": { "scale": 1.0, "rotate_deg": [0, 0, 0], "translate": [0, 0, 0] },
 ///       "material": { "density": 1000, "youngs_modulus": 1e5, "poisson_ratio": 0.3,
 ///                     "rayleigh_alpha": 0, "rayleigh_beta": 0 },
@@ -82,8 +85,10 @@
 /// subdivisions 0..6 (surface edges about radius / 2^s; default 2); shell 0 < inner_radius <
 /// outer_radius, subdivisions 0..7 (default 2), layers >= 1 (default 1); hollow_box
 /// thickness > 0 and 2 thickness < hi − lo in every axis, cells as for box (default [1, 1,
-/// 1]); the transform applies to generated meshes as to any other; a key given twice in
-/// one object is an error (load_scene only: nlohmann would keep the last silently).
+/// 1]); tube (mesh::make_tube: centre ± length / 2 along axis) axis "x", "y" or "z" (default
+/// "z"), 0 < inner_radius < outer_radius, length > 0, cells required: radial >= 1, around
+/// >= 6, axial >= 1; the transform applies to generated meshes as to any other; a key given
+/// twice in one object is an error (load_scene only: nlohmann would keep the last silently).
 /// Fluid: a patch's "side" is one of "-x", "+x", "-y", "+y", "-z", "+z"; its rectangle
 /// lo < hi is in the side's two other coordinates in increasing axis order (side ±y: (x, z))
 /// and must overlap that face of the box; patch names are unique (default "patch<i>");
@@ -140,21 +145,23 @@ struct BoxSpec {
 
 /// A body's mesh: read, tetrahedralised (CGAL) or generated (mesh/generate.hpp).
 struct MeshSpec {
-  enum class Kind { Box, File, Surface, Sphere, Shell, HollowBox };
+  enum class Kind { Box, File, Surface, Sphere, Shell, HollowBox, Tube };
   Kind kind = Kind::Box;
   std::filesystem::path file;  ///< File / Surface: absolute (resolved against the scene folder)
   BoxSpec box;                 ///< Box, HollowBox: extent (m)
   /// Box: hexahedra per axis (6 tets each); HollowBox: across the cavity (the walls get
-  /// round(thickness / cavity cell) cells, at least one)
+  /// round(thickness / cavity cell) cells, at least one); Tube: (radial, around, axial)
   Vec3i cells = Vec3i::Ones();
   double cell_size = 0.0;      ///< Surface: Mesh_3 cell size (m)
-  Vec3 center = Vec3::Zero();  ///< Sphere, Shell (m)
+  Vec3 center = Vec3::Zero();  ///< Sphere, Shell, Tube (m)
   double radius = 0.0;         ///< Sphere: mesh::make_ball (m)
-  double inner_radius = 0.0;   ///< Shell: mesh::make_spherical_shell, < outer_radius (m)
-  double outer_radius = 0.0;   ///< Shell (m)
+  double inner_radius = 0.0;   ///< Shell: mesh::make_spherical_shell, Tube; < outer_radius (m)
+  double outer_radius = 0.0;   ///< Shell, Tube (m)
   int subdivisions = 2;        ///< Sphere (0..6), Shell (0..7): icosphere level of the surface
   int layers = 1;              ///< Shell: prism layers across the wall (1..10000)
   double thickness = 0.0;      ///< HollowBox: wall thickness on all six sides (m)
+  int axis = 2;                ///< Tube: mesh::make_tube's axis, 0, 1, 2 = x, y, z
+  double length = 0.0;         ///< Tube: along the axis, centred on center (m)
 };
 
 /// x ↦ translate + R (scale · x), R = Rz · Ry · Rx from rotate_deg (degrees about x, y, z).

@@ -1,7 +1,8 @@
 /// Tests of the body generators of mesh/generate.cpp beyond make_box (test_volume_mesh.cpp):
-/// spherical shells, balls and hollow boxes. For each: every tet positive, conforming (every
-/// face in one or two tets), the boundary a given number of closed, consistently oriented
-/// spheres (Euler characteristic 2 each), the tet volume equal to the volume its boundary
+/// spherical shells, balls, hollow boxes and tubes. For each: every tet positive, conforming
+/// (every face in one or two tets), the boundary a given number of closed, consistently
+/// oriented surfaces (spheres, Euler characteristic 2 each; the tube's one torus, 0), the
+/// tet volume equal to the volume its boundary
 /// encloses to round-off and to the analytic volume within a stated bound, and bad
 /// parameters rejected with messages that say what to change.
 #include <doctest/doctest.h>
@@ -112,9 +113,10 @@ Topology topology(const VolumeMesh& m, const MatX3i& boundary) {
   return out;
 }
 
-/// The common checks: positive tets, conforming, `components` closed spheres, tet volume =
-/// enclosed volume to round-off. Returns the boundary triangles.
-MatX3i check_body(const VolumeMesh& m, std::size_t components) {
+/// The common checks: positive tets, conforming, `components` closed surfaces of Euler
+/// characteristic `euler` each (2: spheres), tet volume = enclosed volume to round-off.
+/// Returns the boundary triangles.
+MatX3i check_body(const VolumeMesh& m, std::size_t components, Index euler = 2) {
   CHECK_NOTHROW(validate_volume_mesh(m, "generated"));
   Index nonpositive = 0;
   for (Index t = 0; t < m.num_tets(); ++t) nonpositive += tet_volume(m, t) <= 0;
@@ -126,7 +128,7 @@ MatX3i check_body(const VolumeMesh& m, std::size_t components) {
   CHECK(4 * m.num_tets() == 2 * top.interior_faces + top.boundary_faces);
   CHECK(top.bad_edges == 0);
   REQUIRE(top.euler.size() == components);
-  for (Index chi : top.euler) CHECK(chi == 2);  // each component a topological sphere
+  for (Index chi : top.euler) CHECK(chi == euler);  // 2: each component a topological sphere
   // Σ tet volumes vs the boundary's enclosed volume: both sums of ~1e4 terms of one sign
   // (tets) or cancelling (boundary cones), rounding ~1e-15 relative each; 1e-12 is room.
   const double v = total_volume(m);
@@ -282,6 +284,96 @@ TEST_CASE("make_hollow_box: walls around one box cavity, exact volume, cavity no
   CHECK(std::abs(total_volume(thick) - (0.512 - 0.008)) <= 1e-12);
 }
 
+TEST_CASE("make_tube: conforming across the seam, one torus, exact polygonal volume") {
+  struct Case {
+    Vec3 centre;
+    int axis;
+    double ri, ro, length;
+    int nr, nt, ns;
+  };
+  const std::vector<Case> cases = {
+      {Vec3(0.3, -0.2, 1.1), 2, 0.08, 0.1, 0.8, 2, 24, 16},  // the typical size
+      {Vec3(0.3, -0.2, 1.1), 0, 0.08, 0.1, 0.8, 2, 24, 16},
+      {Vec3(-1.0, 0.5, 0.0), 1, 0.2, 0.5, 0.3, 3, 7, 2},  // odd sector count, thick wall
+      {Vec3::Zero(), 2, 0.5, 1.0, 1.0, 1, 6, 1}};         // the coarsest allowed
+  for (const Case& q : cases) {
+    CAPTURE(q.axis);
+    CAPTURE(q.nt);
+    const VolumeMesh m = make_tube(q.centre, q.axis, q.ri, q.ro, q.length, q.nr, q.nt, q.ns);
+    CHECK(m.num_tets() == 6 * q.nr * q.nt * q.ns);
+    CHECK(m.num_vertices() == (q.nr + 1) * q.nt * (q.ns + 1));
+    // One closed, outward-oriented torus (V − E + F = 0). Had the seam θ = 2π ≡ 0 not
+    // conformed, its faces would be boundary faces and the counts below would not add up.
+    const MatX3i boundary = check_body(m, 1, 0);
+    CHECK(boundary.rows() == 4 * q.nt * (q.ns + q.nr));
+    // Vertex (i, j, k) where the header says.
+    const Vec3 w = Vec3::Unit(q.axis), u = Vec3::Unit((q.axis + 1) % 3);
+    const auto at = [&](int i, int j, int k) {
+      return Vec3(m.vertices.row(i + (q.nr + 1) * (j + q.nt * k)).transpose());
+    };
+    CHECK((at(0, 0, 0) - (q.centre + q.ri * u - 0.5 * q.length * w)).norm() <= 1e-15);
+    CHECK((at(q.nr, 0, q.ns) - (q.centre + q.ro * u + 0.5 * q.length * w)).norm() <= 1e-15);
+    // Each boundary triangle on one of the four parts, normal out of the solid: away from the
+    // axis on the outer prism, toward it on the inner (into the bore), ∓axis on the ends.
+    const auto radial = [&](const Vec3& x) {
+      const Vec3 d = x - q.centre;
+      return Vec3(d - d.dot(w) * w);
+    };
+    Index outer = 0, inner = 0, bottom = 0, top = 0, other = 0, wrong = 0;
+    for (Index f = 0; f < boundary.rows(); ++f) {
+      const Vec3 a = m.vertices.row(boundary(f, 0)), b = m.vertices.row(boundary(f, 1)),
+                 d = m.vertices.row(boundary(f, 2));
+      const Vec3 n = (b - a).cross(d - a).normalized(), x = (a + b + d) / 3.0;
+      const auto all = [&](auto&& pred) { return pred(a) && pred(b) && pred(d); };
+      const auto at_r = [&](double r) {
+        return all([&](const Vec3& p) { return std::abs(radial(p).norm() - r) <= 1e-12; });
+      };
+      const auto at_s = [&](double s) {
+        return all([&](const Vec3& p) { return std::abs((p - q.centre).dot(w) - s) <= 1e-12; });
+      };
+      // A side triangle's centroid is at most half a sector off its face's mid-angle:
+      // cos ≥ cos(π/6) ≈ 0.87 for n ≥ 6.
+      const double cosine = n.dot(radial(x).normalized());
+      if (at_r(q.ro)) {
+        ++outer;
+        wrong += cosine < 0.85;
+      } else if (at_r(q.ri)) {
+        ++inner;
+        wrong += cosine > -0.85;
+      } else if (at_s(-0.5 * q.length)) {
+        ++bottom;
+        wrong += std::abs(n.dot(w) + 1.0) > 1e-12;
+      } else if (at_s(0.5 * q.length)) {
+        ++top;
+        wrong += std::abs(n.dot(w) - 1.0) > 1e-12;
+      } else {
+        ++other;
+      }
+    }
+    CHECK(outer == 2 * q.nt * q.ns);
+    CHECK(inner == 2 * q.nt * q.ns);
+    CHECK(bottom == 2 * q.nr * q.nt);
+    CHECK(top == 2 * q.nr * q.nt);
+    CHECK(other == 0);
+    CHECK(wrong == 0);
+    // The n-gon annulus × length, to round-off.
+    const double n = q.nt;
+    const double exact =
+        0.5 * n * std::sin(2.0 * M_PI / n) * (q.ro * q.ro - q.ri * q.ri) * q.length;
+    CHECK(std::abs(total_volume(m) - exact) <= 1e-12 * exact);
+  }
+
+  // Quality of the typical size: cells 0.01 (radial) × 0.021..0.026 (around) × 0.05 (axial),
+  // Kuhn tets as flat as that 1 : 2.5 : 5 aspect makes them: min dihedral 11.2°, max 97.5°
+  // (the mesh is deterministic; the bounds leave a little room).
+  const VolumeMesh m = make_tube(Vec3::Zero(), 2, 0.08, 0.1, 0.8, 2, 24, 16);
+  const TetQuality q = tet_quality(m.vertices, m.tets);
+  MESSAGE("tube 2 x 24 x 16 (R 0.08 / 0.1, L 0.8): min dihedral "
+          << q.min_dihedral_deg.minCoeff() << ", max dihedral " << q.max_dihedral_deg.maxCoeff());
+  CHECK(q.min_dihedral_deg.minCoeff() > 11.0);
+  CHECK(q.max_dihedral_deg.maxCoeff() < 98.0);
+}
+
 TEST_CASE("generators: bad parameters are InputErrors that say what to change") {
   const Vec3 c = Vec3::Zero();
   const double nan = std::nan("");
@@ -326,4 +418,42 @@ TEST_CASE("generators: bad parameters are InputErrors that say what to change") 
   CHECK(message_of<InputError>([&] {
           make_hollow_box(lo, hi, 0.1, Vec3i(2, 0, 2));
         }).find("at least one cavity cell per axis") != std::string::npos);
+  const auto tube_error = [&](auto&& make) { return message_of<InputError>(make); };
+  CHECK(tube_error([&] { make_tube(c, 2, 0.1, 0.1, 1.0, 1, 12, 4); })
+            .find("make_tube: need 0 < inner_radius < outer_radius, got inner_radius 0.1 and "
+                  "outer_radius 0.1") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 2, 0.2, 0.1, 1.0, 1, 12, 4);
+        }).find("inner_radius < outer_radius") != std::string::npos);
+  CHECK(tube_error([&] { make_tube(c, 2, 0.0, 0.1, 1.0, 1, 12, 4); }).find("0 < inner_radius") !=
+        std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 2, 0.05, 0.1, 0.0, 1, 12, 4);
+        }).find("make_tube: length must be > 0, got 0") != std::string::npos);
+  CHECK(tube_error([&] { make_tube(c, 2, 0.05, nan, 1.0, 1, 12, 4); }).find("must be finite") !=
+        std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(Vec3(0, nan, 0), 2, 0.05, 0.1, 1.0, 1, 12, 4);
+        }).find("must be finite") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 3, 0.05, 0.1, 1.0, 1, 12, 4);
+        }).find("make_tube: axis must be 0, 1 or 2 (x, y, z), got 3") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, -1, 0.05, 0.1, 1.0, 1, 12, 4);
+        }).find("axis must be 0, 1 or 2") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 2, 0.05, 0.1, 1.0, 1, 5, 4);
+        }).find("around_cells must be >= 6") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 2, 0.05, 0.1, 1.0, 0, 12, 4);
+        }).find("radial_cells must be >= 1") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 2, 0.05, 0.1, 1.0, 1, 12, 0);
+        }).find("axial_cells must be >= 1") != std::string::npos);
+  CHECK(tube_error([&] {
+          make_tube(c, 2, 0.05, 0.1, 1.0, 2000, 2000, 2000);
+        }).find("more tets than an int index can hold") != std::string::npos);
+  for (const std::string& msg : {tube_error([&] { make_tube(c, 2, 0.2, 0.1, 1.0, 1, 12, 4); }),
+                                 tube_error([&] { make_tube(c, 2, 0.05, 0.1, 1.0, 1, 5, 4); })})
+    CHECK(msg.find('\n') == std::string::npos);  // one line
 }

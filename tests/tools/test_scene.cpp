@@ -340,8 +340,8 @@ TEST_CASE("out-of-range values say what the range is") {
   check_edit_rejected([](json& j) { j.erase("bodies"); }, {"missing required key 'bodies'"});
   check_edit_rejected(
       [](json& j) { j["bodies"][0]["mesh"]["file"] = "x.msh"; },
-      {"bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', 'shell' or "
-       "'hollow_box', got 'box' and 'file'"});
+      {"bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', 'shell', "
+       "'hollow_box' or 'tube', got 'box' and 'file'"});
   check_edit_rejected([](json& j) { j["bodies"][0]["mesh"] = json::object(); },
                       {"bodies[0].mesh: give exactly one of"});
   check_edit_rejected([](json& j) { j["bodies"][0]["transform"]["scale"] = 0; },
@@ -1352,6 +1352,87 @@ TEST_CASE("generated meshes: sphere, shell, hollow_box parse, resolve back and b
   CHECK(t.num_fixed_dofs() == 3 * 6 * 5);
 }
 
+TEST_CASE("generated meshes: a tube parses, resolves back and builds, bad values name the key") {
+  json j = minimal_json();
+  j["bodies"][0]["mesh"] = json::parse(R"({ "tube": { "center": [0.5, 0, 0.2], "axis": "x",
+      "inner_radius": 0.08, "outer_radius": 0.1, "length": 0.8, "cells": [2, 24, 16] } })");
+  j["bodies"][0]["pins"] =
+      json::parse(R"([ { "box": { "lo": [0.1, -1, -1], "hi": [0.1, 1, 1] } } ])");
+  const Scene s = parse_scene(j, "scene.json");
+  const MeshSpec& tube = s.bodies[0].mesh;
+  CHECK(tube.kind == MeshSpec::Kind::Tube);
+  CHECK(tube.center == Vec3(0.5, 0, 0.2));
+  CHECK(tube.axis == 0);
+  CHECK(tube.inner_radius == 0.08);
+  CHECK(tube.outer_radius == 0.1);
+  CHECK(tube.length == 0.8);
+  CHECK(tube.cells == Vec3i(2, 24, 16));
+  const json& r = s.resolved["bodies"][0]["mesh"];
+  CHECK(r == json::parse(R"({ "tube": { "center": [0.5, 0.0, 0.2], "axis": "x",
+      "inner_radius": 0.08, "outer_radius": 0.1, "length": 0.8, "cells": [2, 24, 16] } })"));
+  const Scene back = parse_scene(json::parse(s.resolved.dump(2)), "scene.resolved.json");
+  CHECK(back.resolved == s.resolved);
+
+  // build_world: make_tube's counts, mass ρ × the 24-gon annulus × length, along x from
+  // 0.1 to 0.9, the x = 0.1 end's ring of (2 + 1) × 24 nodes pinned.
+  const solid::SolidWorld w = build_world(s);
+  REQUIRE(w.bodies.size() == 1);
+  const solid::SolidBody& b = w.bodies[0];
+  CHECK(b.num_tets() == 6 * 2 * 24 * 16);
+  CHECK(b.rest_positions().rows() == 3 * 24 * 17);
+  const double volume = 0.5 * 24 * std::sin(2 * M_PI / 24) * (0.01 - 0.0064) * 0.8;
+  CHECK(b.total_mass() == doctest::Approx(1000.0 * volume).epsilon(1e-12));
+  CHECK(b.rest_positions().col(0).minCoeff() == doctest::Approx(0.1));
+  CHECK(b.rest_positions().col(0).maxCoeff() == doctest::Approx(0.9));
+  CHECK(b.num_fixed_dofs() == 3 * 3 * 24);
+
+  // The default axis is z.
+  j["bodies"][0]["mesh"]["tube"].erase("axis");
+  j["bodies"][0].erase("pins");
+  CHECK(parse_scene(j, "scene.json").bodies[0].mesh.axis == 2);
+
+  const auto rejected = [](const char* mesh, std::initializer_list<std::string> parts) {
+    json jj = minimal_json();
+    jj["bodies"][0]["mesh"] = json::parse(mesh);
+    check_input_error([&] { parse_scene(jj, "scene.json"); }, parts);
+  };
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.1, "outer_radius": 0.1,
+                "length": 1, "cells": [1, 12, 4] } })",
+           {"scene.json: bodies[0].mesh.tube.inner_radius: must be < outer_radius, got "
+            "inner_radius 0.1 and outer_radius 0.1"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.2, "outer_radius": 0.1,
+                "length": 1, "cells": [1, 12, 4] } })",
+           {"bodies[0].mesh.tube.inner_radius: must be < outer_radius"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "axis": "w", "inner_radius": 0.05,
+                "outer_radius": 0.1, "length": 1, "cells": [1, 12, 4] } })",
+           {"bodies[0].mesh.tube.axis: unknown axis 'w'"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "axis": 2, "inner_radius": 0.05,
+                "outer_radius": 0.1, "length": 1, "cells": [1, 12, 4] } })",
+           {"bodies[0].mesh.tube.axis: expected a string"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0, "outer_radius": 0.1,
+                "length": 1, "cells": [1, 12, 4] } })",
+           {"bodies[0].mesh.tube.inner_radius: must be > 0 (m), got 0"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.05, "outer_radius": 0.1,
+                "length": -1, "cells": [1, 12, 4] } })",
+           {"bodies[0].mesh.tube.length: must be > 0", "got -1"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.05, "outer_radius": 0.1,
+                "length": 1, "cells": [1, 5, 4] } })",
+           {"bodies[0].mesh.tube.cells[1]: must be >= 6 (sectors around the axis), got 5"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.05, "outer_radius": 0.1,
+                "length": 1, "cells": [0, 12, 4] } })",
+           {"bodies[0].mesh.tube.cells[0]: cell counts must be positive integers, got 0"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.05, "outer_radius": 0.1,
+                "length": 1 } })",
+           {"bodies[0].mesh.tube: missing required key 'cells'"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.05, "outer_radius": 0.1,
+                "lenght": 1, "cells": [1, 12, 4] } })",
+           {"bodies[0].mesh.tube.lenght: unknown key (did you mean 'length'?)"});
+  rejected(R"({ "tube": { "center": [0, 0, 0], "inner_radius": 0.05, "outer_radius": 0.1,
+                "length": 1, "cells": [1, 12, 4] }, "sphere": { "center": [0, 0, 0],
+                "radius": 1 } })",
+           {"bodies[0].mesh: give exactly one of", "got 'sphere' and 'tube'"});
+}
+
 TEST_CASE("generated meshes: missing keys, bad values and two kinds are one-line errors") {
   const auto rejected = [](const char* mesh, std::initializer_list<std::string> parts) {
     json j = minimal_json();
@@ -1387,7 +1468,7 @@ TEST_CASE("generated meshes: missing keys, bad values and two kinds are one-line
   rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1 },
                 "box": { "lo": [0, 0, 0], "hi": [1, 1, 1] } })",
            {"scene.json: bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', "
-            "'shell' or 'hollow_box', got 'box' and 'sphere'"});
+            "'shell', 'hollow_box' or 'tube', got 'box' and 'sphere'"});
   rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1 }, "cell_size": 0.1 })",
            {"bodies[0].mesh.cell_size: cell_size applies only to a 'surface' mesh"});
   rejected(R"({ "ball": { "center": [0, 0, 0], "radius": 1 } })",
