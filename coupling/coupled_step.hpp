@@ -15,11 +15,27 @@
 ///    (the added-mass instability), which is what it is there to show. Closed regions get
 ///    the usual non-physical fix (their net flux is removed, fluid::project()).
 ///
-/// Kinematic bodies follow their motion in both schemes and are prescribed in the solve.
+///  - **bfgs**, **modified_newton**, **newton** [BatheSonnad80]: the fully nonlinear
+///    trapezoidal rule of every deformable body (solid/nonlinear_trapezoid.hpp) with the
+///    fluid's nodal forces in its out-of-balance force, iterated to equilibrium
+///    (core/equilibrium.hpp, tolerances from SolidWorld::equilibrium). The mesh is built
+///    around x* as for simultaneous; each residual evaluation projects the fluid on it with
+///    the bodies' Solid faces moving at the iterate's velocities (a fluid-only solve) and
+///    returns the pressure forces. bfgs and modified_newton start from the seed's Eq. (15):
+///    the bodies' own (h/4) K̂ = M/h + C/2 + (h/4) K', no fluid in it — the fluid's added
+///    mass is learnt by the BFGS updates (modified Newton never learns it: with more added
+///    mass than body mass it cannot converge). newton re-forms the bodies' tangent every
+///    iteration and solves for the increment with the fluid in the matrix (the coupled
+///    system of coupled_system.hpp on the increment), so it is the simultaneous scheme
+///    iterated on the solid's nonlinearity. Fluid regions sealed by a deformable body (no
+///    Open face) are rejected: a fluid-only projection cannot give them a volume.
+///
+/// Kinematic bodies follow their motion in every scheme and are prescribed in the solve.
 #include <functional>
 #include <string>
 #include <vector>
 
+#include "core/equilibrium.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
 #include "fluid/simulation.hpp"
@@ -27,10 +43,13 @@
 
 namespace tetfsi::coupling {
 
-enum class Scheme { Simultaneous, Splitting };
-/// "simultaneous" | "splitting". @throws InputError naming the value.
+enum class Scheme { Simultaneous, Splitting, Bfgs, ModifiedNewton, Newton };
+/// "simultaneous" | "splitting" | "bfgs" | "modified_newton" | "newton".
+/// @throws InputError naming the value and the valid ones.
 Scheme parse_scheme(const std::string& name);
 const char* to_string(Scheme s);
+/// bfgs, modified_newton, newton: the schemes that iterate to equilibrium.
+bool is_iterated(Scheme s);
 
 struct CouplingParams {
   Scheme scheme = Scheme::Simultaneous;
@@ -54,6 +73,9 @@ struct CoupledStepReport {
   CoupledReport solve;  ///< the coupled (or, splitting, the fluid-only) solve
   fluid::FluidStepReport fluid;
   int solid_iterations = 0;    ///< splitting: the bodies' own solves
+  /// Iterated schemes: the equilibrium iteration (iterations = the seed's Table I count).
+  EquilibriumReport equilibrium;
+  int fluid_solves = 0;  ///< iterated schemes: fluid solves (residual evaluations + newton's)
   Index contacts = 0;          ///< nodes in contact with obstacles after the step
   bool predicted_mesh = true;  ///< simultaneous: the mesh was built around x* (else around xⁿ)
   double solid_kinetic_energy = 0.0, elastic_energy = 0.0;  ///< after the step (J)
