@@ -5,7 +5,9 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "fluid/operators.hpp"
 #include "solid/integrator.hpp"
+#include "solid/nonlinear_trapezoid.hpp"
 #include "solid/obstacles.hpp"
 
 namespace tetfsi::coupling {
@@ -13,12 +15,32 @@ namespace tetfsi::coupling {
 Scheme parse_scheme(const std::string& name) {
   if (name == "simultaneous") return Scheme::Simultaneous;
   if (name == "splitting") return Scheme::Splitting;
-  throw InputError(
-      fmt::format("unknown coupling scheme '{}': use simultaneous or splitting", name));
+  if (name == "bfgs") return Scheme::Bfgs;
+  if (name == "modified_newton") return Scheme::ModifiedNewton;
+  if (name == "newton") return Scheme::Newton;
+  throw InputError(fmt::format(
+      "unknown coupling scheme '{}': use simultaneous, splitting, bfgs, modified_newton or newton",
+      name));
 }
 
 const char* to_string(Scheme s) {
-  return s == Scheme::Simultaneous ? "simultaneous" : "splitting";
+  switch (s) {
+    case Scheme::Simultaneous:
+      return "simultaneous";
+    case Scheme::Splitting:
+      return "splitting";
+    case Scheme::Bfgs:
+      return "bfgs";
+    case Scheme::ModifiedNewton:
+      return "modified_newton";
+    case Scheme::Newton:
+      return "newton";
+  }
+  return "?";
+}
+
+bool is_iterated(Scheme s) {
+  return s == Scheme::Bfgs || s == Scheme::ModifiedNewton || s == Scheme::Newton;
 }
 
 BodySurface body_surface(const solid::SolidBody& b) {
@@ -175,6 +197,24 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
     phases.add("coupled_assembly", r.assembly_s);
     phases.add("coupled_solve", r.setup_s + r.solve_s);
   };
+  // The mesh around x* = X + dⁿ + h uⁿ (kinematic bodies at tⁿ⁺¹), or around xⁿ if that fails
+  // (a body predicted out of the box).
+  auto build_predicted = [&]() -> mesh::TetMesh {
+    try {
+      return build(positions([&](Index b) -> MatX3 {
+        const auto& body = world.bodies[b];
+        return body.is_kinematic() ? body.displacement
+                                   : MatX3(body.displacement + h * body.velocity);
+      }));
+    } catch (const MeshError& e) {
+      logger().debug(
+          "coupled step: remesh around the predicted surfaces failed ({}); "
+          "building around the surfaces at t = {:.6g} s",
+          e.what(), world.time);
+      rep.predicted_mesh = false;
+      return build(positions([&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
+    }
+  };
 
   try {
     fluid::FluidPrediction pred;
@@ -209,25 +249,8 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
           cb[b].u = flat(body.velocity);
         }
       }
-      // 2. the mesh around x* = X + dⁿ + h uⁿ, or around xⁿ if that fails (a body predicted
-      //    out of the box)
-      mesh::TetMesh m;
-      try {
-        m = build(positions([&](Index b) -> MatX3 {
-          const auto& body = world.bodies[b];
-          return body.is_kinematic() ? body.displacement
-                                     : MatX3(body.displacement + h * body.velocity);
-        }));
-      } catch (const MeshError& e) {
-        logger().debug(
-            "coupled step: remesh around the predicted surfaces failed ({}); "
-            "building around the surfaces at t = {:.6g} s",
-            e.what(), world.time);
-        rep.predicted_mesh = false;
-        m = build(positions([&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
-      }
-      // 3. transfer, forces: v*
-      pred = fluid.predict(std::move(m), h, motion(), phases);
+      // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
+      pred = fluid.predict(build_predicted(), h, motion(), phases);
       // 4. [Chentanez06, Eq. (7)]
       sol = solve_coupled(make_input(pred, fluid.params(), cb, &m_targets), m_params.solve);
       solve_phases(sol.report);
@@ -258,6 +281,11 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
         rep.contacts += solid::resolve_collisions(body, world.obstacles);
         check_finite(body, h);
       }
+    } else if (is_iterated(m_params.scheme)) {
+      for (solid::SolidBody& body : world.bodies)
+        if (body.is_kinematic()) body.set_kinematic_state(t1);
+      pred = fluid.predict(build_predicted(), h, motion(), phases);
+      sol = step_iterated(world, pred, fluid.params(), ifaces, h, phases, rep);
     } else {
       // 1. the bodies with the fluid's last nodal forces held
       if (!m_have_force) {
@@ -319,6 +347,175 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
   rep.solid_kinetic_energy = world.kinetic_energy();
   rep.elastic_energy = world.elastic_energy();
   return rep;
+}
+
+
+CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
+                                              fluid::FluidPrediction& pred,
+                                              const fluid::FluidParams& params,
+                                              const std::vector<BodyInterface>& ifaces, double h,
+                                              PhaseTimes& phases, CoupledStepReport& rep) {
+  const Index nb = static_cast<Index>(world.bodies.size());
+  const mesh::TetMesh& m = pred.mesh;
+  const char* scheme = to_string(m_params.scheme);
+  // A region with no Open face bounded by a deformable body: the fluid-only projection of a
+  // residual evaluation would have to remove the body's net flux (fluid::project), so the
+  // iteration could not see the region's incompressibility.
+  {
+    const fluid::Regions regions = fluid::fluid_regions(m);
+    std::vector<Index> cells(regions.count(), 0);
+    for (Index t = 0; t < m.num_tets(); ++t) ++cells[regions.cell_region[t]];
+    for (Index f = 0; f < m.num_faces(); ++f) {
+      if (!m.is_boundary(f) || m.face_kind[f] != mesh::FaceKind::Solid) continue;
+      const Index r = regions.cell_region[m.face_tets(f, 0)];
+      const solid::SolidBody& body = world.bodies[m.face_body[f]];
+      TETFSI_REQUIRE(InputError, regions.has_open[r] || body.is_kinematic(),
+                     "coupling.scheme {}: a fluid region of {} cells has no open face and is "
+                     "bounded by body '{}': a fluid-only projection cannot keep its volume; use "
+                     "coupling.scheme simultaneous, or give the region an open patch",
+                     scheme, cells[r], body.name());
+    }
+  }
+  // Stacked unknowns: uⁿ⁺¹ of every deformable body.
+  std::vector<Index> off(nb + 1, 0);
+  std::vector<std::unique_ptr<solid::TrapezoidalEquilibrium>> eq(nb);
+  for (Index b = 0; b < nb; ++b) {
+    solid::SolidBody& body = world.bodies[b];
+    if (!body.is_kinematic())
+      eq[b] = std::make_unique<solid::TrapezoidalEquilibrium>(body, h,
+                                                              body.external_forces(world.gravity));
+    off[b + 1] = off[b] + (eq[b] ? body.num_dofs() : 0);
+  }
+  const Index n = off[nb];
+  auto part = [&](const VecX& x, Index b) { return x.segment(off[b], off[b + 1] - off[b]); };
+  const std::vector<InterfaceFace> iface = interface_faces(m, ifaces);
+  const std::vector<Index> noff = node_offsets(ifaces);
+  std::vector<CoupledBody> held(nb);  // every body prescribed: the fluid-only solve
+  for (Index b = 0; b < nb; ++b) held[b].interface = ifaces[b];
+
+  // g(u) = the bodies' trapezoidal out-of-balance force + the fluid's forces of the
+  // projection with the Solid faces at n·(H u)   [BatheSonnad80, Eq. (6)]
+  VecX last_x;
+  CoupledSolution last;
+  auto fluid_at = [&](const VecX& x) {
+    VecX ustar = pred.u_star;
+    for (const InterfaceFace& i : iface) {
+      const Index b = m.face_body[i.face];
+      if (!eq[b]) continue;
+      Vec3 v = Vec3::Zero();
+      for (int k = 0; k < 3; ++k) v += i.weight[k] * x.segment<3>(off[b] + 3 * (i.node[k] - noff[b]));
+      ustar[i.face] = m.face_normals.row(i.face).dot(v.transpose());
+    }
+    CoupledInput in = make_input(pred, params, held);
+    in.u_star = &ustar;
+    CoupledSolution s = solve_coupled(in, m_params.solve);
+    phases.add("coupled_assembly", s.report.assembly_s);
+    phases.add("coupled_solve", s.report.setup_s + s.report.solve_s);
+    ++rep.fluid_solves;
+    TETFSI_REQUIRE(SolverError, s.report.converged,
+                   "coupling.scheme {}: a fluid solve did not converge ({} iterations, residual "
+                   "{:.3g}); raise coupling.max_iterations or reduce time.dt",
+                   scheme, s.report.iterations, s.report.residual);
+    return s;
+  };
+  EquilibriumProblem problem;
+  problem.residual = [&](const VecX& x) {
+    CoupledSolution s = fluid_at(x);
+    ScopedTimer timer(phases, "solid");
+    VecX g(n);
+    for (Index b = 0; b < nb; ++b) {
+      if (!eq[b]) continue;
+      VecX gb = eq[b]->residual(part(x, b)) + s.fluid_force[b];
+      for (Index l = 0; l < gb.size(); ++l)
+        if (world.bodies[b].is_fixed(l)) gb[l] = 0.0;
+      g.segment(off[b], gb.size()) = gb;
+    }
+    last_x = x;
+    last = std::move(s);
+    return g;
+  };
+  if (m_params.scheme == Scheme::Newton) {
+    // The increment with the fluid in the matrix: the coupled system on homogeneous fluid data
+    // (v* = 0, no open pressure, no gravity), A the bodies' tangents, b the residual.
+    problem.factor = [&](const VecX& x) -> InverseOperator {
+      auto bodies = std::make_shared<std::vector<CoupledBody>>(nb);
+      {
+        ScopedTimer timer(phases, "solid");
+        for (Index b = 0; b < nb; ++b) {
+          CoupledBody& cb = (*bodies)[b];
+          cb.interface = ifaces[b];
+          if (!eq[b]) continue;
+          const solid::SolidBody& body = world.bodies[b];
+          cb.free = true;
+          cb.A = eq[b]->tangent(part(x, b));
+          cb.fixed = body.fixed_dofs();
+          cb.x = body.positions();
+          cb.u = flat(body.velocity);
+        }
+      }
+      return [&, bodies](const VecX& r) -> VecX {
+        for (Index b = 0; b < nb; ++b)
+          if (eq[b]) (*bodies)[b].b = part(r, b);
+        const VecX zero_f = VecX::Zero(m.num_faces());
+        CoupledInput in = make_input(pred, params, *bodies);
+        in.u_star = &zero_f;
+        in.p_open = &zero_f;
+        in.gravity = Vec3::Zero();
+        CoupledOptions o = m_params.solve;
+        o.conserve_volume = false;
+        const CoupledSolution s = solve_coupled(in, o);
+        phases.add("coupled_assembly", s.report.assembly_s);
+        phases.add("coupled_solve", s.report.setup_s + s.report.solve_s);
+        ++rep.fluid_solves;
+        VecX dx(n);
+        for (Index b = 0; b < nb; ++b)
+          if (eq[b]) dx.segment(off[b], off[b + 1] - off[b]) = s.u[b];
+        return dx;
+      };
+    };
+  } else {
+    // [BatheSonnad80, Eq. (15)]: the bodies' own (h/4) K̂, block diagonal, no fluid.
+    problem.factor = [&](const VecX& x) -> InverseOperator {
+      ScopedTimer timer(phases, "solid");
+      std::vector<InverseOperator> inv(nb);
+      for (Index b = 0; b < nb; ++b)
+        if (eq[b]) inv[b] = solid::factor_inverse(eq[b]->tangent(part(x, b)));
+      return [inv, off, nb](const VecX& r) -> VecX {
+        VecX dx = VecX::Zero(r.size());
+        for (Index b = 0; b < nb; ++b)
+          if (inv[b]) dx.segment(off[b], off[b + 1] - off[b]) =
+                          inv[b](r.segment(off[b], off[b + 1] - off[b]));
+        return dx;
+      };
+    };
+  }
+  EquilibriumOptions opt = world.equilibrium;
+  opt.method = m_params.scheme == Scheme::Newton           ? IterationMethod::Newton
+               : m_params.scheme == Scheme::ModifiedNewton ? IterationMethod::ModifiedNewton
+                                                           : IterationMethod::Bfgs;
+  VecX x(n);
+  for (Index b = 0; b < nb; ++b)
+    if (eq[b]) x.segment(off[b], off[b + 1] - off[b]) = eq[b]->start();
+  rep.equilibrium = solve_equilibrium(problem, x, opt, m_history);
+  TETFSI_REQUIRE(SolverError, rep.equilibrium.converged,
+                 "coupling.scheme {}: the iteration {} at t = {:.6g} s (h = {:.3g} s); raise "
+                 "solid.max_iterations, reduce time.dt, or use coupling.scheme bfgs, newton or "
+                 "simultaneous",
+                 scheme, rep.equilibrium.failure, world.time, h);
+  if (!(last_x.size() == x.size() && last_x == x)) problem.residual(x);
+  // Eq. (3): dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹); collisions
+  ScopedTimer timer(phases, "update");
+  for (Index b = 0; b < nb; ++b) {
+    if (!eq[b]) continue;
+    solid::SolidBody& body = world.bodies[b];
+    const VecX ub = part(x, b);
+    flat(body.displacement) = eq[b]->displacement(ub);
+    flat(body.velocity) = ub;
+    last.u[b] = ub;
+    rep.contacts += solid::resolve_collisions(body, world.obstacles);
+    check_finite(body, h);
+  }
+  return last;
 }
 
 }  // namespace tetfsi::coupling

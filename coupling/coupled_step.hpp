@@ -109,6 +109,14 @@ class CoupledStepper {
   VolumeTargets m_targets;
   std::vector<VecX> m_held_force;  ///< splitting: the fluid's nodal forces of the last step
   bool m_have_force = false;
+  EquilibriumHistory m_history;  ///< iterated schemes: Eq. (12)'s largest force, kept matrix
+
+  /// The iterated schemes' part of step(): returns the fluid solution at the converged
+  /// velocities and advances the bodies. @throws SolverError if the iteration fails.
+  CoupledSolution step_iterated(solid::SolidWorld& world, fluid::FluidPrediction& pred,
+                                const fluid::FluidParams& params,
+                                const std::vector<BodyInterface>& ifaces, double h,
+                                PhaseTimes& phases, CoupledStepReport& rep);
 };
 
 }  // namespace tetfsi::coupling
