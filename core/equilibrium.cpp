@@ -167,15 +167,25 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
     if (!newton && opt.keep_matrix) history.kept = start;
   }
   BfgsInverse H(start);
+  const bool carry = bfgs && opt.keep_matrix;  // updates carried from solve to solve
+  if (carry && !history.updates.empty() && history.updates.front().first.size() == x.size())
+    H.set_factors(history.updates);
+  history.updates.clear();  // set again on convergence
+  // Re-form the matrix at y and drop the updates; with keep_matrix it is the one kept.
+  auto reform = [&](const VecX& y) {
+    InverseOperator k = factor(y);
+    if (!newton && opt.keep_matrix) history.kept = k;
+    H.reset(std::move(k));
+  };
   double e1 = 0.0;
   for (int i = 1; i <= opt.max_iterations; ++i) {
     rep.iterations = i;
-    if ((newton && i > 1) || (bfgs && H.updates() >= opt.max_updates)) H.reset(factor(x));
+    if ((newton && i > 1) || (bfgs && H.updates() >= opt.max_updates)) reform(x);
     VecX dx = H.apply(g);
     double phi0 = dx.dot(g);
     if (bfgs && H.updates() > 0 && !(phi0 > 0.0)) {
       // The updated matrix lost positive definiteness along g: start again from the tangent.
-      H.reset(factor(x));
+      reform(x);
       dx = H.apply(g);
       phi0 = dx.dot(g);
     }
@@ -189,11 +199,13 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
     // [BatheSonnad80, Eqs. (12), (13)] on g⁽ⁱ⁻¹⁾ and Δx⁽ⁱ⁾: x⁽ⁱ⁻¹⁾ is the solution.
     if (i > 1 && rep.force_ratio <= opt.rtol && rep.energy_ratio <= opt.etol) {
       rep.converged = true;
+      if (carry) history.updates = H.factors();
       return rep;
     }
     VecX xn, gn;
     double beta = 1.0;
-    if (opt.line_search && phi0 > 0.0) {  // [BatheSonnad80, Eqs. (9), (10)]
+    const bool search = bfgs ? opt.line_search : opt.line_search_newton;
+    if (search && phi0 > 0.0) {  // [BatheSonnad80, Eqs. (9), (10)]
       LineSearchResult ls = line_search(problem.residual, x, dx, g, opt);
       rep.evaluations += ls.evaluations;
       beta = ls.beta;

@@ -28,7 +28,8 @@
 /// the solution is then x⁽ⁱ⁻¹⁾ (whose residual was checked) and the step took i iterations:
 /// a linear problem with the exact matrix takes 2, as in the seed's Table I.
 ///
-/// The line search uses |·| on both sides of Eq. (10): the literal inequality would accept any
+/// The line search belongs to BFGS, as in the seed (Newton and modified Newton are plain
+/// iterations unless `line_search_newton`). It uses |·| on both sides of Eq. (10): the literal inequality would accept any
 /// overshoot (a large negative Δxᵀg). It tries β = 1, doubles β while Δxᵀg keeps its sign
 /// (up to `max_step`), then closes a sign change by regula falsi (Illinois); after
 /// `max_line_search` extra evaluations it keeps the best β found.
@@ -59,13 +60,20 @@ struct EquilibriumOptions {
   double etol = 1e-5;        ///< energy tolerance, Eq. (13)
   double stol = 0.5;         ///< line-search tolerance, Eq. (10)
   int max_iterations = 30;   ///< iterations per solve before it is declared failed
-  bool line_search = true;   ///< off: β = 1 always
+  /// The line search of Eqs. (9)–(10) in BFGS (off: β = 1 always).
+  bool line_search = true;
+  /// Also in Newton and modified Newton (the seed's are plain iterations; a line search keeps
+  /// Newton from overshooting far from the solution, e.g. a static solve from d = 0).
+  bool line_search_newton = false;
   int max_line_search = 8;   ///< residual evaluations per line search after β = 1
   double max_step = 16.0;    ///< largest β the line search tries
   int max_updates = 20;      ///< BFGS: re-form the matrix after this many updates
   double max_condition = 1e5;  ///< BFGS: skip an update whose A is worse conditioned
   /// Modified Newton and BFGS: form the starting matrix once per run (the first solve's,
-  /// kept in EquilibriumHistory) instead of at the start of every solve.
+  /// kept in EquilibriumHistory) instead of at the start of every solve. BFGS then also
+  /// carries its updates from solve to solve (the next step starts with what the last one
+  /// learnt, e.g. the fluid's added mass left out of Eq. (15)) until `max_updates`, when the
+  /// matrix is re-formed at the current point and the updates dropped.
   bool keep_matrix = false;
 };
 
@@ -90,6 +98,8 @@ class BfgsInverse {
   const std::vector<std::pair<VecX, VecX>>& factors() const { return m_vw; }
   /// Drop every update; with a new starting inverse if given.
   void reset(InverseOperator k0_inverse = nullptr);
+  /// Replace the updates (e.g. by those an earlier solve made on the same starting matrix).
+  void set_factors(std::vector<std::pair<VecX, VecX>> vw) { m_vw = std::move(vw); }
 
  private:
   InverseOperator m_h0;
@@ -108,7 +118,8 @@ struct EquilibriumProblem {
 /// State kept across the solves of a run.
 struct EquilibriumHistory {
   double max_force = 0.0;  ///< the denominator of Eq. (12): largest ||g⁽⁰⁾|| so far
-  InverseOperator kept;    ///< EquilibriumOptions::keep_matrix: the first starting matrix
+  InverseOperator kept;    ///< EquilibriumOptions::keep_matrix: the starting matrix
+  std::vector<std::pair<VecX, VecX>> updates;  ///< keep_matrix, BFGS: the updates so far
 };
 
 struct EquilibriumReport {

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <exception>
 
+#include <Eigen/QR>
+
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "fluid/operators.hpp"
@@ -156,6 +158,46 @@ void check_finite(const solid::SolidBody& body, double h) {
                  "raise rayleigh damping",
                  body.name(), h);
 }
+
+/// The fluid-only solution is affine in the bodies' face velocities (a linear solve with them
+/// in its right-hand side): once points x₀ … x_k have been solved, any x in their affine span
+/// gets p, the face velocities and the nodal forces by the same combination, exactly up to the
+/// solves' tolerance. The line search's points x + β Δx are on the line through two solved
+/// points, so each BFGS iteration costs one fluid solve, not one per trial β.
+struct AffineFluidCache {
+  std::vector<VecX> x;
+  std::vector<CoupledSolution> s;
+
+  bool combine(const VecX& xq, CoupledSolution& out) const {
+    const Index k = static_cast<Index>(x.size()) - 1;
+    if (k < 1) return false;
+    Eigen::MatrixXd D(xq.size(), k);
+    for (Index j = 0; j < k; ++j) D.col(j) = x[j + 1] - x[0];
+    const VecX r = xq - x[0];
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(D);
+    if (qr.rank() < k) return false;
+    const VecX c = qr.solve(r);
+    // in the span to round-off, and not a large extrapolation (that would amplify the solves'
+    // errors)
+    if (!((D * c - r).norm() <= 1e-11 * std::max(r.norm(), xq.norm())) ||
+        !(c.cwiseAbs().maxCoeff() <= 1e3))
+      return false;
+    out = s[0];
+    for (Index j = 0; j < k; ++j) {
+      const CoupledSolution& sj = s[j + 1];
+      out.p += c[j] * (sj.p - s[0].p);
+      out.u_face += c[j] * (sj.u_face - s[0].u_face);
+      for (size_t b = 0; b < out.fluid_force.size(); ++b)
+        out.fluid_force[b] += c[j] * (sj.fluid_force[b] - s[0].fluid_force[b]);
+    }
+    return true;
+  }
+  void add(const VecX& xq, const CoupledSolution& sol) {
+    if (x.size() >= 40) return;  // enough for any step; keeps the QR small
+    x.push_back(xq);
+    s.push_back(sol);
+  }
+};
 
 }  // namespace
 
@@ -397,7 +439,10 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
   // projection with the Solid faces at n·(H u)   [BatheSonnad80, Eq. (6)]
   VecX last_x;
   CoupledSolution last;
+  AffineFluidCache cache;
   auto fluid_at = [&](const VecX& x) {
+    CoupledSolution s;
+    if (cache.combine(x, s)) return s;
     VecX ustar = pred.u_star;
     for (const InterfaceFace& i : iface) {
       const Index b = m.face_body[i.face];
@@ -408,7 +453,7 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
     }
     CoupledInput in = make_input(pred, params, held);
     in.u_star = &ustar;
-    CoupledSolution s = solve_coupled(in, m_params.solve);
+    s = solve_coupled(in, m_params.solve);
     phases.add("coupled_assembly", s.report.assembly_s);
     phases.add("coupled_solve", s.report.setup_s + s.report.solve_s);
     ++rep.fluid_solves;
@@ -416,6 +461,7 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
                    "coupling.scheme {}: a fluid solve did not converge ({} iterations, residual "
                    "{:.3g}); raise coupling.max_iterations or reduce time.dt",
                    scheme, s.report.iterations, s.report.residual);
+    cache.add(x, s);
     return s;
   };
   EquilibriumProblem problem;
@@ -502,6 +548,13 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
                  "solid.max_iterations, reduce time.dt, or use coupling.scheme bfgs, newton or "
                  "simultaneous",
                  scheme, rep.equilibrium.failure, world.time, h);
+  logger().debug(
+      "coupling.scheme {}: {} iterations, {} residual evaluations, {} fluid solves, {} "
+      "factorizations, {} updates ({} skipped), {} line searches; force ratio {:.3g}, energy "
+      "ratio {:.3g}",
+      scheme, rep.equilibrium.iterations, rep.equilibrium.evaluations, rep.fluid_solves,
+      rep.equilibrium.factorizations, rep.equilibrium.updates, rep.equilibrium.skipped_updates,
+      rep.equilibrium.line_searches, rep.equilibrium.force_ratio, rep.equilibrium.energy_ratio);
   if (!(last_x.size() == x.size() && last_x == x)) problem.residual(x);
   // Eq. (3): dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹); collisions
   ScopedTimer timer(phases, "update");

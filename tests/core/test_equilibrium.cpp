@@ -185,6 +185,7 @@ TEST_CASE("Newton, modified Newton and BFGS solve the same nonlinear problem") {
   opt.rtol = 1e-10;
   opt.etol = 1e-18;
   opt.max_iterations = 60;
+  opt.line_search_newton = true;  // from x = 0 plain modified Newton overshoots here
   VecX sol[3];
   int its[3];
   const IterationMethod methods[3] = {IterationMethod::Newton, IterationMethod::ModifiedNewton,

@@ -204,6 +204,7 @@ TEST_SUITE("unit") {
       opt.rtol = 1e-7;  // the round-off floor of the force is ~2e-9 of the load here
       opt.etol = 1e-16;
       opt.max_iterations = 300;
+      opt.line_search_newton = true;
       // an incremental analysis (10 load steps, the matrix formed at the start of each):
       // from d = 0 in one step modified Newton diverges (the initial stiffness has no
       // geometric stiffness and the linear solution stretches the flag)
