@@ -281,11 +281,15 @@ int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& 
     const int steps = static_cast<int>(std::ceil(time / h - 1e-9));
     for (const std::string& m : methods()) {
       Run r = run_method(scene, world0, coupled, body, a, b, m, h, steps);
-      fmt::print(out, "{:<16} {:>10.4g} {:>6} {:>7.3g} {:>10.3g} {:>10.4g}  {}\n", m, h,
-                 r.max_iterations(), r.avg_iterations(), r.evaluations_per_step(), r.mean_step_s(),
+      const bool any = r.completed() > 0;  // else no figure: "-"
+      auto figure = [any](const char* f, double v) {
+        return any ? fmt::format(fmt::runtime(f), v) : std::string("-");
+      };
+      fmt::print(out, "{:<16} {:>10.4g} {:>6} {:>7} {:>10} {:>10}  {}\n", m, h,
+                 figure("{:.0f}", r.max_iterations()), figure("{:.3g}", r.avg_iterations()),
+                 figure("{:.3g}", r.evaluations_per_step()), figure("{:.4g}", r.mean_step_s()),
                  r.converged() ? std::string("yes") : r.failure);
       out.flush();
-      const bool any = r.completed() > 0;
       json row = {{"method", m},
                   {"dt", h},
                   {"max_iterations", any ? json(r.max_iterations()) : json(nullptr)},

@@ -116,6 +116,33 @@ TEST_CASE("bench bfgs: an axial bar, three methods at dt and 10 dt: rows, agreem
   CHECK(hist.back().rfind("newton,0.02,2,0.04", 0) == 0);
 }
 
+TEST_CASE("bench bfgs: a run that does not converge stops there and says so") {
+  // At most 3 iterations: enough at dt (2-3), not at 10 dt (5 and more).
+  TempDir dir("bench_bfgs_fail");
+  const auto r = run_tetfsi(dir.path, "bench bfgs '" + k_bar.string() +
+                                          "' --json bfgs.json --set solid.max_iterations=3");
+  INFO(r.out);
+  INFO(r.err);
+  REQUIRE(r.code == 0);  // the goals are reported, not enforced
+  const nlohmann::json j = nlohmann::json::parse(read_text(dir.path / "bfgs.json"));
+  INFO(j.dump(1));
+  CHECK(j["tolerances"]["max_iterations"] == 3);
+  const nlohmann::json& rows = j["rows"];
+  REQUIRE(rows.size() == 6);
+  for (int k = 3; k < 6; ++k) {
+    INFO(rows[k].dump());
+    CHECK(rows[k]["converged"] == false);
+    CHECK(rows[k]["completed"] == 0);
+    CHECK(rows[k]["failure"] == "failed to converge in 3 iterations at step 1");
+    CHECK(rows[k]["max_iterations"].is_null());
+    CHECK(rows[k]["step_s"].is_null());
+  }
+  CHECK(r.out.find("failed to converge in 3 iterations at step 1") != std::string::npos);
+  CHECK(j["goals"]["bfgs_at_most_5_iterations"] == false);
+  CHECK(j["agreement"]["same_dt"][1]["percent"].is_null());  // no converged method at 10 dt
+  CHECK(j["goals"]["agreement_across_dt"] == false);
+}
+
 TEST_CASE("bench bfgs: the coarse bar in water, coupling.scheme = method at dt and 3 dt") {
   // data/scenes/bar.json (two-way, open at the top) with a 1 x 1 x 6 cell bar in a coarse
   // fluid mesh, 0.1 s: 3 steps of 1/30 s and 1 of 0.1 s per method.
