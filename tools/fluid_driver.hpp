@@ -47,7 +47,7 @@ struct FluidSummary {
 
 /// The two-way coupling over a run (coupling::CoupledStepReport of every step).
 struct CouplingSummary {
-  std::string scheme;  ///< "simultaneous" or "splitting"
+  std::string scheme;  ///< coupling::to_string of the scheme
   std::string solver;  ///< coupling::to_string(CoupledSolverKind)
   int coupled_steps = 0;
   long long iterations = 0;          ///< of the coupled solves, summed

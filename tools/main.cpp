@@ -7,6 +7,8 @@
 ///   tetfsi bench remesh [--json FILE] [--max-cells N]
 ///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
 ///   tetfsi bench coupled SCENE [--json FILE] [--time T] [--steps-down N] [--set k=v ...]
+///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
+///                     [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
@@ -25,6 +27,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "tools/bench_bfgs.hpp"
 #include "tools/bench_coupled.hpp"
 #include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
@@ -85,6 +88,7 @@ int main(int argc, char** argv) {
       "  tetfsi bench remesh --json remesh.json\n"
       "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
       "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
+      "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
       "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
@@ -247,6 +251,42 @@ int main(int argc, char** argv) {
       ->allow_extra_args(false)
       ->type_name("KEY=VALUE");
 
+  CLI::App* bench_bfgs_cmd = bench->add_subcommand(
+      "bfgs",
+      "the seed's Table I [BatheSonnad80]: BFGS, modified Newton and Newton at dt and R dt, "
+      "iterations per step, convergence, and the agreement of two probes' displacements");
+  std::string bench_bfgs_scene = tools::k_bench_bfgs_scene;
+  tools::BenchBfgsOptions bench_bfgs_opt;
+  std::string bench_bfgs_json, bench_bfgs_history;
+  double bench_bfgs_time = 0.0;
+  bench_bfgs_cmd
+      ->add_option("SCENE", bench_bfgs_scene,
+                   "dynamic scene file (JSON): two-way coupled (coupling.scheme = method) or not "
+                   "(solid.integrator = method)")
+      ->type_name("FILE")
+      ->capture_default_str();
+  bench_bfgs_cmd->add_option("--json", bench_bfgs_json, "also write the results to this JSON file")
+      ->type_name("FILE");
+  bench_bfgs_cmd
+      ->add_option("--history", bench_bfgs_history,
+                   "also write the probes' histories (method, dt, step, t, dA_x, dB_x, uA_x, "
+                   "uB_x) to this CSV file")
+      ->type_name("FILE.csv");
+  bench_bfgs_cmd
+      ->add_option("--ratio", bench_bfgs_opt.ratio,
+                   "the larger step is R times the scene's dt (> 1)")
+      ->type_name("R")
+      ->capture_default_str();
+  auto* bench_bfgs_time_opt =
+      bench_bfgs_cmd
+          ->add_option("--time", bench_bfgs_time,
+                       "simulated seconds of each run (> 0; default: the scene's end time)")
+          ->type_name("T");
+  bench_bfgs_cmd
+      ->add_option("--set", bench_bfgs_opt.overrides, "override a scene value (repeatable)")
+      ->allow_extra_args(false)
+      ->type_name("KEY=VALUE");
+
   // ---- quality ----
   CLI::App* quality = app.add_subcommand(
       "quality",
@@ -321,6 +361,12 @@ int main(int argc, char** argv) {
     if (*bench_coupled_cmd) {
       bench_coupled_opt.json_path = bench_coupled_json;
       return tools::bench_coupled(bench_coupled_scene, bench_coupled_opt, std::cout);
+    }
+    if (*bench_bfgs_cmd) {
+      bench_bfgs_opt.json_path = bench_bfgs_json;
+      bench_bfgs_opt.history_path = bench_bfgs_history;
+      if (*bench_bfgs_time_opt) bench_bfgs_opt.time = bench_bfgs_time;
+      return tools::bench_bfgs(bench_bfgs_scene, bench_bfgs_opt, std::cout);
     }
     if (*quality) {
       return tools::quality_command(quality_file, quality_json, quality_png, std::cout);

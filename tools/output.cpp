@@ -514,8 +514,9 @@ const std::vector<std::string>& coupling_columns() {
 std::vector<std::string> make_columns(bool fluid, bool coupled) {
   std::vector<std::string> v = {"step", "time", "dt"};
   for (const auto& p : StatsWriter::phase_columns(fluid, coupled)) v.push_back(p);
-  for (const char* s : {"solver_iterations", "solver_residual", "contacts", "kinetic_energy",
-                        "elastic_energy", "gravity_potential", "total_energy"})
+  for (const char* s :
+       {"solver_iterations", "solver_residual", "contacts", "kinetic_energy", "elastic_energy",
+        "gravity_potential", "total_energy", "equilibrium_iterations", "equilibrium_evaluations"})
     v.emplace_back(s);
   if (fluid) {
     for (const char* s :
@@ -571,9 +572,10 @@ void StatsWriter::write(const StepStats& r) {
   std::string line = fmt::format("{},{:.17g},{:.17g}", r.step, r.time, r.dt);
   for (const auto& p : phase_columns(m_fluid, m_coupled))
     line += fmt::format(",{:.6g}", r.phases.get(p));
-  line += fmt::format(",{},{:.17g},{},{:.17g},{:.17g},{:.17g},{:.17g}", r.solver_iterations,
+  line += fmt::format(",{},{:.17g},{},{:.17g},{:.17g},{:.17g},{:.17g},{},{}", r.solver_iterations,
                       r.solver_residual, r.contacts, r.kinetic_energy, r.elastic_energy,
-                      r.gravity_potential, r.total_energy());
+                      r.gravity_potential, r.total_energy(), r.equilibrium_iterations,
+                      r.equilibrium_evaluations);
   if (m_fluid) {
     const size_t nq = num_quality_columns();
     if (r.fluid) {

@@ -213,6 +213,13 @@ struct StepStats {
   double kinetic_energy = 0.0;     ///< J, summed over bodies
   double elastic_energy = 0.0;     ///< J
   double gravity_potential = 0.0;  ///< J, −Σ m g·x
+  /// The equilibrium iteration of the step [BatheSonnad80] (core/equilibrium.hpp): a
+  /// nonlinear solid.integrator (SolidStepReport: the most iterations of any body, the
+  /// residual evaluations summed over bodies) or an iterated coupling scheme
+  /// (CoupledStepReport::equilibrium); 0 for the linearized integrator and the simultaneous
+  /// and splitting schemes.
+  int equilibrium_iterations = 0;
+  int equilibrium_evaluations = 0;
   /// Fluid scenes: figures of the fluid mesh (a row without them writes "nan" there).
   std::optional<FluidStepStats> fluid;
   /// Two-way coupled runs: the coupling figures (a row without them writes "nan" there).
@@ -238,8 +245,9 @@ class StatsWriter {
 
   /// The column names in order: step, time, dt, the phases of `phase_columns(fluid)`,
   /// solver_iterations, solver_residual, contacts, kinetic_energy, elastic_energy,
-  /// gravity_potential, total_energy; with `fluid` then fluid_cells, fluid_vertices,
-  /// steiner_points, recovery_rounds, remesh_s, the names of mesh::quality_columns
+  /// gravity_potential, total_energy, equilibrium_iterations, equilibrium_evaluations; with
+  /// `fluid` then fluid_cells, fluid_vertices, steiner_points, recovery_rounds, remesh_s,
+  /// the names of mesh::quality_columns
   /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...), then pressure_iterations,
   /// pressure_residual, divergence_before, divergence, fluid_kinetic_energy, smoke_mass,
   /// inflow_flux, outflow_flux, solid_flux, max_speed, cfl, traces_clamped; with `coupled`

@@ -239,6 +239,7 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
     row.phases.reset();
     const double t0 = now_seconds();
     last_good.save(world);
+    int fluid_solves = 0;  // iterated coupling schemes
     try {
       if (fluid && fluid->coupled()) {
         // two-way: the bodies and the fluid advance together (coupling/coupled_step.hpp)
@@ -248,6 +249,10 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
         row.contacts = rep.contacts;
         r.solver_iterations += row.solver_iterations;
         if (!rep.solve.converged) ++r.unconverged_steps;  // FluidDriver has logged it
+        const bool iterated = coupling::is_iterated(rep.scheme);
+        row.equilibrium_iterations = iterated ? rep.equilibrium.iterations : 0;
+        row.equilibrium_evaluations = iterated ? rep.equilibrium.evaluations : 0;
+        fluid_solves = rep.fluid_solves;
         row.fluid = fluid->stats();
         row.coupled = fluid->coupled_stats();
       } else {
@@ -257,6 +262,8 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
         row.contacts = rep.contacts;
         r.solver_iterations += rep.iterations;
         if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
+        row.equilibrium_iterations = rep.equilibrium_iterations;
+        row.equilibrium_evaluations = rep.equilibrium_evaluations;
         if (fluid) {
           fluid->step(world, dt, row.phases);
           row.fluid = fluid->stats();
@@ -280,12 +287,38 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
     row.time = t;
     row.dt = dt;
     out.write_stats(row);
+    if (r.equilibrium) {
+      EquilibriumSummary& e = *r.equilibrium;
+      e.steps += 1;
+      e.max_iterations = std::max(e.max_iterations, row.equilibrium_iterations);
+      e.iterations += row.equilibrium_iterations;
+      e.evaluations += row.equilibrium_evaluations;
+      e.fluid_solves += fluid_solves;
+    }
     r.steps_done = step;
     r.end_time = t;
     progress.update(step, t);
   }
   progress.finish();
   r.completed = true;
+}
+
+/// The equilibrium summary a dynamic run starts with, if it iterates to equilibrium: an
+/// iterated coupling scheme in a two-way run, else a nonlinear integrator of the bodies.
+std::optional<EquilibriumSummary> equilibrium_summary(const Scene& scene) {
+  EquilibriumSummary e;
+  e.iteration_limit = scene.solid.equilibrium.max_iterations;
+  if (scene.two_way()) {
+    const coupling::Scheme s = scene.coupling->params.scheme;
+    if (!coupling::is_iterated(s)) return std::nullopt;
+    e.method = coupling::to_string(s);
+    e.via = "coupling.scheme";
+    return e;
+  }
+  if (scene.solid.integrator == solid::Integrator::Linearized) return std::nullopt;
+  e.method = solid::to_string(scene.solid.integrator);
+  e.via = "solid.integrator";
+  return e;
 }
 
 void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid,
@@ -390,10 +423,12 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   if (!initial_ok) {
     r.steps_planned = scene.mode == Mode::Static ? 1 : scene.time.num_steps();
     r.dt = scene.mode == Mode::Static ? 1.0 : scene.time.dt;
-  } else if (scene.mode == Mode::Static)
+  } else if (scene.mode == Mode::Static) {
     run_static(scene, world, fluid ? &*fluid : nullptr, out, r);
-  else
+  } else {
+    r.equilibrium = equilibrium_summary(scene);
     run_dynamic(scene, world, fluid ? &*fluid : nullptr, out, opt, r);
+  }
   r.wall_s = now_seconds() - t;
   r.frames_written = out.frames_written();
   fill_final(world, r);
@@ -474,6 +509,20 @@ std::string summary_json(const RunResult& r) {
                      {"solid_iterations", c.solid_iterations},
                      {"total_energy", c.total_energy}};
   }
+  if (r.equilibrium) {
+    const EquilibriumSummary& e = *r.equilibrium;
+    j["equilibrium"] = {{"method", e.method},
+                        {"via", e.via},
+                        {"steps", e.steps},
+                        {"max_iterations", e.max_iterations},
+                        {"avg_iterations", e.avg_iterations()},
+                        {"evaluations_per_step", e.evaluations_per_step()},
+                        {"iterations", e.iterations},
+                        {"evaluations", e.evaluations},
+                        {"iteration_limit", e.iteration_limit}};
+    if (e.via == "coupling.scheme")
+      j["equilibrium"]["fluid_solves_per_step"] = e.fluid_solves_per_step();
+  }
   return j.dump(2) + "\n";
 }
 
@@ -534,6 +583,17 @@ void print_summary(const RunResult& r, std::ostream& out) {
       out << fmt::format("; {} unconverged coupled solves", c.unconverged_solves);
     out << "\n";
   }
+  if (r.equilibrium) {
+    const EquilibriumSummary& e = *r.equilibrium;
+    out << fmt::format(
+        "equilibrium: {} ({}), {:.3g} iterations per step on average, at most {} (limit {}), "
+        "{:.3g} residual evaluations per step",
+        e.method, e.via, e.avg_iterations(), e.max_iterations, e.iteration_limit,
+        e.evaluations_per_step());
+    if (e.via == "coupling.scheme")
+      out << fmt::format(", {:.3g} fluid solves per step", e.fluid_solves_per_step());
+    out << "\n";
+  }
   if (r.unconverged_steps > 0)
     out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",
                        r.unconverged_steps);
@@ -563,6 +623,23 @@ void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std
   }
   if (world.bodies.empty()) out << "bodies: none\n";
   out << fmt::format("obstacles: {}\n", world.obstacles.size());
+  if (scene.mode == Mode::Dynamic && !world.bodies.empty()) {
+    const EquilibriumOptions& e = scene.solid.equilibrium;
+    const std::optional<EquilibriumSummary> it = equilibrium_summary(scene);
+    if (it) {
+      out << fmt::format(
+          "equilibrium: {} ({}), rtol {:.3g}, etol {:.3g}, stol {:.3g}, at most {} iterations "
+          "per step{}, line search {}{}\n",
+          it->method, it->via, e.rtol, e.etol, e.stol, e.max_iterations,
+          it->method == "bfgs" ? fmt::format(" and {} updates", e.max_updates) : std::string(),
+          e.line_search ? "on" : "off",
+          it->method == "newton" ? std::string()
+                                 : fmt::format(", starting matrix formed once per {}",
+                                               e.keep_matrix ? "run" : "step"));
+    } else if (!scene.two_way()) {
+      out << fmt::format("solid integrator: linearized (trapezoid {})\n", scene.solid.trapezoid);
+    }
+  }
   if (scene.fluid) {
     const mesh::FluidDomain& d = scene.fluid->domain;
     const mesh::Sizing& z = scene.fluid->sizing;

@@ -44,6 +44,22 @@ struct BodySummary {
   double max_displacement = 0.0;  ///< max over nodes of |d| (m)
 };
 
+/// The equilibrium iteration over a run [BatheSonnad80] (core/equilibrium.hpp): runs whose
+/// bodies step with a nonlinear solid.integrator, or two-way runs with an iterated coupling
+/// scheme (bfgs, modified_newton, newton).
+struct EquilibriumSummary {
+  std::string method;  ///< "bfgs", "modified_newton" or "newton"
+  std::string via;     ///< the scene key that chose it: "solid.integrator" or "coupling.scheme"
+  int iteration_limit = 0;     ///< solid.max_iterations
+  int steps = 0;               ///< completed steps
+  int max_iterations = 0;      ///< the most iterations of one step
+  long long iterations = 0;    ///< summed over steps (a step: the most of any body)
+  long long evaluations = 0;   ///< residual evaluations, summed over steps (and bodies)
+  long long fluid_solves = 0;  ///< coupling.scheme: fluid solves, summed (0 otherwise)
+  double avg_iterations() const { return steps > 0 ? double(iterations) / steps : 0.0; }
+  double evaluations_per_step() const { return steps > 0 ? double(evaluations) / steps : 0.0; }
+  double fluid_solves_per_step() const { return steps > 0 ? double(fluid_solves) / steps : 0.0; }
+};
 
 struct RunResult {
   bool completed = false;    ///< every step ran; false if a step failed (see `error`)
@@ -67,6 +83,7 @@ struct RunResult {
   std::vector<BodySummary> bodies;
   std::optional<FluidSummary> fluid;  ///< set for a scene with a fluid
   std::optional<CouplingSummary> coupling;  ///< set for a two-way coupled run
+  std::optional<EquilibriumSummary> equilibrium;  ///< set if the run iterates to equilibrium
 
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
 };

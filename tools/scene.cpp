@@ -810,6 +810,58 @@ class Parser {
     return f;
   }
 
+  /// The solid section: the integrator of bodies that step alone and the equilibrium
+  /// iteration's options (scene.hpp).
+  SolidSpec solid(const Node& n) const {
+    expect_object(n, {"integrator", "trapezoid", "rtol", "etol", "stol", "max_iterations",
+                      "max_updates", "line_search", "reform"});
+    SolidSpec s;
+    if (has(n, "integrator")) {
+      s.integrator = solid::parse_integrator(
+          choice(child(n, "integrator"), {"linearized", "newton", "modified_newton", "bfgs"},
+                 "solid integrator"));
+    }
+    if (has(n, "trapezoid")) {
+      const Node t = child(n, "trapezoid");
+      if (s.integrator != solid::Integrator::Linearized) {
+        fail(t.path, fmt::format("applies only to solid.integrator 'linearized' (the '{}' "
+                                 "integrator iterates the full trapezoidal rule); remove it or "
+                                 "set solid.integrator to 'linearized'",
+                                 solid::to_string(s.integrator)));
+      }
+      s.trapezoid = choice(t, {"paper", "midpoint"}, "trapezoid variant");
+    }
+    EquilibriumOptions& e = s.equilibrium;
+    auto tolerance = [&](const char* key, double& v, const char* what) {
+      v = number(n, key, v);
+      if (v <= 0) fail(child_path(n.path, key), fmt::format("must be > 0 ({}), got {}", what, v));
+    };
+    tolerance("rtol", e.rtol, "out-of-balance force tolerance, [BatheSonnad80, Eq. (12)]");
+    tolerance("etol", e.etol, "energy tolerance, Eq. (13)");
+    e.stol = number(n, "stol", e.stol);
+    if (!(e.stol > 0 && e.stol < 1))
+      fail(child_path(n.path, "stol"),
+           fmt::format("must be in (0, 1) (line-search tolerance, Eq. (10)), got {}", e.stol));
+    auto count = [&](const char* key, int& v, const char* what) {
+      v = integer(n, key, v);
+      if (v < 1) fail(child_path(n.path, key), fmt::format("must be >= 1 ({}), got {}", what, v));
+    };
+    count("max_iterations", e.max_iterations, "equilibrium iterations per step");
+    count("max_updates", e.max_updates, "BFGS updates before the matrix is re-formed");
+    if (has(n, "line_search")) {
+      const Node v = child(n, "line_search");
+      if (!v.j.is_boolean())
+        fail(v.path, "expected true (a line search, Eq. (9)) or false (step length 1), got " +
+                         describe(v.j));
+      e.line_search = v.j.get<bool>();
+    }
+    if (has(n, "reform")) {
+      // modified Newton and BFGS: the starting matrix of every step, or the first one kept
+      e.keep_matrix = choice(child(n, "reform"), {"step", "run"}, "reform") == "run";
+    }
+    return s;
+  }
+
   /// The coupling section (`n` may be null: not given). `deformable`: the scene has a
   /// non-kinematic body; `dynamic`: its mode. Only called for a scene with a fluid.
   CouplingSpec coupling_spec(const Node* n, bool deformable, bool dynamic) const {
@@ -819,7 +871,9 @@ class Parser {
     expect_object(*n, {"scheme", "solver", "rel_tol", "max_iterations", "conserve_volume"});
     if (has(*n, "scheme")) {
       const std::string s =
-          choice(child(*n, "scheme"), {"simultaneous", "splitting", "none"}, "coupling scheme");
+          choice(child(*n, "scheme"),
+                 {"simultaneous", "splitting", "bfgs", "modified_newton", "newton", "none"},
+                 "coupling scheme");
       c.two_way = s != "none";
       if (c.two_way) c.params.scheme = coupling::parse_scheme(s);
     }
@@ -876,7 +930,18 @@ json resolve(const Scene& s) {
   j["solver"] = {{"linear", s.solver.linear},
                  {"rel_tol", s.solver.rel_tol},
                  {"max_iterations", s.solver.max_iterations}};
-  j["solid"] = {{"trapezoid", s.solid.trapezoid}};
+  const EquilibriumOptions& e = s.solid.equilibrium;
+  j["solid"] = {{"integrator", solid::to_string(s.solid.integrator)},
+                {"rtol", e.rtol},
+                {"etol", e.etol},
+                {"stol", e.stol},
+                {"max_iterations", e.max_iterations},
+                {"max_updates", e.max_updates},
+                {"line_search", e.line_search},
+                {"reform", e.keep_matrix ? "run" : "step"}};
+  // only the linearized integrator has variants (and takes the key)
+  if (s.solid.integrator == solid::Integrator::Linearized)
+    j["solid"]["trapezoid"] = s.solid.trapezoid;
   j["static"] = {{"load_steps", s.statics.load_steps},
                  {"rel_tol", s.statics.rel_tol},
                  {"max_iterations", s.statics.max_iterations}};
@@ -1117,14 +1182,7 @@ Scene parse_scene(const json& j, const fs::path& file) {
     }
   }
 
-  if (Parser::has(root, "solid")) {
-    const Node o = Parser::child(root, "solid");
-    p.expect_object(o, {"trapezoid"});
-    if (Parser::has(o, "trapezoid")) {
-      s.solid.trapezoid =
-          p.choice(Parser::child(o, "trapezoid"), {"paper", "midpoint"}, "trapezoid variant");
-    }
-  }
+  if (Parser::has(root, "solid")) s.solid = p.solid(Parser::child(root, "solid"));
 
   if (Parser::has(root, "static")) {
     const Node o = Parser::child(root, "static");
@@ -1187,6 +1245,17 @@ Scene parse_scene(const json& j, const fs::path& file) {
     } else {
       s.coupling = p.coupling_spec(nullptr, deformable, dynamic);
     }
+  }
+
+  // A two-way coupled step integrates the bodies itself, as its scheme says.
+  if (s.two_way() && s.solid.integrator != solid::Integrator::Linearized &&
+      s.coupling->scheme_name() != solid::to_string(s.solid.integrator)) {
+    const std::string i = solid::to_string(s.solid.integrator);
+    p.fail("solid.integrator",
+           fmt::format("'{}' is not used in a two-way coupled scene: its bodies step with "
+                       "coupling.scheme '{}'; set coupling.scheme to '{}' to iterate the coupled "
+                       "step to equilibrium, or remove solid.integrator",
+                       i, s.coupling->scheme_name(), i));
   }
 
   s.resolved = resolve(s);
@@ -1413,6 +1482,8 @@ solid::SolidWorld build_world(const Scene& scene) {
   world.solver_options.max_iterations = scene.solver.max_iterations;
   world.trapezoid =
       scene.solid.trapezoid == "midpoint" ? solid::Trapezoid::Midpoint : solid::Trapezoid::Paper;
+  world.integrator = scene.solid.integrator;
+  world.equilibrium = scene.solid.equilibrium;  // its method: SolidWorld takes the integrator's
   world.bodies.reserve(scene.bodies.size());
 
   for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {

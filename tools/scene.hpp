@@ -15,7 +15,11 @@
 ///   "output": { "every": 4, "compression": "lz4" | "zlib" | "none" },
 ///   "gravity": [0, 0, -9.81],
 ///   "solver": { "linear": "cholmod", "rel_tol": 1e-8, "max_iterations": 1000 },
-///   "solid":  { "trapezoid": "paper" | "midpoint" },
+///   "solid":  { "integrator": "linearized" | "newton" | "modified_newton" | "bfgs",
+///               "trapezoid": "paper" | "midpoint",             // linearized only
+///               "rtol": 1e-3, "etol": 1e-5, "stol": 0.5,       // [BatheSonnad80, Eqs. (10)-(13)]
+///               "max_iterations": 30, "max_updates": 20, "line_search": true,
+///               "reform": "step" | "run" },
 ///   "static": { "load_steps": 1, "rel_tol": 1e-9, "max_iterations": 60 },
 ///   "bodies": [ {                              // required, at least one (without "fluid")
 ///       "name": "sheet",                                   // required, unique
@@ -72,7 +76,7 @@
 ///     "refine": { "size": 0, "density_threshold": 0.01, "vorticity_threshold": 0 }
 ///   },
 ///   "coupling": {                   // fluid scenes only: how the fluid and the bodies interact
-///     "scheme": "simultaneous" | "splitting" | "none",
+///     "scheme": "simultaneous" | "splitting" | "bfgs" | "modified_newton" | "newton" | "none",
 ///     "solver": "schur_amg" | "umfpack" | "bicgstab_ilut" | "symmetric_umfpack",
 ///     "rel_tol": 1e-10, "max_iterations": 500,              // of the coupled solve
 ///     "conserve_volume": true    // enclosed regions keep their volume (coupled_system.hpp)
@@ -102,11 +106,24 @@
 /// refine.size >= 0 (0: off) and <= mesh.far_size, thresholds >= 0. FluidParams::up is
 /// −gravity / |gravity| (+z for zero gravity) whatever "gravity" says.
 /// Coupling (coupling/coupled_step.hpp): only with a "fluid" section. "simultaneous" (the
-/// default of a dynamic scene with at least one deformable, i.e. non-kinematic, body) and
-/// "splitting" are two-way: the fluid pushes the bodies. "none" (the default otherwise) is
-/// one-way: the bodies step alone and the fluid follows them. solver one of
+/// default of a dynamic scene with at least one deformable, i.e. non-kinematic, body),
+/// "splitting" and the iterated schemes "bfgs", "modified_newton", "newton" [BatheSonnad80]
+/// (with the solid.* tolerances) are two-way: the fluid pushes the bodies. "none" (the default
+/// otherwise) is one-way: the bodies step alone and the fluid follows them. solver one of
 /// coupling::coupled_solver_names(), rel_tol > 0, max_iterations >= 1, conserve_volume a
 /// boolean. A static scene ignores the coupling (the run warns if it is two-way).
+/// Solid (solid/nonlinear_trapezoid.hpp, core/equilibrium.hpp): "integrator" is how the bodies
+/// step when they step alone (a solid-only or one-way scene): "linearized" (the default,
+/// [Chentanez06, Eqs. (4)–(5)], one linear solve) or the nonlinear trapezoidal rule iterated
+/// to equilibrium by full Newton, modified Newton or BFGS [BatheSonnad80]. "trapezoid" only
+/// applies to the linearized integrator: giving it with another is an error; so is a
+/// nonlinear integrator in a two-way coupled scene, unless it names the coupling scheme (the
+/// coupled step integrates the bodies by its scheme). The iteration's
+/// tolerances (EquilibriumOptions; also those of the iterated coupling schemes bfgs,
+/// modified_newton, newton): rtol > 0 (Eq. (12)), etol > 0 (Eq. (13)), 0 < stol < 1 (the line
+/// search, Eq. (10)), max_iterations >= 1 per step, max_updates >= 1 (BFGS updates before the
+/// matrix is re-formed), line_search a boolean; "reform" is when modified Newton and BFGS form
+/// their starting matrix: "step" (every step) or "run" (once, at the first step: keep_matrix).
 /// Bodies: a scene with a "fluid" section may have none ("bodies": [] or no key). A kinematic
 /// body has no pins, no loads and no (nonzero) initial_velocity; its material still must be
 /// valid (mass, energies).
@@ -227,7 +244,12 @@ struct SolverSpec {
 };
 
 struct SolidSpec {
-  std::string trapezoid = "paper";  ///< "paper" [Chentanez06, Eq. (4)] or "midpoint"
+  /// How bodies that step alone are integrated (SolidWorld::integrator).
+  solid::Integrator integrator = solid::Integrator::Linearized;
+  std::string trapezoid = "paper";  ///< "paper" [Chentanez06, Eq. (4)] or "midpoint"; linearized
+  /// The equilibrium iteration's options (SolidWorld::equilibrium; `method` is unused here:
+  /// it comes from `integrator`, or from the coupling scheme). reform "run" = keep_matrix.
+  EquilibriumOptions equilibrium;
 };
 
 struct StaticSpec {
@@ -250,7 +272,7 @@ struct FluidSpec {
 
 /// How the fluid and the bodies of a fluid scene interact (the scene key "coupling").
 struct CouplingSpec {
-  /// true: two-way, `params.scheme` (simultaneous or splitting); false: "none", one-way (the
+  /// true: two-way, `params.scheme` (any coupling::Scheme); false: "none", one-way (the
   /// bodies step alone, the fluid follows them, FluidDriver::step).
   bool two_way = false;
   coupling::CouplingParams params;  ///< the scheme and the coupled solve's options

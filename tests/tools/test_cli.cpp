@@ -250,6 +250,53 @@ TEST_CASE("tetfsi run: --set, --steps, --end-time and output.every change the ru
   }
 }
 
+TEST_CASE("tetfsi run: solid.integrator bfgs fills the equilibrium columns and summary block") {
+  TempDir dir("equilibrium");
+  write_scene(dir.path, tiny_scene(4));
+  // The block sags under gravity from rest: BFGS iterates every step (2 at least: a step
+  // converges once its second direction is small, core/equilibrium.hpp).
+  const Result r =
+      run_cli(dir.path, "run tiny.json --out o --progress off --set solid.integrator=bfgs");
+  INFO("stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  const auto cols = tetfsi::test::read_csv_columns(dir.path / "o" / "stats.csv");
+  REQUIRE(cols.count("equilibrium_iterations") == 1);
+  REQUIRE(cols.count("equilibrium_evaluations") == 1);
+  const std::vector<double>& it = cols.at("equilibrium_iterations");
+  const std::vector<double>& ev = cols.at("equilibrium_evaluations");
+  REQUIRE(it.size() == 4);
+  for (size_t k = 0; k < it.size(); ++k) {
+    INFO("step " << k + 1);
+    CHECK(it[k] >= 2);
+    CHECK(it[k] <= 30);
+    CHECK(ev[k] >= it[k]);  // one residual per direction at least, the line searches' more
+  }
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  REQUIRE(summary.contains("equilibrium"));
+  const nlohmann::json& e = summary["equilibrium"];
+  CHECK(e["method"] == "bfgs");
+  CHECK(e["via"] == "solid.integrator");
+  CHECK(e["steps"] == 4);
+  CHECK(e["iteration_limit"] == 30);
+  CHECK(e["max_iterations"] == *std::max_element(it.begin(), it.end()));
+  double sum = 0.0, evals = 0.0;
+  for (size_t k = 0; k < it.size(); ++k) sum += it[k], evals += ev[k];
+  CHECK(e["avg_iterations"].get<double>() == doctest::Approx(sum / 4));
+  CHECK(e["evaluations_per_step"].get<double>() == doctest::Approx(evals / 4));
+  CHECK(r.out.find("equilibrium: bfgs (solid.integrator)") != std::string::npos);
+
+  // The linearized integrator (the default): the columns are there and 0, no block.
+  const Result lin = run_cli(dir.path, "run tiny.json --out l --progress off");
+  REQUIRE(lin.code == 0);
+  const auto lcols = tetfsi::test::read_csv_columns(dir.path / "l" / "stats.csv");
+  REQUIRE(lcols.count("equilibrium_iterations") == 1);
+  for (double v : lcols.at("equilibrium_iterations")) CHECK(v == 0);
+  for (double v : lcols.at("equilibrium_evaluations")) CHECK(v == 0);
+  CHECK_FALSE(
+      nlohmann::json::parse(read_text(dir.path / "l" / "summary.json")).contains("equilibrium"));
+  CHECK(lin.out.find("equilibrium:") == std::string::npos);
+}
+
 TEST_CASE("tetfsi run: static mode writes frame 0 and the equilibrium at pseudo-time 1") {
   TempDir dir("static");
   nlohmann::json s = tiny_scene(5);

@@ -502,6 +502,8 @@ TEST_CASE("StatsWriter: header, then one row per step with every column") {
       r.kinetic_energy = 1.0;
       r.elastic_energy = 2.0;
       r.gravity_potential = -0.5;
+      r.equilibrium_iterations = step + 1;
+      r.equilibrium_evaluations = 3 * step;
       s.write(r);
       // Flushed per row: visible while the writer is still open.
       CHECK(read_lines(p).size() == static_cast<size_t>(step) + 1);
@@ -511,13 +513,14 @@ TEST_CASE("StatsWriter: header, then one row per step with every column") {
   REQUIRE(lines.size() == 5);
   CHECK(lines[0] ==
         "step,time,dt,assemble,solve,update,output,total,solver_iterations,solver_residual,"
-        "contacts,kinetic_energy,elastic_energy,gravity_potential,total_energy");
+        "contacts,kinetic_energy,elastic_energy,gravity_potential,total_energy,"
+        "equilibrium_iterations,equilibrium_evaluations");
   const size_t ncols = StatsWriter::columns().size();
-  CHECK(ncols == 15);
+  CHECK(ncols == 17);
   for (const auto& l : lines) CHECK(count_fields(l) == ncols);
   CHECK(lines[2].rfind("2,0.02,", 0) == 0);
-  // total_energy is the last column: 1 + 2 − 0.5.
-  CHECK(std::stod(lines[4].substr(lines[4].rfind(',') + 1)) == doctest::Approx(2.5));
+  // total_energy (1 + 2 − 0.5), then the equilibrium iterations and evaluations, last.
+  CHECK(lines[4].ends_with(",2.5,5,12"));
   // The "output" phase was never timed: its column is 0.
   CHECK(lines[1].find(",0,") != std::string::npos);
 }

@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -1157,6 +1158,159 @@ TEST_CASE("coupling and enclosed_density errors name the JSON path and the probl
       },
       {"scene.json: coupling: a scene without a 'fluid' section has nothing to "
        "couple the bodies to"});
+}
+
+TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolved scene") {
+  // Defaults: the linearized integrator, core/equilibrium.hpp's options.
+  const Scene d = parse_scene(minimal_json(), "scene.json");
+  const EquilibriumOptions defaults;
+  CHECK(d.solid.integrator == solid::Integrator::Linearized);
+  CHECK(d.solid.equilibrium.rtol == 1e-3);
+  CHECK(d.solid.equilibrium.etol == 1e-5);
+  CHECK(d.solid.equilibrium.stol == 0.5);
+  CHECK(d.solid.equilibrium.max_iterations == 30);
+  CHECK(d.solid.equilibrium.max_updates == 20);
+  CHECK(d.solid.equilibrium.line_search);
+  CHECK_FALSE(d.solid.equilibrium.keep_matrix);
+  CHECK(d.resolved["solid"] == json::parse(R"({ "integrator": "linearized", "trapezoid": "paper",
+      "rtol": 1e-3, "etol": 1e-5, "stol": 0.5, "max_iterations": 30, "max_updates": 20,
+      "line_search": true, "reform": "step" })"));
+  const solid::SolidWorld dw = build_world(d);
+  CHECK(dw.integrator == solid::Integrator::Linearized);
+  CHECK(dw.equilibrium.rtol == defaults.rtol);
+  CHECK(dw.equilibrium.max_iterations == defaults.max_iterations);
+  CHECK(dw.equilibrium.max_line_search == defaults.max_line_search);  // not a scene key
+
+  // Every key given: into the world, resolved back (without trapezoid) and parsed again.
+  json j = minimal_json();
+  j["solid"] = json::parse(R"({ "integrator": "bfgs", "rtol": 1e-4, "etol": 1e-6,
+      "stol": 0.25, "max_iterations": 12, "max_updates": 7, "line_search": false,
+      "reform": "run" })");
+  const Scene s = parse_scene(j, "scene.json");
+  CHECK(s.solid.integrator == solid::Integrator::Bfgs);
+  CHECK(s.resolved["solid"] == j["solid"]);
+  CHECK_FALSE(s.resolved["solid"].contains("trapezoid"));
+  const solid::SolidWorld w = build_world(s);
+  CHECK(w.integrator == solid::Integrator::Bfgs);
+  CHECK(w.equilibrium.rtol == 1e-4);
+  CHECK(w.equilibrium.etol == 1e-6);
+  CHECK(w.equilibrium.stol == 0.25);
+  CHECK(w.equilibrium.max_iterations == 12);
+  CHECK(w.equilibrium.max_updates == 7);
+  CHECK_FALSE(w.equilibrium.line_search);
+  CHECK(w.equilibrium.keep_matrix);
+  const Scene back = parse_scene(s.resolved, "scene.json");
+  CHECK(back.resolved == s.resolved);
+  CHECK(back.solid.equilibrium.keep_matrix);
+  CHECK(parse_scene(json::parse(d.resolved.dump(2)), "x.json").resolved == d.resolved);
+
+  for (const char* name : {"linearized", "newton", "modified_newton", "bfgs"}) {
+    INFO(name);
+    j["solid"]["integrator"] = name;
+    const Scene n = parse_scene(j, "scene.json");
+    CHECK(solid::to_string(n.solid.integrator) == std::string(name));
+    CHECK(build_world(n).integrator == n.solid.integrator);
+    CHECK(parse_scene(n.resolved, "scene.json").resolved == n.resolved);
+  }
+  // The linearized integrator keeps its trapezoid variant.
+  json lin = minimal_json();
+  lin["solid"] = {{"integrator", "linearized"}, {"trapezoid", "midpoint"}};
+  const Scene ls = parse_scene(lin, "scene.json");
+  CHECK(ls.resolved["solid"]["trapezoid"] == "midpoint");
+  CHECK(build_world(ls).trapezoid == solid::Trapezoid::Midpoint);
+}
+
+TEST_CASE("solid: bad integrator and tolerance values are one-line errors naming the key") {
+  check_edit_rejected([](json& j) { j["solid"]["integrator"] = "bfg"; },
+                      {"scene.json: solid.integrator: unknown solid integrator 'bfg' (did you "
+                       "mean 'bfgs'?)"});
+  check_edit_rejected([](json& j) { j["solid"]["integrator"] = "implicit_euler"; },
+                      {"solid.integrator: unknown solid integrator 'implicit_euler'", "linearized",
+                       "modified_newton"});
+  for (const char* integrator : {"newton", "modified_newton", "bfgs"}) {
+    INFO(integrator);
+    check_edit_rejected(
+        [&](json& j) {
+          j["solid"] = {{"integrator", integrator}, {"trapezoid", "paper"}};
+        },
+        {"scene.json: solid.trapezoid: applies only to solid.integrator 'linearized'",
+         std::string("the '") + integrator + "' integrator",
+         "remove it or set solid.integrator to 'linearized'"});
+  }
+  check_edit_rejected([](json& j) { j["solid"]["rtol"] = 0; },
+                      {"scene.json: solid.rtol: must be > 0", "got 0"});
+  check_edit_rejected([](json& j) { j["solid"]["rtol"] = -1e-3; },
+                      {"solid.rtol: must be > 0", "got -0.001"});
+  check_edit_rejected([](json& j) { j["solid"]["rtol"] = NAN; },
+                      {"solid.rtol: expected a finite number, got number nan"});
+  check_edit_rejected([](json& j) { j["solid"]["etol"] = -1e-5; },
+                      {"scene.json: solid.etol: must be > 0", "Eq. (13)"});
+  check_edit_rejected([](json& j) { j["solid"]["etol"] = "small"; },
+                      {"solid.etol: expected a number, got string \"small\""});
+  for (double stol : {0.0, 1.0, 1.5, -0.5}) {
+    INFO(stol);
+    check_edit_rejected([&](json& j) { j["solid"]["stol"] = stol; },
+                        {"scene.json: solid.stol: must be in (0, 1)"});
+  }
+  check_edit_rejected([](json& j) { j["solid"]["max_iterations"] = 0; },
+                      {"scene.json: solid.max_iterations: must be >= 1", "got 0"});
+  check_edit_rejected([](json& j) { j["solid"]["max_iterations"] = 2.5; },
+                      {"solid.max_iterations: expected an integer, got number 2.5"});
+  check_edit_rejected([](json& j) { j["solid"]["max_updates"] = 0; },
+                      {"scene.json: solid.max_updates: must be >= 1", "got 0"});
+  check_edit_rejected([](json& j) { j["solid"]["line_search"] = 1; },
+                      {"scene.json: solid.line_search: expected true", "got number 1"});
+  check_edit_rejected([](json& j) { j["solid"]["reform"] = "always"; },
+                      {"scene.json: solid.reform: unknown reform 'always'", "step", "run"});
+  check_edit_rejected([](json& j) { j["solid"]["rtl"] = 1e-3; },
+                      {"scene.json: solid.rtl: unknown key (did you mean 'rtol'?)"});
+  check_edit_rejected([](json& j) { j["solid"] = "bfgs"; },
+                      {"scene.json: solid: expected an object, got string"});
+}
+
+TEST_CASE("coupling: the iterated schemes bfgs, modified_newton, newton are two-way") {
+  for (const char* name : {"bfgs", "modified_newton", "newton"}) {
+    INFO(name);
+    json j = fluid_json();
+    j["coupling"] = {{"scheme", name}};
+    j["solid"] = {{"rtol", 1e-4}, {"max_iterations", 8}};  // the iteration's tolerances
+    const Scene s = parse_scene(j, "scene.json");
+    REQUIRE(s.coupling);
+    CHECK(s.two_way());
+    CHECK(coupling::is_iterated(s.coupling->params.scheme));
+    CHECK(s.coupling->scheme_name() == name);
+    CHECK(s.resolved["coupling"]["scheme"] == name);
+    CHECK(parse_scene(s.resolved, "scene.json").resolved == s.resolved);
+    const solid::SolidWorld w = build_world(s);
+    CHECK(w.equilibrium.rtol == 1e-4);
+    CHECK(w.equilibrium.max_iterations == 8);
+  }
+  // A nonlinear solid.integrator in a two-way scene must name its coupling scheme.
+  json same = fluid_json();
+  same["coupling"] = {{"scheme", "bfgs"}};
+  same["solid"] = {{"integrator", "bfgs"}};
+  CHECK(parse_scene(same, "scene.json").two_way());
+  check_fluid_rejected(
+      [](json& j) {
+        j["solid"] = {{"integrator", "bfgs"}};  // simultaneous by default
+      },
+      {"scene.json: solid.integrator: 'bfgs' is not used in a two-way coupled scene: its bodies "
+       "step with coupling.scheme 'simultaneous'; set coupling.scheme to 'bfgs'"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["solid"] = {{"integrator", "newton"}};
+        j["coupling"] = {{"scheme", "modified_newton"}};
+      },
+      {"solid.integrator: 'newton' is not used", "coupling.scheme 'modified_newton'"});
+  json one_way = fluid_json();  // one-way: the bodies step alone, by the integrator
+  one_way["solid"] = {{"integrator", "bfgs"}};
+  one_way["coupling"] = {{"scheme", "none"}};
+  CHECK(parse_scene(one_way, "scene.json").solid.integrator == solid::Integrator::Bfgs);
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "bfg"}};
+      },
+      {"scene.json: coupling.scheme: unknown coupling scheme 'bfg' (did you mean 'bfgs'?)"});
 }
 
 TEST_CASE("the shipped scenes parse") {
