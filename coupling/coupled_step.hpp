@@ -27,8 +27,11 @@
 ///    mass than body mass it cannot converge). newton re-forms the bodies' tangent every
 ///    iteration and solves for the increment with the fluid in the matrix (the coupled
 ///    system of coupled_system.hpp on the increment), so it is the simultaneous scheme
-///    iterated on the solid's nonlinearity. Fluid regions sealed by a deformable body (no
-///    Open face) are rejected: a fluid-only projection cannot give them a volume.
+///    iterated on the solid's nonlinearity. The fluid-only solution is affine in the face
+///    velocities: a point in the affine span of solved points (every line-search trial) is
+///    combined from them instead of solved, so BFGS costs one fluid solve per iteration.
+///    Fluid regions sealed by a deformable body (no Open face) are rejected: a fluid-only
+///    projection cannot give them a volume.
 ///
 /// Kinematic bodies follow their motion in every scheme and are prescribed in the solve.
 #include <functional>

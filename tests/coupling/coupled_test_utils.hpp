@@ -52,4 +52,18 @@ struct CoupledRig {
   }
 };
 
+/// The fluid of a rig: water with gravity in the unit box, open (pressure 0) at the top.
+inline void water_box_open_top(CoupledRig& r) {
+  r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
+  mesh::DomainPatch top;
+  top.kind = mesh::FaceKind::Open;
+  top.side = 5;
+  top.lo = Vec2(0, 0);
+  top.hi = Vec2(1, 1);
+  r.domain.patches.push_back(top);
+  r.fluid_params.density = 1000;
+  r.fluid_params.gravity = Vec3(0, 0, -9.81);
+  r.fluid_params.patches.resize(1);
+}
+
 }  // namespace tetfsi::test

@@ -20,20 +20,6 @@ using solid::testing::make_material;
 
 namespace {
 
-/// The fluid of a rig: water with gravity in the unit box, open (pressure 0) at the top.
-void water_box_open_top(CoupledRig& r) {
-  r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
-  mesh::DomainPatch top;
-  top.kind = mesh::FaceKind::Open;
-  top.side = 5;
-  top.lo = Vec2(0, 0);
-  top.hi = Vec2(1, 1);
-  r.domain.patches.push_back(top);
-  r.fluid_params.density = 1000;
-  r.fluid_params.gravity = Vec3(0, 0, -9.81);
-  r.fluid_params.patches.resize(1);
-}
-
 /// A soft cube (ρ_s = 2000) in a water box open at the top, with a swirl in the water.
 CoupledRig cube_in_water(double size) {
   CoupledRig r;

@@ -34,16 +34,7 @@ CoupledRig plate(Scheme scheme, double rtol = 1e-3, double etol = 1e-5, double E
   r.world.trapezoid = solid::Trapezoid::Midpoint;  // the linearisation of the trapezoidal rule
   r.world.equilibrium.rtol = rtol;
   r.world.equilibrium.etol = etol;
-  r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
-  mesh::DomainPatch top;
-  top.kind = mesh::FaceKind::Open;
-  top.side = 5;
-  top.lo = Vec2(0, 0);
-  top.hi = Vec2(1, 1);
-  r.domain.patches.push_back(top);
-  r.fluid_params.density = 1000;
-  r.fluid_params.gravity = Vec3(0, 0, -9.81);
-  r.fluid_params.patches.resize(1);
+  water_box_open_top(r);
   r.sizing = sizing(0.05, 0.15);
   r.coupling.scheme = scheme;
   r.start();

@@ -168,8 +168,15 @@ TEST_CASE("bench bfgs: the coarse bar in water, coupling.scheme = method at dt a
     CHECK(row["steps"] == (row["dt"].get<double>() < 0.05 ? 3 : 1));
     if (!row["converged"].get<bool>()) continue;
     CHECK(row["max_iterations"].get<int>() >= 2);
-    // one fluid solve per residual evaluation (newton: and one per increment)
-    CHECK(row["fluid_solves_per_step"].get<double>() >= row["evaluations_per_step"].get<double>());
+    // newton: one fluid solve per residual evaluation and one per increment; the others
+    // solve at most once per evaluation (line-search trials are combined from solved points)
+    const double solves = row["fluid_solves_per_step"].get<double>(),
+                 evals = row["evaluations_per_step"].get<double>();
+    if (row["method"] == "newton")
+      CHECK(solves >= 2 * evals - 1e-9);
+    else
+      CHECK(solves <= evals + 1e-9);
+    CHECK(solves >= 1.0);
   }
   for (int k : {2, 5}) {
     INFO(rows[k].dump());
