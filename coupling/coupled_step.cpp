@@ -454,7 +454,11 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
     }
     CoupledInput in = make_input(pred, params, held);
     in.u_star = &ustar;
-    s = solve_coupled(in, m_params.solve);
+    // The forces need not be more accurate than RTOL resolves: the fluid solve stops at
+    // 1e-2 RTOL relative (at most 1e-8; the scene's coupling.rel_tol if that is looser).
+    CoupledOptions o = m_params.solve;
+    o.rel_tol = std::max(o.rel_tol, std::min(1e-8, 1e-2 * world.equilibrium.rtol));
+    s = solve_coupled(in, o);
     phases.add("coupled_assembly", s.report.assembly_s);
     phases.add("coupled_solve", s.report.setup_s + s.report.solve_s);
     ++rep.fluid_solves;
