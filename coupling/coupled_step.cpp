@@ -441,6 +441,7 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
   VecX last_x;
   CoupledSolution last;
   AffineFluidCache cache;
+  SolveCache amg_cache;  // every fluid-only solve of this step has the same P = C
   auto fluid_at = [&](const VecX& x) {
     CoupledSolution s;
     if (cache.combine(x, s)) return s;
@@ -458,6 +459,7 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
     // 1e-2 RTOL relative (at most 1e-8; the scene's coupling.rel_tol if that is looser).
     CoupledOptions o = m_params.solve;
     o.rel_tol = std::max(o.rel_tol, std::min(1e-8, 1e-2 * world.equilibrium.rtol));
+    o.reuse = &amg_cache;
     s = solve_coupled(in, o);
     phases.add("coupled_assembly", s.report.assembly_s);
     phases.add("coupled_solve", s.report.setup_s + s.report.solve_s);

@@ -385,8 +385,20 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
         y += Jt * tmp_u;
       }
     };
-    auto amg = make_amg_preconditioner();
-    amg->setup(Pm);
+    std::unique_ptr<AmgPreconditioner> own_amg;
+    AmgPreconditioner* amg = nullptr;
+    if (opt.reuse && opt.reuse->amg && opt.reuse->size == ng) {
+      amg = opt.reuse->amg.get();  // the caller vouches that P is the same
+      ++opt.reuse->reused;
+    } else {
+      own_amg = make_amg_preconditioner();
+      own_amg->setup(Pm);
+      amg = own_amg.get();
+      if (opt.reuse) {
+        opt.reuse->amg = std::move(own_amg);
+        opt.reuse->size = ng;
+      }
+    }
     // Coarse space: the constant of every region that only the bodies' elasticity holds
     // (no Open face). S is nearly singular there (a stiff body barely lifts it), which stalls
     // a plain preconditioned CG; the balancing preconditioner

@@ -79,6 +79,15 @@ struct CoupledBody {
   VecX u;   ///< free: uⁿ (3n; enclosed volumes)
 };
 
+/// A preconditioner kept between solves whose P is the same: the fluid-only solves of one
+/// iterated step (coupled_step.hpp) share the mesh, the densities, h and (no free body)
+/// P = C, and differ only in their right-hand sides. The caller must drop it when P changes.
+struct SolveCache {
+  std::unique_ptr<AmgPreconditioner> amg;
+  Index size = -1;  ///< pressure unknowns of the matrix it was set up for
+  int reused = 0;   ///< solves that reused it
+};
+
 struct CoupledOptions {
   CoupledSolverKind solver = CoupledSolverKind::SchurAmg;
   /// Relative residual of the iterative solves. The right-hand side carries the bodies'
@@ -89,6 +98,9 @@ struct CoupledOptions {
   int max_iterations = 500;
   double min_dual_fraction = 1e-6;  ///< as fluid::FluidParams
   bool conserve_volume = true;      ///< the enclosed-volume correction (file comment)
+  /// schur_amg: if set, the AMG setup of the first solve is kept here and reused by later
+  /// solves with this cache (see SolveCache: only for the same P).
+  SolveCache* reuse = nullptr;
 };
 
 /// Enclosed regions' targets, keyed by the region's first (body, triangle) pair, kept by
