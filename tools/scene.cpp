@@ -939,8 +939,10 @@ json resolve(const Scene& s) {
                 {"max_updates", e.max_updates},
                 {"line_search", e.line_search},
                 {"reform", e.keep_matrix ? "run" : "step"}};
-  // only the linearized integrator has variants (and takes the key)
-  if (s.solid.integrator == solid::Integrator::Linearized)
+  // only the linearized integrator has variants (and takes the key); the iterated coupled
+  // schemes take the full trapezoidal rule
+  if (s.solid.integrator == solid::Integrator::Linearized &&
+      !(s.two_way() && coupling::is_iterated(s.coupling->params.scheme)))
     j["solid"]["trapezoid"] = s.solid.trapezoid;
   j["static"] = {{"load_steps", s.statics.load_steps},
                  {"rel_tol", s.statics.rel_tol},
@@ -1256,6 +1258,15 @@ Scene parse_scene(const json& j, const fs::path& file) {
                        "coupling.scheme '{}'; set coupling.scheme to '{}' to iterate the coupled "
                        "step to equilibrium, or remove solid.integrator",
                        i, s.coupling->scheme_name(), i));
+  }
+
+  // The same for solid.trapezoid: the iterated coupled schemes take the full trapezoidal rule.
+  if (s.two_way() && coupling::is_iterated(s.coupling->params.scheme) &&
+      Parser::has(root, "solid") && Parser::has(Parser::child(root, "solid"), "trapezoid")) {
+    p.fail("solid.trapezoid",
+           fmt::format("applies to the linearized integrator only; coupling.scheme '{}' "
+                       "iterates the full trapezoidal rule: remove solid.trapezoid",
+                       s.coupling->scheme_name()));
   }
 
   s.resolved = resolve(s);

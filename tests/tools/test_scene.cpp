@@ -1281,10 +1281,19 @@ TEST_CASE("coupling: the iterated schemes bfgs, modified_newton, newton are two-
     CHECK(s.coupling->scheme_name() == name);
     CHECK(s.resolved["coupling"]["scheme"] == name);
     CHECK(parse_scene(s.resolved, "scene.json").resolved == s.resolved);
+    CHECK_FALSE(s.resolved["solid"].contains("trapezoid"));  // the full rule, no variant
     const solid::SolidWorld w = build_world(s);
     CHECK(w.equilibrium.rtol == 1e-4);
     CHECK(w.equilibrium.max_iterations == 8);
   }
+  // solid.trapezoid is the linearized rule's variant: an error with an iterated scheme.
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "newton"}};
+        j["solid"] = {{"trapezoid", "midpoint"}};
+      },
+      {"scene.json: solid.trapezoid: applies to the linearized integrator only; "
+       "coupling.scheme 'newton' iterates the full trapezoidal rule"});
   // A nonlinear solid.integrator in a two-way scene must name its coupling scheme.
   json same = fluid_json();
   same["coupling"] = {{"scheme", "bfgs"}};
