@@ -355,7 +355,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
             if (body.is_fixed(l)) fe[l] = 0.0;
           const solid::TrapezoidalSystem sys =
               solid::assemble_trapezoidal(body, h, fe, world.trapezoid);
-          const std::unique_ptr<LinearSolver> s = factor_body(sys.A);
+          const std::unique_ptr<LinearSolver> s = factor_symmetric(sys.A);
           VecX u = flat(body.velocity);
           const SolveReport sr = s->solve(sys.b, u);
           rep.solid_iterations += sr.iterations;
@@ -572,8 +572,7 @@ CoupledSolution CoupledStepper::step_iterated(solid::SolidWorld& world,
     if (!eq[b]) continue;
     solid::SolidBody& body = world.bodies[b];
     const VecX ub = part(x, b);
-    flat(body.displacement) = eq[b]->displacement(ub);
-    flat(body.velocity) = ub;
+    solid::advance_trapezoidal(body, ub, h);
     last.u[b] = ub;
     rep.contacts += solid::resolve_collisions(body, world.obstacles);
     check_finite(body, h);

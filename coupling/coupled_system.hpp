@@ -162,11 +162,6 @@ struct CoupledSolution {
   CoupledReport report;
 };
 
-/// A solver of A x = b for one body's trapezoidal A [Chentanez06, Eq. (4)]: CHOLMOD, or
-/// UMFPACK when A is not positive definite (StVK under strong compression).
-/// @throws SolverError if both factorizations fail.
-std::unique_ptr<LinearSolver> factor_body(const SparseMatrix& A);
-
 /// Assemble and solve, see the file comment.
 /// @throws SolverError if a factorization fails or the result is not finite;
 ///   InputError for inconsistent sizes (naming them).

@@ -5,6 +5,7 @@
 
 #include "core/error.hpp"
 #include "core/linear_solver.hpp"
+#include "solid/integrator.hpp"
 
 namespace tetfsi::solid {
 
@@ -65,10 +66,14 @@ VecX TrapezoidalEquilibrium::displacement(const VecX& u1) const {
   return m_d0 + (0.5 * m_h) * (m_u0 + u1);  // [BatheSonnad80, Eq. (3)]
 }
 
-VecX TrapezoidalEquilibrium::residual(const VecX& u1) const {
+MatX3 TrapezoidalEquilibrium::positions(const VecX& u1) const {
   MatX3 x = m_body.rest_positions();
   flat(x) += displacement(u1);
-  const VecX K1 = m_body.elasticity().forces(x);
+  return x;
+}
+
+VecX TrapezoidalEquilibrium::residual(const VecX& u1) const {
+  const VecX K1 = m_body.elasticity().forces(positions(u1));
   const double alpha = m_body.material().rayleigh_alpha;
   // g = ½ (f_s⁰ + f_s¹) − M (u¹ − uⁿ)/h, f_s¹ = f_e − C u¹ − K(d¹)   [BatheSonnad80, Eq. (6)] / 2
   VecX g = 0.5 * (m_fs0 + m_fe - K1);
@@ -83,9 +88,7 @@ VecX TrapezoidalEquilibrium::residual(const VecX& u1) const {
 }
 
 SparseMatrix TrapezoidalEquilibrium::tangent(const VecX& u1) const {
-  MatX3 x = m_body.rest_positions();
-  flat(x) += displacement(u1);
-  SparseMatrix A = m_body.elasticity().jacobian(x);
+  SparseMatrix A = m_body.elasticity().jacobian(positions(u1));
   // (h/4) K̂ = M/h + C/2 + (h/4) K'(d¹)   [BatheSonnad80, Eq. (7)]
   A *= 0.25 * m_h;
   if (m_C.size()) A += 0.5 * m_C;
@@ -130,10 +133,7 @@ EquilibriumReport step_nonlinear(SolidBody& body, double h, const VecX& f_e,
   problem.factor = [&](const VecX& u) { return factor_inverse(eq.tangent(u)); };
   VecX u = eq.start();
   const EquilibriumReport rep = solve_equilibrium(problem, u, opt, history);
-  if (!rep.converged) return rep;
-  const VecX d = eq.displacement(u);
-  flat(body.displacement) = d;
-  flat(body.velocity) = u;
+  if (rep.converged) advance_trapezoidal(body, u, h);  // [BatheSonnad80, Eq. (3)]
   return rep;
 }
 

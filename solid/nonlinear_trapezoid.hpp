@@ -56,6 +56,8 @@ class TrapezoidalEquilibrium {
   VecX start() const;
 
  private:
+  MatX3 positions(const VecX& u1) const;  ///< X + d¹ (#V × 3)
+
   const SolidBody& m_body;
   double m_h;
   VecX m_mass;       ///< lumped mass per node

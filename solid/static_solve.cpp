@@ -20,12 +20,10 @@ double free_norm(const VecX& v, const std::vector<std::uint8_t>& fixed) {
   return std::sqrt(s);
 }
 
-/// Solve K' Δ = r on the free DOFs (fixed rows/cols eliminated symmetrically, Δ = 0 there):
-/// CHOLMOD first (or the requested backend), UMFPACK if the factorization fails because K'
-/// is not positive definite (compressed, buckling states).
-VecX solve_newton_system(SparseMatrix& Kp, const VecX& r, const std::vector<std::uint8_t>& fixed,
-                         SolverKind kind, const std::string& body) {
-  const Index n = static_cast<Index>(r.size());
+/// Eliminate the fixed DOFs of K' symmetrically: their rows and columns zero but a diagonal
+/// of the free DOFs' mean |K'_ii| (so the matrix keeps its scale). Δ = 0 there when r = 0.
+void eliminate_fixed(SparseMatrix& Kp, const std::vector<std::uint8_t>& fixed) {
+  const Index n = Kp.cols();
   double diag_scale = 0.0;
   Index nfree = 0;
   for (Index c = 0; c < n; ++c)
@@ -37,6 +35,15 @@ VecX solve_newton_system(SparseMatrix& Kp, const VecX& r, const std::vector<std:
   for (Index c = 0; c < n; ++c)
     for (SparseMatrix::InnerIterator it(Kp, c); it; ++it)
       if (fixed[it.row()] || fixed[c]) it.valueRef() = (it.row() == c) ? diag_scale : 0.0;
+}
+
+/// Solve K' Δ = r on the free DOFs (fixed rows/cols eliminated symmetrically, Δ = 0 there):
+/// CHOLMOD first (or the requested backend), UMFPACK if the factorization fails because K'
+/// is not positive definite (compressed, buckling states).
+VecX solve_newton_system(SparseMatrix& Kp, const VecX& r, const std::vector<std::uint8_t>& fixed,
+                         SolverKind kind, const std::string& body) {
+  const Index n = static_cast<Index>(r.size());
+  eliminate_fixed(Kp, fixed);
   VecX rhs = r;
   for (Index i = 0; i < n; ++i)
     if (fixed[i]) rhs[i] = 0.0;
@@ -180,10 +187,7 @@ EquilibriumReport solve_static_iterated(SolidBody& body, const VecX& f_e,
   };
   problem.factor = [&](const VecX& d) {
     SparseMatrix Kp = body.elasticity().jacobian(positions(d));
-    const double scale = Kp.diagonal().cwiseAbs().mean();
-    for (Index c = 0; c < ndof; ++c)
-      for (SparseMatrix::InnerIterator it(Kp, c); it; ++it)
-        if (fixed[it.row()] || fixed[c]) it.valueRef() = it.row() == c ? scale : 0.0;
+    eliminate_fixed(Kp, fixed);
     return factor_inverse(Kp);
   };
   EquilibriumHistory history;

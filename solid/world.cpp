@@ -43,7 +43,9 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
       body.set_kinematic_state(t_new);  // exact: evaluated at t, not integrated
       continue;
     }
+    SolveReport rep;  // the linearized integrator's linear solve
     if (integrator != Integrator::Linearized) {
+      // [BatheSonnad80, Eqs. (1)–(13)]: iterated to equilibrium, the body advanced
       EquilibriumOptions opt = equilibrium;
       opt.method = iteration_method(integrator);
       EquilibriumReport er;
@@ -57,50 +59,44 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
                      body.name(), to_string(integrator), er.failure, time, h);
       report.equilibrium_iterations = std::max(report.equilibrium_iterations, er.iterations);
       report.equilibrium_evaluations += er.evaluations;
+      rep.converged = true;
+    } else {
+      TrapezoidalSystem sys;
       {
-        ScopedTimer timer(times, "update");
-        report.contacts += resolve_collisions(body, obstacles);
+        ScopedTimer timer(times, "assemble");
+        // A u = b  [Chentanez06, Eq. (4)] with f_p = 0 (no fluid here).
+        sys = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
       }
-      TETFSI_REQUIRE(SolverError, body.displacement.allFinite() && body.velocity.allFinite(),
-                     "body '{}': state became non-finite at step with h = {}; reduce time.dt",
-                     body.name(), h);
-      continue;
-    }
-    TrapezoidalSystem sys;
-    {
-      ScopedTimer timer(times, "assemble");
-      // A u = b  [Chentanez06, Eq. (4)] with f_p = 0 (no fluid here).
-      sys = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
-    }
-    VecX u = flat(body.velocity);  // initial guess for iterative backends
-    SolveReport rep;
-    {
-      ScopedTimer timer(times, "solve");
-      auto solver = make_linear_solver(linear_solver, solver_options);
-      try {
-        solver->setup(sys.A);
-      } catch (const SolverError& e) {
-        // A = M/h + C + (h/2)K' is SPD unless K' is strongly indefinite (large compression);
-        // LU still solves it.
-        if (linear_solver != SolverKind::Cholmod) throw;
-        if (!m_warned_fallback) {
-          logger().warn(
-              "body '{}': cholmod failed ({}): A is not positive definite; falling "
-              "back to umfpack (warned once)",
-              body.name(), e.what());
-          m_warned_fallback = true;
+      VecX u = flat(body.velocity);  // initial guess for iterative backends
+      {
+        ScopedTimer timer(times, "solve");
+        auto solver = make_linear_solver(linear_solver, solver_options);
+        try {
+          solver->setup(sys.A);
+        } catch (const SolverError& e) {
+          // A = M/h + C + (h/2)K' is SPD unless K' is strongly indefinite (large compression);
+          // LU still solves it.
+          if (linear_solver != SolverKind::Cholmod) throw;
+          if (!m_warned_fallback) {
+            logger().warn(
+                "body '{}': cholmod failed ({}): A is not positive definite; falling "
+                "back to umfpack (warned once)",
+                body.name(), e.what());
+            m_warned_fallback = true;
+          }
+          solver = make_linear_solver(SolverKind::Umfpack, solver_options);
+          solver->setup(sys.A);
         }
-        solver = make_linear_solver(SolverKind::Umfpack, solver_options);
-        solver->setup(sys.A);
+        rep = solver->solve(sys.b, u);
       }
-      rep = solver->solve(sys.b, u);
-    }
-    report.converged = report.converged && rep.converged;
-    report.iterations += rep.iterations;
-    report.residual = std::max(report.residual, rep.residual);
-    {
+      report.converged = report.converged && rep.converged;
+      report.iterations += rep.iterations;
+      report.residual = std::max(report.residual, rep.residual);
       ScopedTimer timer(times, "update");
       advance_trapezoidal(body, u, h);  // [Chentanez06, Eq. (5)]
+    }
+    {
+      ScopedTimer timer(times, "update");
       report.contacts += resolve_collisions(body, obstacles);
     }
     TETFSI_REQUIRE(SolverError, body.displacement.allFinite() && body.velocity.allFinite(),
