@@ -98,13 +98,6 @@ Sample sample(const solid::SolidBody& body, const Probe& a, const Probe& b, doub
           body.velocity(b.node, 0)};
 }
 
-/// One line: the CLI and the table print messages as single lines.
-std::string one_line(std::string s) {
-  for (char& c : s)
-    if (c == '\n' || c == '\r') c = ' ';
-  return s;
-}
-
 /// `steps` steps of `method` at h: coupled (coupling.scheme = method) or the bodies alone
 /// (solid.integrator = method). Stops at the first step that throws.
 Run run_method(const Scene& scene, const solid::SolidWorld& world0, bool coupled, size_t body,

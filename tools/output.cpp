@@ -267,6 +267,12 @@ std::string file_safe_name(const std::string& name) {
   return s;
 }
 
+std::string one_line(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  return s;
+}
+
 void write_text_file_atomic(const fs::path& path, const std::string& text) {
   const fs::path tmp = tmp_path(path);
   {

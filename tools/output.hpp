@@ -122,6 +122,9 @@ void write_fluid_vtu(const std::filesystem::path& path, const mesh::TetMesh& flu
 void write_interface_vtp(const std::filesystem::path& path, const mesh::TetMesh& fluid,
                          Compression compression, const FluidFrameFields* fields = nullptr);
 
+/// `s` with its line breaks turned into spaces: the CLI prints messages as single lines.
+std::string one_line(std::string s);
+
 /// Write `text` to `path` atomically: `<path>.tmp`, flush, close, rename over `path`.
 /// @throws InputError naming the file if it cannot be written.
 void write_text_file_atomic(const std::filesystem::path& path, const std::string& text);

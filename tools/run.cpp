@@ -149,13 +149,6 @@ class StateSnapshot {
   std::vector<std::pair<MatX3, MatX3>> m_state;
 };
 
-/// Make a message one line (the CLI prints errors as exactly one line).
-std::string one_line(std::string s) {
-  for (char& c : s)
-    if (c == '\n' || c == '\r') c = ' ';
-  return s;
-}
-
 
 /// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
 void write_frame(OutputWriter& out, const solid::SolidWorld& world, int step, double t,
