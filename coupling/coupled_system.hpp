@@ -49,7 +49,8 @@
 
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
-#include "coupling/interface.hpp"
+#include "fluid/interface.hpp"
+#include "fluid/operators.hpp"
 #include "fluid/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
 
@@ -62,9 +63,12 @@ CoupledSolverKind parse_coupled_solver(const std::string& name);
 const char* to_string(CoupledSolverKind k);
 const std::vector<std::string>& coupled_solver_names();
 
-/// One body as the coupled solve sees it.
+using fluid::BodyInterface;
+using fluid::InterfaceOperators;
+
+/// One body as the coupled solve sees it (how the mesh's Solid faces refer to it is the
+/// input's InterfaceOperators, body for body).
 struct CoupledBody {
-  BodyInterface interface;  ///< how the mesh's Solid faces refer to it
   /// true: its velocities are unknowns (a deformable body). false: prescribed (kinematic,
   /// or held by time splitting): its Solid faces keep the v* the caller set.
   bool free = false;
@@ -117,15 +121,17 @@ struct CoupledInput {
   /// exactly (face_pressure_forces), J carries only the dynamic pressure.
   Vec3 gravity = Vec3::Zero();
   Vec3 hydrostatic_origin = Vec3::Zero();            ///< as fluid::FluidParams
+  const InterfaceOperators* interface = nullptr;     ///< H, J, D1 of `mesh` and the bodies
   const std::vector<CoupledBody>* bodies = nullptr;  ///< every body of the mesh, by index
   VolumeTargets* volume_targets = nullptr;           ///< may be null: no volume correction
 };
 
 /// The input of a solve from the fluid's prediction of the step (its mesh, v*, densities,
 /// open pressures, h) and its parameters (gravity, hydrostatic origin). The pointers refer to
-/// `pred` and `bodies`, which must outlive the input.
+/// `pred`, `ops` (built on pred.mesh) and `bodies`, which must outlive the input.
 CoupledInput make_input(const fluid::FluidPrediction& pred, const fluid::FluidParams& params,
-                        const std::vector<CoupledBody>& bodies, VolumeTargets* targets = nullptr);
+                        const InterfaceOperators& ops, const std::vector<CoupledBody>& bodies,
+                        VolumeTargets* targets = nullptr);
 
 /// An enclosed region of this step.
 struct EnclosedRegion {
@@ -162,17 +168,93 @@ struct CoupledSolution {
   CoupledReport report;
 };
 
-/// Assemble and solve, see the file comment.
+/// Assemble and solve, see the file comment: assemble_coupled, then solve_schur_amg or
+/// solve_assembled, then solve_enclosed_volumes, then finish_coupled (Eq. (8)).
 /// @throws SolverError if a factorization fails or the result is not finite;
 ///   InputError for inconsistent sizes (naming them).
 CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt);
 
 /// The fluid's force on every node of every body (3n each, N) of a pressure p (#T, dynamic,
-/// Pa) on mesh m, with the hydrostatic part ρ g·(x − origin) at the face centroids:
-/// J p + F_hydro.
-/// Time splitting holds it over the next solid step.
-std::vector<VecX> fluid_forces(const mesh::TetMesh& m, const std::vector<BodyInterface>& bodies,
-                               const VecX& p, const VecX& rho, const Vec3& gravity,
-                               const Vec3& origin = Vec3::Zero());
+/// Pa) on the interface's mesh, with the hydrostatic part ρ g·(x − origin) at the face
+/// centroids: J p + F_hydro. Time splitting holds it over the next solid step.
+std::vector<VecX> fluid_forces(const InterfaceOperators& ops, const VecX& p, const VecX& rho,
+                               const Vec3& gravity, const Vec3& origin = Vec3::Zero());
+
+// ---- the parts of solve_coupled (coupled_assembly.cpp, coupled_solvers.cpp,
+//      enclosed_volume.cpp) ----------------------------------------------------------------
+
+/// A cavity: the body triangles (body, triangle) bounding an enclosed region, once each.
+struct Cavity {
+  std::vector<std::pair<Index, Index>> triangles;
+};
+
+/// The assembled system of one solve (plain data; the tet fluid's assembly, a grid fluid
+/// would fill the same): unknowns u (ns free DOFs) and p (ng pressure groups),
+///     [ A     −J ] [u]   [ bs   ]
+///     [ −Jᵀ   −C ] [p] = [ R2_k ]
+/// for the right-hand-side columns k = 0 (the step's) and 1 + e (unit net flux out of
+/// enclosed region e; bs = 0 for those).
+struct CoupledSystem {
+  const CoupledInput* in = nullptr;
+  Index nb = 0, ns = 0, ng = 0, nr = 0;
+  std::vector<Index> dof0;  ///< first free DOF of each body (#bodies + 1)
+  VecX d_eff;               ///< #F effective dual lengths
+  fluid::PressureGroups groups;
+  fluid::Regions regions;
+  VecX gvol, grho;               ///< per group: volume (m³), density
+  VecXi greg;                    ///< per group: region
+  VecX rvol;                     ///< per region: volume (m³)
+  std::vector<bool> lifted;      ///< per region: a free body's J touches it
+  fluid::Regions pin_regions;    ///< regions' has_open: true where the level is fixed
+  SparseMatrix J, Jt;            ///< ns × ng (free DOFs × groups) and its transpose
+  SparseMatrix C;                ///< ng × ng: diag(h/ρ_g) L, pinned where nothing fixes it
+  VecX gs;                       ///< per group h/ρ
+  VecX bs;                       ///< ns: the bodies' b plus the hydrostatic forces
+  std::vector<VecX> R2;          ///< second block row right-hand sides (1 + #enclosed)
+  std::vector<Index> enclosed;   ///< region ids of the enclosed regions
+  std::vector<Cavity> cavities;  ///< per enclosed region
+};
+
+/// Stack the free DOFs, J between them and the groups, C, the right-hand sides, the pins and
+/// the enclosed regions; fills rep.solid_unknowns, pressure_unknowns, divergence_before,
+/// pinned_regions, incompatibility. @throws InputError for inconsistent sizes.
+CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt,
+                               CoupledReport& rep);
+
+/// Solutions per right-hand side: u (ns), p = Z Pa + P (Z the Schur solver's coarse space of
+/// body-held region constants; Pa empty otherwise).
+struct CoupledSolves {
+  std::vector<VecX> U, P, Pa;
+  Eigen::MatrixXd Z;
+};
+
+/// The assembled system (paper form, scaled by 1/V_g, for umfpack and bicgstab_ilut; the
+/// symmetric form for symmetric_umfpack) with a general sparse solver. Merges into rep.
+CoupledSolves solve_assembled(const CoupledSystem& sys, CoupledSolverKind which,
+                              const CoupledOptions& opt, CoupledReport& rep);
+
+/// schur_amg: CG on S = C + Jᵀ A⁻¹ J with BoomerAMG on P = C + Jᵀ diag(A)⁻¹ J and the
+/// balancing coarse space; falls back to solve_assembled(symmetric_umfpack) when S is not
+/// positive definite. Merges into rep.
+CoupledSolves solve_schur_amg(const CoupledSystem& sys, const CoupledOptions& opt,
+                              CoupledReport& rep);
+
+/// The net flux c (m³/s) of every enclosed region that keeps its cavity's exact volume after
+/// Eq. (5) (Newton per region, Gauss–Seidel over regions); fills rep.enclosed.
+VecX solve_enclosed_volumes(const CoupledSystem& sys, const CoupledSolves& x,
+                            VolumeTargets& targets, CoupledReport& rep);
+
+/// Node positions of the free bodies after Eq. (5) with the solve's uⁿ⁺¹ (fixed DOFs at their
+/// prescribed values); other bodies' entries empty.
+std::vector<MatX3> positions_after_step(const CoupledSystem& sys, const VecX& u);
+
+/// The signed volume the cavity's triangles enclose at node positions x (per body).
+double cavity_volume(const Cavity& cav, const InterfaceOperators& ops,
+                     const std::vector<MatX3>& x);
+
+/// Combine the solves with the fluxes c and finish: p per cell, u per body, the interface
+/// power, Eq. (8) for the face velocities, the divergence after, the fluid's forces.
+void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX& c,
+                    CoupledSolution& sol);
 
 }  // namespace tetfsi::coupling

@@ -6,6 +6,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "fluid/forces.hpp"
+#include "fluid/interface.hpp"
 #include "fluid/operators.hpp"
 #include "fluid/reconstruct.hpp"
 #include "fluid/transfer.hpp"
@@ -98,22 +99,23 @@ struct FluidSimulation::Impl {
           u[f] = pi >= 0 && pi < np ? -speed[pi] : 0.0;
           break;
         }
-        case FaceKind::Solid: {
-          const Index b = m.face_body[f], tri = m.face_triangle[f];
-          Vec3 v = Vec3::Zero();
-          if (b >= 0 && b < static_cast<Index>(solids.size())) {
-            const SolidSurfaceMotion& s = solids[b];
-            TETFSI_CHECK(tri >= 0 && tri < s.triangles.rows(),
-                         "face {} refers to triangle {} of body {} which has {}", f, tri, b,
-                         s.triangles.rows());
-            for (int k = 0; k < 3; ++k)
-              v += m.face_bary(f, k) * s.velocity.row(s.triangles(tri, k)).transpose();
-          }
-          u[f] = m.face_normals.row(f).dot(v.transpose());  // (H u)_f [DESIGN.md §3]
+        case FaceKind::Solid:
+          u[f] = 0.0;  // (H u)_f below; 0 if no motion is given
           break;
-        }
       }
     }
+    if (solids.empty()) return;
+    // Solid faces: (H u)_f with the surface vertices as the bodies' nodes [DESIGN.md §3]
+    std::vector<BodyInterface> bodies(solids.size());
+    std::vector<VecX> v(solids.size());
+    for (size_t b = 0; b < solids.size(); ++b) {
+      const Index n = solids[b].velocity.rows();
+      bodies[b].triangles = solids[b].triangles;
+      bodies[b].surface_node = VecXi::LinSpaced(n, 0, n - 1);
+      bodies[b].num_nodes = n;
+      v[b] = flat(solids[b].velocity);
+    }
+    InterfaceOperators(m, std::move(bodies)).apply_H(v, u);
   }
 
   VecX open_q(const TetMesh& m, double h) const {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/dof_elimination.hpp"
 #include "core/error.hpp"
 
 namespace tetfsi::solid {
@@ -36,20 +37,19 @@ TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const Ve
   const double m_coef = 1.0 / h + mat.rayleigh_alpha;
   sys.A *= k_coef;
   const auto& fixed = body.fixed_dofs();
-  for (Index col = 0; col < ndof; ++col) {
-    for (SparseMatrix::InnerIterator it(sys.A, col); it; ++it) {
-      const Index row = it.row();
-      if (fixed[row] || fixed[col]) {
-        // Symmetric elimination of a fixed DOF: zero row and column, diagonal m/h.
-        it.valueRef() = (row == col) ? mass[col / 3] / h : 0.0;
-      } else if (row == col) {
-        it.valueRef() += m_coef * mass[col / 3];
-      }
-    }
-  }
-  for (Index i = 0; i < ndof; ++i)
-    if (fixed[i]) sys.b[i] = 0.0;
+  for (Index col = 0; col < ndof; ++col)
+    for (SparseMatrix::InnerIterator it(sys.A, col); it; ++it)
+      if (it.row() == col && !fixed[col]) it.valueRef() += m_coef * mass[col / 3];
+  // fixed DOFs: zero rows and columns, diagonal m/h, b = 0
+  eliminate_dofs(sys.A, fixed, [&](Index i) { return mass[i / 3] / h; }, &sys.b);
   return sys;
+}
+
+void trapezoidal_displace(Eigen::Ref<VecX> x, const VecX& u_old, const VecX& u_new, double h) {
+  TETFSI_CHECK(x.size() == u_old.size() && x.size() == u_new.size(),
+               "trapezoidal_displace: x {}, u_old {}, u_new {}", x.size(), u_old.size(),
+               u_new.size());
+  x += (0.5 * h) * (u_old + u_new);  // [Chentanez06, Eq. (5)]
 }
 
 void advance_trapezoidal(SolidBody& body, const VecX& u_new, double h) {
@@ -60,8 +60,7 @@ void advance_trapezoidal(SolidBody& body, const VecX& u_new, double h) {
   VecX un = u_new;
   for (Index i = 0; i < body.num_dofs(); ++i)
     if (body.is_fixed(i)) un[i] = 0.0;
-  // dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹)   [Chentanez06, Eq. (5)]
-  d += (0.5 * h) * (u + un);
+  trapezoidal_displace(d, u, un, h);  // dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹)
   u = un;
 }
 

@@ -50,4 +50,9 @@ TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const Ve
 /// @param u_new 3#V velocities (fixed DOFs must be 0)
 void advance_trapezoidal(SolidBody& body, const VecX& u_new, double h);
 
+/// x += h/2 (uⁿ + uⁿ⁺¹), elementwise (flat, 3n): Eq. (5)'s one site [Chentanez06, Eq. (5)],
+/// for displacements (advance_trapezoidal) and for positions (the coupled solve's enclosed
+/// volumes).
+void trapezoidal_displace(Eigen::Ref<VecX> x, const VecX& u_old, const VecX& u_new, double h);
+
 }  // namespace tetfsi::solid

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <memory>
 
+#include "core/dof_elimination.hpp"
 #include "core/error.hpp"
 #include "core/linear_solver.hpp"
 #include "solid/integrator.hpp"
@@ -94,16 +95,13 @@ SparseMatrix TrapezoidalEquilibrium::tangent(const VecX& u1) const {
   if (m_C.size()) A += 0.5 * m_C;
   const double alpha = m_body.material().rayleigh_alpha;
   const auto& fixed = m_body.fixed_dofs();
-  for (Index col = 0; col < A.outerSize(); ++col) {
-    for (SparseMatrix::InnerIterator it(A, col); it; ++it) {
-      const Index row = it.row();
-      const double m = m_mass[col / 3];
-      if (fixed[row] || fixed[col])
-        it.valueRef() = row == col ? m / m_h : 0.0;
-      else if (row == col)
+  for (Index col = 0; col < A.outerSize(); ++col)
+    for (SparseMatrix::InnerIterator it(A, col); it; ++it)
+      if (it.row() == col && !fixed[col]) {
+        const double m = m_mass[col / 3];
         it.valueRef() += m / m_h + 0.5 * alpha * m;
-    }
-  }
+      }
+  eliminate_dofs(A, fixed, [&](Index i) { return m_mass[i / 3] / m_h; });  // diagonal m/h
   return A;
 }
 

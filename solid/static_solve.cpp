@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "core/dof_elimination.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "solid/nonlinear_trapezoid.hpp"
@@ -32,9 +33,7 @@ void eliminate_fixed(SparseMatrix& Kp, const std::vector<std::uint8_t>& fixed) {
       ++nfree;
     }
   diag_scale = nfree > 0 && diag_scale > 0.0 ? diag_scale / nfree : 1.0;
-  for (Index c = 0; c < n; ++c)
-    for (SparseMatrix::InnerIterator it(Kp, c); it; ++it)
-      if (fixed[it.row()] || fixed[c]) it.valueRef() = (it.row() == c) ? diag_scale : 0.0;
+  eliminate_dofs(Kp, fixed, [&](Index) { return diag_scale; });
 }
 
 /// Solve K' Δ = r on the free DOFs (fixed rows/cols eliminated symmetrically, Δ = 0 there):

@@ -17,7 +17,8 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/timer.hpp"
-#include "tools/fluid_driver.hpp"
+#include "coupling/simulation.hpp"
+#include "tools/run.hpp"
 #include "tools/output.hpp"
 #include "tools/scene.hpp"
 
@@ -106,24 +107,22 @@ Run run_method(const Scene& scene, const solid::SolidWorld& world0, bool coupled
   r.method = method;
   r.h = h;
   r.steps = steps;
-  solid::SolidWorld world = world0;
-  std::optional<FluidDriver> driver;
+  solid::SolidWorld world0_copy = world0;
+  if (!coupled) world0_copy.integrator = solid::parse_integrator(method);
+  Scene sc = scene;
+  if (coupled) sc.coupling->params.scheme = coupling::parse_scheme(method);
+  coupling::FsiSimulation sim = coupled ? make_simulation(sc, std::move(world0_copy))
+                                        : coupling::FsiSimulation(std::move(world0_copy));
+  solid::SolidWorld& world = sim.world();
   PhaseTimes phases;
-  if (coupled) {
-    coupling::CouplingParams p = scene.coupling->params;
-    p.scheme = coupling::parse_scheme(method);
-    driver.emplace(*scene.fluid, world, p);
-    driver->start(world, phases);  // a scene that cannot be meshed at t = 0 is an error
-  } else {
-    world.integrator = solid::parse_integrator(method);
-  }
+  sim.start(phases);  // a scene that cannot be meshed at t = 0 is an error
   r.history.push_back(sample(world.bodies[body], a, b, 0.0));
   for (int k = 1; k <= steps; ++k) {
     const double t0 = now_seconds();
     int iterations = 0, evaluations = 0, fluid_solves = 0;
     try {
       if (coupled) {
-        const coupling::CoupledStepReport rep = driver->step_coupled(world, h, phases);
+        const coupling::CoupledStepReport rep = *sim.step(h, phases).coupled;
         iterations = rep.equilibrium.iterations;
         evaluations = rep.equilibrium.evaluations;
         fluid_solves = rep.fluid_solves;

@@ -22,7 +22,8 @@
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/integrator.hpp"
-#include "tools/fluid_driver.hpp"
+#include "coupling/simulation.hpp"
+#include "tools/run.hpp"
 #include "tools/output.hpp"
 #include "tools/scene.hpp"
 
@@ -55,16 +56,15 @@ Run run_scheme(const Scene& scene, const solid::SolidWorld& world0, Scheme schem
   r.h = h;
   r.steps = steps;
   r.bound = bound;
-  solid::SolidWorld world = world0;
-  coupling::CouplingParams p = scene.coupling->params;
-  p.scheme = scheme;
-  FluidDriver driver(*scene.fluid, world, p);
+  Scene sc = scene;
+  sc.coupling->params.scheme = scheme;
+  coupling::FsiSimulation sim = make_simulation(sc, world0);
   PhaseTimes phases;
-  driver.start(world, phases);  // a scene that cannot be meshed at t = 0 is an error
+  sim.start(phases);  // a scene that cannot be meshed at t = 0 is an error
   try {
     for (int k = 0; k < steps; ++k) {
       const double t0 = now_seconds();
-      const coupling::CoupledStepReport rep = driver.step_coupled(world, h, phases);
+      const coupling::CoupledStepReport rep = *sim.step(h, phases).coupled;
       r.step_s.push_back(now_seconds() - t0);
       ++r.completed;
       const double e = rep.solid_kinetic_energy + rep.elastic_energy;
@@ -99,21 +99,23 @@ struct SolveFigures {
 /// it, then solve_coupled (schur_amg, bodies free) against fluid::project, best of 3 each.
 SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, int warm) {
   const double h = scene.time.dt;
-  solid::SolidWorld world = world0;
-  coupling::CouplingParams p = scene.coupling->params;
+  Scene sc = scene;
+  coupling::CouplingParams& p = sc.coupling->params;
   p.scheme = Scheme::Simultaneous;
   p.solve.solver = coupling::CoupledSolverKind::SchurAmg;
-  FluidDriver driver(*scene.fluid, world, p);
+  coupling::FsiSimulation fsi = make_simulation(sc, world0);
   PhaseTimes phases;
-  driver.start(world, phases);
-  for (int k = 0; k < warm; ++k) driver.step_coupled(world, h, phases);
-  const fluid::FluidSimulation& sim = driver.simulation();
+  fsi.start(phases);
+  for (int k = 0; k < warm; ++k) fsi.step(h, phases);
+  const fluid::FluidSimulation& sim = fsi.fluid();
+  solid::SolidWorld world = fsi.world();
 
   // As CoupledStepper::step, without floor contacts (the figures are the solves' seconds).
   const size_t nb = world.bodies.size();
   std::vector<mesh::SolidSurface> solids(nb);
   std::vector<fluid::SolidSurfaceMotion> motion(nb);
   std::vector<coupling::CoupledBody> cb(nb);
+  std::vector<coupling::BodyInterface> ifaces(nb);
   for (size_t b = 0; b < nb; ++b) {
     solid::SolidBody& body = world.bodies[b];
     if (body.is_kinematic()) body.set_kinematic_state(world.time + h);
@@ -129,7 +131,7 @@ SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, in
       solids[b].vertices.row(k) = x.row(s.nodes[k]);
       motion[b].velocity.row(k) = body.velocity.row(s.nodes[k]);
     }
-    cb[b].interface = {s.triangles, s.nodes, body.num_nodes()};
+    ifaces[b] = {s.triangles, s.nodes, body.num_nodes()};
     if (body.is_kinematic()) continue;
     solid::TrapezoidalSystem sys =
         solid::assemble_trapezoidal(body, h, body.external_forces(world.gravity), world.trapezoid);
@@ -148,7 +150,8 @@ SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, in
   const fluid::FluidParams& fp = sim.params();
 
   // no volume targets: no enclosed-volume correction
-  const coupling::CoupledInput in = coupling::make_input(pred, fp, cb);
+  const coupling::InterfaceOperators ops(pred.mesh, ifaces);
+  const coupling::CoupledInput in = coupling::make_input(pred, fp, ops, cb);
 
   SolverOptions o;
   o.rel_tol = p.solve.rel_tol;

@@ -21,7 +21,8 @@
 #include "core/timer.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
-#include "tools/fluid_driver.hpp"
+#include "coupling/simulation.hpp"
+#include "tools/run.hpp"
 #include "tools/output.hpp"
 #include "tools/scene.hpp"
 
@@ -77,13 +78,19 @@ struct Case {
   double floor_s() const { return delaunay_s + poisson_s; }
 };
 
+/// The scene's fluid, one-way, around `world`.
+coupling::FsiSimulation make_one_way(const Scene& scene, solid::SolidWorld world) {
+  return coupling::FsiSimulation(
+      std::move(world),
+      coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params});
+}
+
 /// Cells of the scene's fluid mesh at t = 0 (one remesh).
 Index cells_at_start(const Scene& scene) {
-  const solid::SolidWorld world = build_world(scene);
-  FluidDriver driver(*scene.fluid, world);
+  coupling::FsiSimulation sim = make_one_way(scene, build_world(scene));
   PhaseTimes unused;
-  driver.start(world, unused);
-  return driver.mesh()->num_tets();
+  sim.start(unused);
+  return sim.mesh()->num_tets();
 }
 
 /// The floor's pressure solve on `m`: fluid::project of a random interior face field
@@ -114,13 +121,15 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
   const Scene sc = scaled(scene, scale);
   const double dt = sc.time.dt;
   const Compression compression = parse_compression(sc.output.compression);
-  solid::SolidWorld world = build_world(sc);
-  FluidDriver driver(*sc.fluid, world);
+  coupling::FsiSimulation sim = make_one_way(sc, build_world(sc));
+  mesh::RemeshReport last_remesh;
+  sim.set_mesh_observer([&](const mesh::TetMesh&, const mesh::RemeshReport& r, double,
+                            PhaseTimes&) { last_remesh = r; });
   {
     PhaseTimes unused;
-    driver.start(world, unused);
+    sim.start(unused);
   }
-  logger().debug("bench step: scale {:.4g}: {} cells at t = 0", scale, driver.mesh()->num_tets());
+  logger().debug("bench step: scale {:.4g}: {} cells at t = 0", scale, sim.mesh()->num_tets());
   Case c;
   c.scale = scale;
   StepFigures& mean = c.mean;
@@ -128,18 +137,17 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
   for (int k = 0; k < steps; ++k) {
     PhaseTimes ph;
     const double t0 = now_seconds();
-    world.step(dt, ph);
-    const double solid_s = now_seconds() - t0;
-    driver.step(world, dt, ph);
+    const coupling::FsiStepReport rep = sim.step(dt, ph);
+    const double solid_s = rep.solid_s;
     {
       ScopedTimer timer(ph, "output");
-      const FluidFrameFields fields = driver.frame_fields();
-      write_fluid_vtu(dir / fmt::format("fluid_{:06d}.vtu", k), *driver.mesh(), compression,
+      const FluidFrameFields fields = frame_fields(sim.fluid());
+      write_fluid_vtu(dir / fmt::format("fluid_{:06d}.vtu", k), *sim.mesh(), compression,
                       &fields);
     }
     const double step_s = now_seconds() - t0;
     logger().debug("bench step: scale {:.4g}, step {}: {:.3f} s, {} cells", scale, k + 1, step_s,
-                   driver.mesh()->num_tets());
+                   sim.mesh()->num_tets());
     if (k == 0) {
       c.warmup_s = step_s;
       continue;
@@ -152,10 +160,10 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
     mean.assembly += ph.get("pressure_assembly") / timed;
     mean.solve += ph.get("pressure_solve") / timed;
     mean.output += ph.get("output") / timed;
-    mean.remesh_delaunay += driver.remesh_report().seconds_delaunay / timed;
-    mean.iterations += static_cast<double>(driver.stats().pressure_iterations) / timed;
+    mean.remesh_delaunay += last_remesh.seconds_delaunay / timed;
+    mean.iterations += static_cast<double>(rep.fluid->iterations) / timed;
   }
-  const mesh::TetMesh& m = *driver.mesh();
+  const mesh::TetMesh& m = *sim.mesh();
   c.cells = m.num_tets();
   c.vertices = m.num_vertices();
   const double t1 = now_seconds();

@@ -151,13 +151,12 @@ class StateSnapshot {
 
 
 /// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
-void write_frame(OutputWriter& out, const solid::SolidWorld& world, int step, double t,
-                 const FluidDriver* fluid) {
-  if (fluid && fluid->mesh()) {
-    const FluidFrameFields fields = fluid->frame_fields();
-    out.write_frame(world, step, t, fluid->mesh(), &fields);
+void write_frame(OutputWriter& out, const coupling::FsiSimulation& sim, int step, double t) {
+  if (sim.mesh()) {
+    const FluidFrameFields fields = frame_fields(sim.fluid());
+    out.write_frame(sim.world(), step, t, sim.mesh(), &fields);
   } else {
-    out.write_frame(world, step, t, nullptr);
+    out.write_frame(sim.world(), step, t, nullptr);
   }
 }
 
@@ -196,8 +195,9 @@ Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
   return s;
 }
 
-void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid,
+void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
                  OutputWriter& out, const RunOptions& opt, RunResult& r) {
+  solid::SolidWorld& world = sim.world();
   const double dt = scene.time.dt;
   const int n = scene.time.num_steps();
   const int every = std::max(1, scene.output.every);
@@ -212,7 +212,7 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
   auto write_last_good_frame = [&](int done) {
     if (done <= last_frame) return;
     try {
-      write_frame(out, world, done, done * dt, fluid);
+      write_frame(out, sim, done, done * dt);
     } catch (const Error& e) {
       logger().warn("could not write the frame of step {}: {}", done, e.what());
     }
@@ -234,37 +234,37 @@ void run_dynamic(const Scene& scene, solid::SolidWorld& world, FluidDriver* flui
     last_good.save(world);
     int fluid_solves = 0;  // iterated coupling schemes
     try {
-      if (fluid && fluid->coupled()) {
-        // two-way: the bodies and the fluid advance together (coupling/coupled_step.hpp)
-        const coupling::CoupledStepReport rep = fluid->step_coupled(world, dt, row.phases);
-        row.solver_iterations = rep.solve.iterations + rep.solid_iterations;
-        row.solver_residual = rep.solve.residual;
-        row.contacts = rep.contacts;
-        r.solver_iterations += row.solver_iterations;
-        if (!rep.solve.converged) ++r.unconverged_steps;  // FluidDriver has logged it
-        const bool iterated = coupling::is_iterated(rep.scheme);
-        row.equilibrium_iterations = iterated ? rep.equilibrium.iterations : 0;
-        row.equilibrium_evaluations = iterated ? rep.equilibrium.evaluations : 0;
-        fluid_solves = rep.fluid_solves;
+      const coupling::FsiStepReport rep = sim.step(dt, row.phases);
+      if (fluid) {
+        fluid->record(rep, sim);
         row.fluid = fluid->stats();
+      }
+      if (rep.coupled) {
+        // two-way: the bodies and the fluid advance together (coupling/scheme.hpp)
+        const coupling::CoupledStepReport& c = *rep.coupled;
+        row.solver_iterations = c.solve.iterations + c.solid_iterations;
+        row.solver_residual = c.solve.residual;
+        row.contacts = c.contacts;
+        r.solver_iterations += row.solver_iterations;
+        if (!c.solve.converged) ++r.unconverged_steps;  // the recorder has logged it
+        const bool iterated = coupling::is_iterated(c.scheme);
+        row.equilibrium_iterations = iterated ? c.equilibrium.iterations : 0;
+        row.equilibrium_evaluations = iterated ? c.equilibrium.evaluations : 0;
+        fluid_solves = c.fluid_solves;
         row.coupled = fluid->coupled_stats();
       } else {
-        const solid::SolidStepReport rep = world.step(dt, row.phases);
-        row.solver_iterations = rep.iterations;
-        row.solver_residual = rep.residual;
-        row.contacts = rep.contacts;
-        r.solver_iterations += rep.iterations;
-        if (!rep.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
-        row.equilibrium_iterations = rep.equilibrium_iterations;
-        row.equilibrium_evaluations = rep.equilibrium_evaluations;
-        if (fluid) {
-          fluid->step(world, dt, row.phases);
-          row.fluid = fluid->stats();
-        }
+        const solid::SolidStepReport& s = *rep.solid;
+        row.solver_iterations = s.iterations;
+        row.solver_residual = s.residual;
+        row.contacts = s.contacts;
+        r.solver_iterations += s.iterations;
+        if (!s.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
+        row.equilibrium_iterations = s.equilibrium_iterations;
+        row.equilibrium_evaluations = s.equilibrium_evaluations;
       }
       if (step % every == 0 || step == n) {
         ScopedTimer timer(row.phases, "output");
-        write_frame(out, world, step, t, fluid);
+        write_frame(out, sim, step, t);
         last_frame = step;
       }
       fill_energies(world, row);
@@ -314,8 +314,9 @@ std::optional<EquilibriumSummary> equilibrium_summary(const Scene& scene) {
   return e;
 }
 
-void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid,
+void run_static(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
                 OutputWriter& out, RunResult& r) {
+  solid::SolidWorld& world = sim.world();
   r.steps_planned = 1;
   r.dt = 1.0;
   if (!world.obstacles.empty())
@@ -353,12 +354,12 @@ void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid
       }
     }
     if (fluid) {
-      fluid->rebuild_at_rest(world, row.phases);
+      sim.rebuild_at_rest(row.phases);
       row.fluid = fluid->stats();
     }
     {
       ScopedTimer timer(row.phases, "output");
-      write_frame(out, world, 1, 1.0, fluid);
+      write_frame(out, sim, 1, 1.0);
     }
   } catch (const Error& e) {
     initial.restore(world);
@@ -379,6 +380,16 @@ void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid
 
 }  // namespace
 
+coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld world) {
+  std::optional<coupling::FluidSetup> fluid;
+  std::optional<coupling::CouplingParams> coupling;
+  if (scene.fluid) {
+    fluid = coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params};
+    if (scene.two_way()) coupling = scene.coupling->params;
+  }
+  return coupling::FsiSimulation(std::move(world), std::move(fluid), std::move(coupling));
+}
+
 RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   TETFSI_REQUIRE(InputError, !opt.out_dir.empty(), "no output folder given");
   const Scene scene = apply_overrides(scene_in, opt);
@@ -388,16 +399,16 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   r.out_dir = opt.out_dir;
 
   double t = now_seconds();
-  solid::SolidWorld world = build_world(scene);
+  solid::SolidWorld world0 = build_world(scene);
   r.build_s = now_seconds() - t;
-  logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world.bodies.size(),
-                world.bodies.size() == 1 ? "y" : "ies", r.build_s);
-
-  std::optional<FluidDriver> fluid;
-  if (scene.fluid) {
-    std::optional<coupling::CouplingParams> coupling;
-    if (scene.two_way()) coupling = scene.coupling->params;
-    fluid.emplace(*scene.fluid, world, coupling);
+  logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world0.bodies.size(),
+                world0.bodies.size() == 1 ? "y" : "ies", r.build_s);
+  coupling::FsiSimulation sim = make_simulation(scene, std::move(world0));
+  const solid::SolidWorld& world = sim.world();
+  std::optional<RunRecorder> fluid;
+  if (sim.has_fluid()) {
+    fluid.emplace(sim);
+    sim.set_mesh_observer(fluid->mesh_observer());
   }
 
   t = now_seconds();
@@ -406,21 +417,22 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   if (fluid) {
     PhaseTimes unused;  // step 0 has no stats row
     try {
-      fluid->start(world, unused);
+      sim.start(unused);
     } catch (const Error& e) {
       initial_ok = false;
       r.error = one_line(fmt::format("step 0 (t = 0 s) failed: {}", e.what()));
     }
   }
-  write_frame(out, world, 0, 0.0, fluid ? &*fluid : nullptr);
+  write_frame(out, sim, 0, 0.0);
+  RunRecorder* rec = fluid ? &*fluid : nullptr;
   if (!initial_ok) {
     r.steps_planned = scene.mode == Mode::Static ? 1 : scene.time.num_steps();
     r.dt = scene.mode == Mode::Static ? 1.0 : scene.time.dt;
   } else if (scene.mode == Mode::Static) {
-    run_static(scene, world, fluid ? &*fluid : nullptr, out, r);
+    run_static(scene, sim, rec, out, r);
   } else {
     r.equilibrium = equilibrium_summary(scene);
-    run_dynamic(scene, world, fluid ? &*fluid : nullptr, out, opt, r);
+    run_dynamic(scene, sim, rec, out, opt, r);
   }
   r.wall_s = now_seconds() - t;
   r.frames_written = out.frames_written();

@@ -10,7 +10,8 @@
 #include <vector>
 
 #include "solid/world.hpp"
-#include "tools/fluid_driver.hpp"
+#include "coupling/simulation.hpp"
+#include "tools/run_stats.hpp"
 #include "tools/scene.hpp"
 
 namespace tetfsi::tools {
@@ -88,9 +89,13 @@ struct RunResult {
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
 };
 
+/// The simulation of a scene (its fluid and coupling, if any) around `world`
+/// (build_world(scene)).
+coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld world);
+
 /// Run a scene. Writes frame 0 at t = 0, then
 ///  - dynamic: `world.step(dt)` per step (then the fluid, one-way), or, two-way coupled
-///    (Scene::two_way), FluidDriver::step_coupled; a frame every `output.every` steps and
+///    (Scene::two_way), the coupling scheme (coupling::FsiSimulation::step); a frame every `output.every` steps and
 ///    always the last one; a stats row every step;
 ///  - static: `solid::solve_static` on each body with f_e = external_forces(gravity) and the
 ///    scene's static options (kinematic bodies stay at their t = 0 pose), then frame 1 at

@@ -273,7 +273,7 @@ struct FluidSpec {
 /// How the fluid and the bodies of a fluid scene interact (the scene key "coupling").
 struct CouplingSpec {
   /// true: two-way, `params.scheme` (any coupling::Scheme); false: "none", one-way (the
-  /// bodies step alone, the fluid follows them, FluidDriver::step).
+  /// bodies step alone, the fluid follows them, coupling::FsiSimulation).
   bool two_way = false;
   coupling::CouplingParams params;  ///< the scheme and the coupled solve's options
   std::string scheme_name() const { return two_way ? coupling::to_string(params.scheme) : "none"; }

@@ -1,11 +1,13 @@
 #pragma once
 /// @file coupled_test_utils.hpp
-/// A fluid box with solid bodies, stepped by coupling::CoupledStepper: the remesher builds the
-/// fluid mesh around the bodies' surfaces as the run loop does (tools/fluid_driver.cpp).
+/// A fluid box with solid bodies, stepped by coupling::FsiSimulation — the library's own
+/// simulation object, with its remesh policy, as the run loop uses it; no tools/ layer.
+#include <memory>
+#include <optional>
 #include <utility>
 #include <vector>
 
-#include "coupling/coupled_step.hpp"
+#include "coupling/simulation.hpp"
 #include "fluid/simulation.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/world.hpp"
@@ -14,42 +16,40 @@
 namespace tetfsi::test {
 
 struct CoupledRig {
-  solid::SolidWorld world;
   mesh::FluidDomain domain;
   mesh::Sizing sizing;
   fluid::FluidParams fluid_params;
   coupling::CouplingParams coupling;
+  std::unique_ptr<coupling::FsiSimulation> sim;
 
-  std::unique_ptr<fluid::FluidSimulation> fluid;
-  std::unique_ptr<coupling::CoupledStepper> stepper;
-
-  /// The fluid mesh around every body at the given node positions.
-  mesh::TetMesh build(const std::vector<MatX3>& x) const {
-    std::vector<mesh::SolidSurface> s(world.bodies.size());
-    for (size_t b = 0; b < s.size(); ++b) {
-      const coupling::BodySurface& bs = stepper->surfaces()[b];
-      s[b].body = static_cast<int>(b);
-      s[b].triangles = bs.triangles;
-      s[b].vertices.resize(bs.nodes.size(), 3);
-      for (Index k = 0; k < bs.nodes.size(); ++k) s[b].vertices.row(k) = x[b].row(bs.nodes[k]);
-    }
-    return mesh::remesh(domain, s, sizing);
+  /// The bodies: the rig's own before start(), the simulation's after.
+  solid::SolidWorld& world() { return sim ? sim->world() : m_world; }
+  /// The fluid (after start()).
+  fluid::FluidSimulation& fluid() { return sim->fluid(); }
+  const std::vector<coupling::BodySurface>& surfaces() const {
+    return sim->remesh_policy()->surfaces();
   }
 
-  /// Build the stepper and the fluid at rest on the mesh of t = 0.
+  /// The fluid mesh around every body at the given node positions (the simulation's policy).
+  mesh::TetMesh build(const std::vector<MatX3>& x) const {
+    return sim->remesh_policy()->build(x, nullptr);
+  }
+
+  /// Build the simulation (two-way, `coupling`) and the fluid at rest on the mesh of t = 0.
   void start() {
-    stepper = std::make_unique<coupling::CoupledStepper>(coupling, world);
-    fluid = std::make_unique<fluid::FluidSimulation>(fluid_params);
-    std::vector<MatX3> x;
-    for (const auto& b : world.bodies) x.push_back(b.positions());
-    fluid->initialize(build(x));
+    sim = std::make_unique<coupling::FsiSimulation>(
+        std::move(m_world), coupling::FluidSetup{domain, sizing, fluid_params}, coupling);
+    PhaseTimes phases;
+    sim->start(phases);
   }
 
   coupling::CoupledStepReport step(double h) {
     PhaseTimes phases;
-    return stepper->step(
-        world, *fluid, [this](const std::vector<MatX3>& x) { return build(x); }, h, phases);
+    return *sim->step(h, phases).coupled;
   }
+
+ private:
+  solid::SolidWorld m_world;
 };
 
 /// The fluid of a rig: water with gravity in the unit box, open (pressure 0) at the top.

@@ -23,18 +23,18 @@ namespace {
 /// A soft cube (ρ_s = 2000) in a water box open at the top, with a swirl in the water.
 CoupledRig cube_in_water(double size) {
   CoupledRig r;
-  r.world.gravity = Vec3(0, 0, -9.81);
-  r.world.bodies.emplace_back(
+  r.world().gravity = Vec3(0, 0, -9.81);
+  r.world().bodies.emplace_back(
       "cube", mesh::make_box(Vec3(0.4, 0.4, 0.35), Vec3(0.6, 0.6, 0.55), Vec3i(3, 3, 3)),
       make_material(2000, 2e4, 0.3, 0.0, 0.01));
   water_box_open_top(r);
   r.sizing = sizing(size, 3 * size);
   r.start();
   // a swirl about the vertical axis, so that v* is not zero
-  const mesh::TetMesh& m = r.fluid->mesh();
-  fluid::FluidState s = r.fluid->state();
+  const mesh::TetMesh& m = r.fluid().mesh();
+  fluid::FluidState s = r.fluid().state();
   s.u = face_field(m, [](const Vec3& x) { return Vec3(-(x[1] - 0.5), x[0] - 0.5, 0.0); });
-  r.fluid->set_state(s);
+  r.fluid().set_state(s);
   return r;
 }
 
@@ -42,32 +42,33 @@ CoupledRig cube_in_water(double size) {
 struct Problem {
   fluid::FluidPrediction pred;
   std::vector<CoupledBody> bodies;
+  std::vector<BodyInterface> interfaces;
+  mutable std::unique_ptr<InterfaceOperators> ops;  ///< on pred.mesh, made by input()
   fluid::FluidParams params;
   CoupledInput input(VolumeTargets* targets = nullptr) const {
-    return make_input(pred, params, bodies, targets);
+    if (!ops) ops = std::make_unique<InterfaceOperators>(pred.mesh, interfaces);
+    return make_input(pred, params, *ops, bodies, targets);
   }
 };
 
 Problem next_problem(CoupledRig& r, double h) {
   Problem pb;
   std::vector<MatX3> x;
-  for (const auto& b : r.world.bodies) x.push_back(b.positions());
+  for (const auto& b : r.world().bodies) x.push_back(b.positions());
   PhaseTimes ph;
-  std::vector<fluid::SolidSurfaceMotion> motion(r.world.bodies.size());
+  std::vector<fluid::SolidSurfaceMotion> motion(r.world().bodies.size());
   for (size_t b = 0; b < motion.size(); ++b) {
-    motion[b].triangles = r.stepper->surfaces()[b].triangles;
-    motion[b].velocity = MatX3::Zero(r.stepper->surfaces()[b].nodes.size(), 3);
+    motion[b].triangles = r.surfaces()[b].triangles;
+    motion[b].velocity = MatX3::Zero(r.surfaces()[b].nodes.size(), 3);
   }
-  pb.pred = r.fluid->predict(r.build(x), h, motion, ph);
-  pb.params = r.fluid->params();
-  for (size_t b = 0; b < r.world.bodies.size(); ++b) {
-    const solid::SolidBody& body = r.world.bodies[b];
+  pb.pred = r.fluid().predict(r.build(x), h, motion, ph);
+  pb.params = r.fluid().params();
+  for (size_t b = 0; b < r.world().bodies.size(); ++b) {
+    const solid::SolidBody& body = r.world().bodies[b];
     CoupledBody cb;
-    cb.interface.triangles = r.stepper->surfaces()[b].triangles;
-    cb.interface.surface_node = r.stepper->surfaces()[b].nodes;
-    cb.interface.num_nodes = body.num_nodes();
+    pb.interfaces.push_back({r.surfaces()[b].triangles, r.surfaces()[b].nodes, body.num_nodes()});
     solid::TrapezoidalSystem sys =
-        solid::assemble_trapezoidal(body, h, body.external_forces(r.world.gravity));
+        solid::assemble_trapezoidal(body, h, body.external_forces(r.world().gravity));
     cb.free = true;
     cb.A = sys.A;
     cb.b = sys.b;
@@ -141,12 +142,12 @@ namespace {
 CoupledRig released_sphere(double rho_s, double a, double R, double size, int subdiv) {
   CoupledRig r;
   const Vec3 c(0.5, 0.5, 0.5);
-  r.world.gravity = Vec3(0, 0, -9.81);
-  r.world.bodies.emplace_back("sphere", mesh::make_ball(c, a, subdiv),
+  r.world().gravity = Vec3(0, 0, -9.81);
+  r.world().bodies.emplace_back("sphere", mesh::make_ball(c, a, subdiv),
                               make_material(rho_s, 1e12, 0.3));
-  r.world.bodies.emplace_back("container", mesh::make_spherical_shell(c, R, R + 0.04, subdiv, 1),
+  r.world().bodies.emplace_back("container", mesh::make_spherical_shell(c, R, R + 0.04, subdiv, 1),
                               make_material(1000, 1e9, 0.3));
-  r.world.bodies[1].kinematic = solid::KinematicMotion{};
+  r.world().bodies[1].kinematic = solid::KinematicMotion{};
   r.domain = box_domain(Vec3::Constant(0.2), Vec3::Constant(0.8));
   r.sizing = sizing(size, 4 * size);
   r.fluid_params.density = 1000;
@@ -175,8 +176,8 @@ std::vector<SphereResult> released_sphere_study(double size, const std::vector<d
   for (double ratio : ratios) {
     CoupledRig r = released_sphere(ratio * rho_f, a, R, size, 3);
     const CoupledStepReport rep = r.step(h);
-    SphereResult s{ratio, mean_vz(r.world.bodies[0]) / h, -g * (ratio - 1) / (ratio + Cm),
-                   rep.solve.residual, r.fluid->mesh().num_tets()};
+    SphereResult s{ratio, mean_vz(r.world().bodies[0]) / h, -g * (ratio - 1) / (ratio + Cm),
+                   rep.solve.residual, r.fluid().mesh().num_tets()};
     MESSAGE("cells " << size << " m (" << s.cells << "): rho_s/rho_f = " << ratio
                      << ": a = " << s.acc << " m/s^2, expected " << s.expect << " (C_m = " << Cm
                      << "), error " << (s.acc - s.expect) / (ratio == 1 ? g : s.expect) << ", "
@@ -256,14 +257,14 @@ double min_volume_ratio(const solid::SolidBody& b) {
 CoupledRig toy(double E, double h_drop) {
   CoupledRig r;
   const Vec3 c(0.5, 0.5, 0.2 + 0.12 + h_drop);
-  r.world.gravity = Vec3(0, 0, -9.81);
-  r.world.bodies.emplace_back("toy", mesh::make_spherical_shell(c, 0.1, 0.12, 2, 1),
+  r.world().gravity = Vec3(0, 0, -9.81);
+  r.world().bodies.emplace_back("toy", mesh::make_spherical_shell(c, 0.1, 0.12, 2, 1),
                               make_material(1100, E, 0.3, 0.0, 0.002));
   solid::Obstacle floor;
   floor.point = Vec3(0, 0, 0.2);
   floor.normal = Vec3::UnitZ();
   floor.restitution = 0.3;
-  r.world.obstacles.push_back(floor);
+  r.world().obstacles.push_back(floor);
   r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
   r.sizing = sizing(0.03, 0.15);
   r.fluid_params.density = 1.2;
@@ -281,18 +282,18 @@ TEST_CASE(
   const double E = 1e6, h = 0.01;
   CoupledRig r = toy(E, 0.02);
   const Vec3 c0(0.5, 0.5, 0.34);
-  const double V0 = cavity_volume(r.world.bodies[0], c0, 0.1);
+  const double V0 = cavity_volume(r.world().bodies[0], c0, 0.1);
   double worst_step = 0, worst_total = 0, prev = V0, min_z = 1e9, min_ratio = 1;
   int contacts = 0;
   for (int n = 1; n <= 25; ++n) {
     const CoupledStepReport rep = r.step(h);
-    const double V = cavity_volume(r.world.bodies[0], c0, 0.1);
+    const double V = cavity_volume(r.world().bodies[0], c0, 0.1);
     worst_step = std::max(worst_step, std::abs(V - prev) / V0);
     worst_total = std::max(worst_total, std::abs(V - V0) / V0);
     prev = V;
     contacts += rep.contacts > 0;
-    min_z = std::min(min_z, r.world.bodies[0].positions().col(2).minCoeff());
-    min_ratio = std::min(min_ratio, min_volume_ratio(r.world.bodies[0]));
+    min_z = std::min(min_z, r.world().bodies[0].positions().col(2).minCoeff());
+    min_ratio = std::min(min_ratio, min_volume_ratio(r.world().bodies[0]));
     REQUIRE(rep.solve.enclosed.size() == 1);
     CHECK(rep.solve.pinned_regions == 0);
   }
@@ -334,10 +335,10 @@ CoupledRig piston(bool with_fluid, double load) {
   CoupledRig r;
   const Vec3 lo(0.3, 0.3, 0.2), hi(0.7, 0.7, 0.6);
   const double t = 0.04;
-  r.world.gravity = Vec3::Zero();
-  r.world.bodies.emplace_back("column", mesh::make_hollow_box(lo, hi, t, Vec3i(4, 4, 3)),
+  r.world().gravity = Vec3::Zero();
+  r.world().bodies.emplace_back("column", mesh::make_hollow_box(lo, hi, t, Vec3i(4, 4, 3)),
                               make_material(1000, 1e6, 0.3, 0.0, 0.01));
-  solid::SolidBody& b = r.world.bodies[0];
+  solid::SolidBody& b = r.world().bodies[0];
   b.applied_force = MatX3::Zero(b.num_nodes(), 3);
   std::vector<Index> lid;
   for (Index i = 0; i < b.num_nodes(); ++i) {
@@ -384,17 +385,17 @@ TEST_CASE(
   const double h = 0.01, load = 2000;
   const Vec3 clo(0.33, 0.33, 0.23), chi(0.67, 0.67, 0.57);  // the cavity, widened by 0.01
   CoupledRig wet = piston(true, load), dry = piston(false, load);
-  const double V0 = box_cavity_volume(wet.world.bodies[0], clo, chi);
+  const double V0 = box_cavity_volume(wet.world().bodies[0], clo, chi);
   double worst = 0;
   for (int n = 0; n < 10; ++n) {
     const CoupledStepReport rw = wet.step(h);
     CHECK(rw.solve.enclosed.size() == 1);
     PhaseTimes ph;
-    dry.world.step(h, ph);  // the solid alone
-    worst = std::max(worst, std::abs(box_cavity_volume(wet.world.bodies[0], clo, chi) - V0) / V0);
+    dry.world().step(h, ph);  // the solid alone
+    worst = std::max(worst, std::abs(box_cavity_volume(wet.world().bodies[0], clo, chi) - V0) / V0);
   }
-  const double sag_wet = lid_sag(wet.world.bodies[0], 0.56),
-               sag_dry = lid_sag(dry.world.bodies[0], 0.56);
+  const double sag_wet = lid_sag(wet.world().bodies[0], 0.56),
+               sag_dry = lid_sag(dry.world().bodies[0], 0.56);
   MESSAGE("lid mean z displacement: " << sag_wet << " m on water, " << sag_dry
                                       << " m without it; volume drift " << worst);
   CHECK(sag_dry < -1e-3);                               // the load does move a lid without water
@@ -410,11 +411,11 @@ namespace {
 /// [Causin, Gerbeau, Nobile 2005].
 CoupledRig light_plate(Scheme scheme) {
   CoupledRig r;
-  r.world.gravity = Vec3(0, 0, -9.81);
-  r.world.bodies.emplace_back(
+  r.world().gravity = Vec3(0, 0, -9.81);
+  r.world().bodies.emplace_back(
       "plate", mesh::make_box(Vec3(0.3, 0.3, 0.45), Vec3(0.7, 0.7, 0.47), Vec3i(6, 6, 1)),
       make_material(100, 2e5, 0.3, 0.0, 0.002));
-  solid::SolidBody& b = r.world.bodies[0];
+  solid::SolidBody& b = r.world().bodies[0];
   for (Index i = 0; i < b.num_nodes(); ++i) {
     const double x = b.rest_positions()(i, 0);
     if (x < 0.3 + 1e-9 || x > 0.7 - 1e-9) b.pin_node(i);  // clamped at x = 0.3 and 0.7

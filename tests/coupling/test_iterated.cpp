@@ -22,18 +22,18 @@ namespace {
 /// of water open at the top, pushed up by its buoyancy; ~5 kg of added mass.
 CoupledRig plate(Scheme scheme, double rtol = 1e-3, double etol = 1e-5, double E = 2e5) {
   CoupledRig r;
-  r.world.gravity = Vec3(0, 0, -9.81);
-  r.world.bodies.emplace_back(
+  r.world().gravity = Vec3(0, 0, -9.81);
+  r.world().bodies.emplace_back(
       "plate", mesh::make_box(Vec3(0.3, 0.3, 0.45), Vec3(0.7, 0.7, 0.47), Vec3i(6, 6, 1)),
       make_material(100, E, 0.3));
-  solid::SolidBody& b = r.world.bodies[0];
+  solid::SolidBody& b = r.world().bodies[0];
   for (Index i = 0; i < b.num_nodes(); ++i) {
     const double x = b.rest_positions()(i, 0);
     if (x < 0.3 + 1e-9 || x > 0.7 - 1e-9) b.pin_node(i);
   }
-  r.world.trapezoid = solid::Trapezoid::Midpoint;  // the linearisation of the trapezoidal rule
-  r.world.equilibrium.rtol = rtol;
-  r.world.equilibrium.etol = etol;
+  r.world().trapezoid = solid::Trapezoid::Midpoint;  // the linearisation of the trapezoidal rule
+  r.world().equilibrium.rtol = rtol;
+  r.world().equilibrium.etol = etol;
   water_box_open_top(r);
   r.sizing = sizing(0.05, 0.15);
   r.coupling.scheme = scheme;
@@ -62,15 +62,15 @@ TEST_CASE("iterated schemes: newton and bfgs converge to the simultaneous answer
     sim.step(h);
     const CoupledStepReport rn = newton.step(h), rb = bfgs.step(h), rl = loose.step(h);
     REQUIRE(rn.equilibrium.converged);
-    const MatX3& u = sim.world.bodies[0].velocity;
+    const MatX3& u = sim.world().bodies[0].velocity;
     const double scale = max_abs(u);
-    const double dn = max_abs(newton.world.bodies[0].velocity - u) / scale,
-                 db = max_abs(bfgs.world.bodies[0].velocity - u) / scale,
-                 dl = max_abs(loose.world.bodies[0].velocity - u) / scale,
-                 nb = max_abs(newton.world.bodies[0].velocity - bfgs.world.bodies[0].velocity) /
+    const double dn = max_abs(newton.world().bodies[0].velocity - u) / scale,
+                 db = max_abs(bfgs.world().bodies[0].velocity - u) / scale,
+                 dl = max_abs(loose.world().bodies[0].velocity - u) / scale,
+                 nb = max_abs(newton.world().bodies[0].velocity - bfgs.world().bodies[0].velocity) /
                       scale;
-    const VecX& p = sim.fluid->state().p;
-    const double dp = (bfgs.fluid->state().p - p).cwiseAbs().maxCoeff() / p.cwiseAbs().maxCoeff();
+    const VecX& p = sim.fluid().state().p;
+    const double dp = (bfgs.fluid().state().p - p).cwiseAbs().maxCoeff() / p.cwiseAbs().maxCoeff();
     MESSAGE("step " << n + 1 << " (|u| " << scale << " m/s): newton " << rn.equilibrium.iterations
                     << " iterations (" << rn.fluid_solves << " fluid solves), bfgs "
                     << rb.equilibrium.iterations << " at RTOL 1e-9, " << rl.equilibrium.iterations
@@ -93,7 +93,7 @@ TEST_CASE("iterated schemes: modified Newton cannot learn the added mass; BFGS d
   // response by ~15x, a fixed-point iteration that amplifies its error each iteration.
   const double h = 1.0 / 30;
   CoupledRig mn = plate(Scheme::ModifiedNewton), bf = plate(Scheme::Bfgs);
-  const MatX3 d0 = mn.world.bodies[0].displacement;
+  const MatX3 d0 = mn.world().bodies[0].displacement;
   try {
     mn.step(h);
     FAIL("expected modified Newton to fail");
@@ -104,8 +104,8 @@ TEST_CASE("iterated schemes: modified Newton cannot learn the added mass; BFGS d
     CHECK((msg.find("did not converge in 30 iterations") != std::string::npos ||
            msg.find("diverged") != std::string::npos));
   }
-  CHECK(mn.world.bodies[0].displacement == d0);  // left at tⁿ
-  CHECK(mn.world.time == 0.0);
+  CHECK(mn.world().bodies[0].displacement == d0);  // left at tⁿ
+  CHECK(mn.world().time == 0.0);
   const CoupledStepReport r = bf.step(h);
   CHECK(r.equilibrium.converged);
   CHECK(r.equilibrium.updates >= 1);
@@ -113,8 +113,8 @@ TEST_CASE("iterated schemes: modified Newton cannot learn the added mass; BFGS d
 
 TEST_CASE("iterated schemes: a liquid sealed in a body is refused with a clear error") {
   CoupledRig r;
-  r.world.gravity = Vec3::Zero();
-  r.world.bodies.emplace_back(
+  r.world().gravity = Vec3::Zero();
+  r.world().bodies.emplace_back(
       "balloon", mesh::make_spherical_shell(Vec3(0.5, 0.5, 0.5), 0.15, 0.2, 2, 1),
       make_material(1000, 1e5, 0.3));
   r.domain = box_domain(Vec3::Zero(), Vec3::Ones());

@@ -1,4 +1,5 @@
-/// Tests of coupling/interface.cpp: J = (V D1 H)ᵀ to round-off and the interface power
+/// Tests of fluid/interface.cpp (the operators the coupled solver, the schemes and the fluid's
+/// boundary values use): J = (V D1 H)ᵀ to round-off and the interface power
 /// balance [DESIGN.md §3, VALIDATION.md "Interface power balance"]; a rigid motion moves no
 /// net volume through the interface; a uniform pressure gives no net force; hydrostatic
 /// pressure gives Archimedes' buoyancy; bad references are one-line errors.
@@ -9,12 +10,12 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
-#include "coupling/interface.hpp"
+#include "fluid/interface.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 #include "tests/test_util.hpp"
 
 using namespace tetfsi;
-using namespace tetfsi::coupling;
+using namespace tetfsi::fluid;
 using namespace tetfsi::test;
 
 namespace {
@@ -46,9 +47,10 @@ Scene two_spheres(double size) {
 
 TEST_CASE("J = (V D1 H)^T exactly, and the interface power balance") {
   const Scene s = two_spheres(0.05);
-  const SparseMatrix H = build_H(s.mesh, s.bodies), J = build_J(s.mesh, s.bodies);
-  const SparseMatrix D1 = build_D1(s.mesh);
-  const Index n3 = 3 * node_offsets(s.bodies).back();
+  const InterfaceOperators ops(s.mesh, s.bodies);
+  const SparseMatrix H = ops.H(), J = ops.J();
+  const SparseMatrix D1 = ops.D1();
+  const Index n3 = ops.num_dofs();
   CHECK(H.rows() == s.mesh.num_faces());
   CHECK(H.cols() == n3);
   CHECK(J.rows() == n3);
@@ -76,7 +78,7 @@ TEST_CASE("J = (V D1 H)^T exactly, and the interface power balance") {
     CHECK(a == doctest::Approx(b).epsilon(1e-12));
   }
   // interior nodes get no row in H and no force from J
-  const std::vector<Index> off = node_offsets(s.bodies);
+  const std::vector<Index> off = ops.node_offsets();
   const VecX ones = VecX::Ones(s.mesh.num_tets());
   const VecX f = J * ones;
   for (Index b = 0; b < 2; ++b)
@@ -87,8 +89,9 @@ TEST_CASE(
     "a rigid motion moves no net volume through the interface; a uniform pressure gives no net "
     "force") {
   const Scene s = two_spheres(0.05);
-  const SparseMatrix H = build_H(s.mesh, s.bodies), J = build_J(s.mesh, s.bodies);
-  const std::vector<Index> off = node_offsets(s.bodies);
+  const InterfaceOperators ops(s.mesh, s.bodies);
+  const SparseMatrix H = ops.H(), J = ops.J();
+  const std::vector<Index> off = ops.node_offsets();
   const Vec3 v(0.3, -0.2, 0.5), w(1.0, 0.4, -2.0);
   VecX u = VecX::Zero(3 * off.back());
   for (Index b = 0; b < 2; ++b) {
@@ -125,12 +128,13 @@ TEST_CASE("hydrostatic pressure on the interface gives Archimedes' buoyancy") {
   double err_prev = 1e300;
   for (double size : {0.06, 0.03}) {
     const Scene s = two_spheres(size);
-    const SparseMatrix J = build_J(s.mesh, s.bodies);
+    const InterfaceOperators ops(s.mesh, s.bodies);
+    const SparseMatrix J = ops.J();
     VecX p(s.mesh.num_tets());
     for (Index t = 0; t < s.mesh.num_tets(); ++t)
       p[t] = rho * g * (1.0 - s.mesh.circumcentres(t, 2));
     const VecX force = J * p;
-    const std::vector<Index> off = node_offsets(s.bodies);
+    const std::vector<Index> off = ops.node_offsets();
     Vec3 total = Vec3::Zero();
     for (Index i = off[0]; i < off[1]; ++i) total += force.segment<3>(3 * i);
     // displaced volume of body 0's polyhedral surface
@@ -149,8 +153,9 @@ TEST_CASE("hydrostatic pressure on the interface gives Archimedes' buoyancy") {
     CHECK(total.head<2>().norm() < 0.05 * expected);
     CHECK(err < 0.6 * err_prev);  // first order: about halves with the cell size
     err_prev = err;
-    const VecX fx = face_pressure_forces(s.mesh, s.bodies,
-                                         [&](const Vec3& x) { return rho * g * (1.0 - x.z()); });
+    const VecX fx = stack_bodies(ops.apply_J([&](const InterfaceFace& i) {
+      return rho * g * (1.0 - s.mesh.face_centroids(i.face, 2));
+    }));
     Vec3 exact = Vec3::Zero();
     for (Index i = off[0]; i < off[1]; ++i) exact += fx.segment<3>(3 * i);
     CHECK(exact.z() == doctest::Approx(expected).epsilon(1e-10));
@@ -161,10 +166,52 @@ TEST_CASE("hydrostatic pressure on the interface gives Archimedes' buoyancy") {
 TEST_CASE("a Solid face referring to a missing body or triangle is a one-line MeshError") {
   Scene s = two_spheres(0.08);
   std::vector<BodyInterface> one = {s.bodies[0]};
-  const std::string msg = message_of<MeshError>([&] { build_H(s.mesh, one); });
+  const std::string msg = message_of<MeshError>([&] { InterfaceOperators(s.mesh, one); });
   CHECK(msg.find("refers to body 1, but there are 1 bodies") != std::string::npos);
   std::vector<BodyInterface> cut = s.bodies;
   cut[1].triangles = cut[1].triangles.topRows(3).eval();
-  const std::string msg2 = message_of<MeshError>([&] { build_J(s.mesh, cut); });
+  const std::string msg2 = message_of<MeshError>([&] { InterfaceOperators(s.mesh, cut); });
   CHECK(msg2.find("of body 1, which has 3") != std::string::npos);
+}
+
+TEST_CASE("the operators' products equal their matrices: apply_H = H u, apply_J = J p") {
+  const Scene s = two_spheres(0.05);
+  const InterfaceOperators ops(s.mesh, s.bodies);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> N;
+  std::vector<VecX> u(s.bodies.size());
+  for (size_t b = 0; b < u.size(); ++b) {
+    u[b].resize(3 * s.bodies[b].num_nodes);
+    for (auto& x : u[b]) x = N(rng);
+  }
+  VecX p(s.mesh.num_tets());
+  for (auto& x : p) x = N(rng);
+  // H: every Solid face set, the others untouched
+  VecX hu = VecX::Constant(s.mesh.num_faces(), 7.0);
+  ops.apply_H(u, hu);
+  const VecX ref = ops.H() * stack_bodies(u);
+  double dh = 0, hmax = 0;
+  for (Index f = 0; f < s.mesh.num_faces(); ++f) {
+    if (s.mesh.face_kind[f] == mesh::FaceKind::Solid) {
+      dh = std::max(dh, std::abs(hu[f] - ref[f]));
+      hmax = std::max(hmax, std::abs(ref[f]));
+    } else {
+      CHECK(hu[f] == 7.0);
+    }
+  }
+  MESSAGE("max |apply_H - H u| = " << dh << " (max |H u| = " << hmax << ")");
+  CHECK(dh <= 1e-14 * hmax);
+  // a body whose velocities are not given keeps its faces
+  std::vector<VecX> only0 = {u[0], VecX()};
+  VecX h0 = VecX::Constant(s.mesh.num_faces(), 7.0);
+  ops.apply_H(only0, h0);
+  for (const InterfaceFace& i : ops.faces())
+    CHECK((i.body == 0 ? std::abs(h0[i.face] - ref[i.face]) <= 1e-14 * hmax : h0[i.face] == 7.0));
+  // J
+  const VecX jp = stack_bodies(
+      ops.apply_J([&](const InterfaceFace& i) { return p[s.mesh.face_tets(i.face, 0)]; }));
+  const VecX jref = ops.J() * p;
+  const double dj = (jp - jref).cwiseAbs().maxCoeff(), jmax = jref.cwiseAbs().maxCoeff();
+  MESSAGE("max |apply_J - J p| = " << dj << " (max |J p| = " << jmax << ")");
+  CHECK(dj <= 1e-13 * jmax);
 }

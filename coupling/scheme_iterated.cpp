@@ -1,0 +1,322 @@
+/// @file scheme_iterated.cpp
+/// The iterated schemes bfgs, modified_newton and newton [BatheSonnad80] (scheme.hpp): the
+/// fully nonlinear trapezoidal rule of every deformable body (solid/nonlinear_trapezoid.hpp)
+/// with the fluid's nodal forces in its out-of-balance force, iterated to equilibrium
+/// (core/equilibrium.hpp, tolerances from SolidWorld::equilibrium). The mesh is built around
+/// x* as for simultaneous; each residual evaluation projects the fluid on it with the bodies'
+/// Solid faces moving at the iterate's velocities (a fluid-only solve) and returns the
+/// pressure forces. bfgs and modified_newton start from the seed's Eq. (15): the bodies' own
+/// (h/4) K̂ = M/h + C/2 + (h/4) K', no fluid in it — the fluid's added mass is learnt by the
+/// BFGS updates (modified Newton never learns it: with more added mass than body mass it
+/// cannot converge). newton re-forms the bodies' tangent every iteration and solves for the
+/// increment with the fluid in the matrix (the coupled system on the increment), so it is the
+/// simultaneous scheme iterated on the solid's nonlinearity. The fluid-only solution is affine
+/// in the face velocities: a point in the affine span of solved points (every line-search
+/// trial) is combined from them instead of solved, so BFGS costs one fluid solve per
+/// iteration. Fluid regions sealed by a deformable body (no Open face) are rejected: a
+/// fluid-only projection cannot give them a volume.
+#include <algorithm>
+#include <memory>
+
+#include <Eigen/QR>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "coupling/scheme.hpp"
+#include "fluid/operators.hpp"
+#include "solid/integrator.hpp"
+#include "solid/nonlinear_trapezoid.hpp"
+#include "solid/obstacles.hpp"
+
+namespace tetfsi::coupling {
+
+namespace {
+
+/// The fluid-only solution is affine in the bodies' face velocities (a linear solve with them
+/// in its right-hand side): once points x₀ … x_k have been solved, any x in their affine span
+/// gets p, the face velocities and the nodal forces by the same combination, exactly up to the
+/// solves' tolerance. The line search's points x + β Δx are on the line through two solved
+/// points, so each BFGS iteration costs one fluid solve, not one per trial β.
+struct AffineFluidCache {
+  std::vector<VecX> x;
+  std::vector<CoupledSolution> s;
+
+  bool combine(const VecX& xq, CoupledSolution& out) const {
+    const Index k = static_cast<Index>(x.size()) - 1;
+    if (k < 1) return false;
+    Eigen::MatrixXd D(xq.size(), k);
+    for (Index j = 0; j < k; ++j) D.col(j) = x[j + 1] - x[0];
+    const VecX r = xq - x[0];
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(D);
+    if (qr.rank() < k) return false;
+    const VecX c = qr.solve(r);
+    // in the span to round-off, and not a large extrapolation (that would amplify the solves'
+    // errors)
+    if (!((D * c - r).norm() <= 1e-11 * std::max(r.norm(), xq.norm())) ||
+        !(c.cwiseAbs().maxCoeff() <= 1e3))
+      return false;
+    out = s[0];
+    for (Index j = 0; j < k; ++j) {
+      const CoupledSolution& sj = s[j + 1];
+      out.p += c[j] * (sj.p - s[0].p);
+      out.u_face += c[j] * (sj.u_face - s[0].u_face);
+      for (size_t b = 0; b < out.fluid_force.size(); ++b)
+        out.fluid_force[b] += c[j] * (sj.fluid_force[b] - s[0].fluid_force[b]);
+    }
+    return true;
+  }
+  void add(const VecX& xq, const CoupledSolution& sol) {
+    if (x.size() >= 40) return;  // enough for any step; keeps the QR small
+    x.push_back(xq);
+    s.push_back(sol);
+  }
+};
+
+/// A region with no Open face bounded by a deformable body: the fluid-only projection of a
+/// residual evaluation would have to remove the body's net flux (fluid::project), so the
+/// iteration could not see the region's incompressibility. @throws InputError naming it.
+void refuse_sealed_regions(const mesh::TetMesh& m, const solid::SolidWorld& world,
+                           const char* scheme) {
+  const fluid::Regions regions = fluid::fluid_regions(m);
+  std::vector<Index> cells(regions.count(), 0);
+  for (Index t = 0; t < m.num_tets(); ++t) ++cells[regions.cell_region[t]];
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    if (!m.is_boundary(f) || m.face_kind[f] != mesh::FaceKind::Solid) continue;
+    const Index r = regions.cell_region[m.face_tets(f, 0)];
+    const solid::SolidBody& body = world.bodies[m.face_body[f]];
+    TETFSI_REQUIRE(InputError, regions.has_open[r] || body.is_kinematic(),
+                   "coupling.scheme {}: a fluid region of {} cells has no open face and is "
+                   "bounded by body '{}': a fluid-only projection cannot keep its volume; use "
+                   "coupling.scheme simultaneous, or give the region an open patch",
+                   scheme, cells[r], body.name());
+  }
+}
+
+/// One iterated step: the unknowns x = uⁿ⁺¹ of every deformable body, stacked.
+class IteratedStep {
+ public:
+  IteratedStep(StepContext& ctx, fluid::FluidPrediction& pred, const CouplingParams& params,
+               CoupledStepReport& rep)
+      : m_ctx(ctx), m_pred(pred), m_params(params), m_rep(rep),
+        m_ops(pred.mesh, body_interfaces(ctx.world, ctx.surfaces)) {
+    const solid::SolidWorld& world = ctx.world;
+    m_nb = static_cast<Index>(world.bodies.size());
+    m_off.assign(m_nb + 1, 0);
+    m_eq.resize(m_nb);
+    for (Index b = 0; b < m_nb; ++b) {
+      const solid::SolidBody& body = world.bodies[b];
+      if (!body.is_kinematic())
+        m_eq[b] = std::make_unique<solid::TrapezoidalEquilibrium>(
+            body, ctx.h, body.external_forces(world.gravity));
+      m_off[b + 1] = m_off[b] + (m_eq[b] ? body.num_dofs() : 0);
+    }
+    m_held.resize(m_nb);  // every body prescribed: the fluid-only solve
+  }
+
+  /// Iterate to equilibrium from the seed's U⁽⁰⁾; returns the converged velocities.
+  VecX solve(EquilibriumHistory& history) {
+    EquilibriumProblem problem;
+    problem.residual = [this](const VecX& x) { return residual(x); };
+    if (m_params.scheme == Scheme::Newton)
+      problem.factor = [this](const VecX& x) { return newton_inverse(x); };
+    else
+      problem.factor = [this](const VecX& x) { return body_inverse(x); };
+    EquilibriumOptions opt = m_ctx.world.equilibrium;
+    opt.method = m_params.scheme == Scheme::Newton           ? IterationMethod::Newton
+                 : m_params.scheme == Scheme::ModifiedNewton ? IterationMethod::ModifiedNewton
+                                                             : IterationMethod::Bfgs;
+    VecX x(m_off[m_nb]);
+    for (Index b = 0; b < m_nb; ++b)
+      if (m_eq[b]) x.segment(m_off[b], m_off[b + 1] - m_off[b]) = m_eq[b]->start();
+    m_rep.equilibrium = solve_equilibrium(problem, x, opt, history);
+    const char* scheme = to_string(m_params.scheme);
+    TETFSI_REQUIRE(SolverError, m_rep.equilibrium.converged,
+                   "coupling.scheme {}: the iteration {} at t = {:.6g} s (h = {:.3g} s); raise "
+                   "solid.max_iterations, reduce time.dt, or use coupling.scheme bfgs, newton or "
+                   "simultaneous",
+                   scheme, m_rep.equilibrium.failure, m_ctx.world.time, m_ctx.h);
+    const EquilibriumReport& e = m_rep.equilibrium;
+    logger().debug(
+        "coupling.scheme {}: {} iterations, {} residual evaluations, {} fluid solves, {} "
+        "factorizations, {} updates ({} skipped), {} line searches; force ratio {:.3g}, energy "
+        "ratio {:.3g}",
+        scheme, e.iterations, e.evaluations, m_rep.fluid_solves, e.factorizations, e.updates,
+        e.skipped_updates, e.line_searches, e.force_ratio, e.energy_ratio);
+    if (!(m_last_x.size() == x.size() && m_last_x == x)) residual(x);
+    return x;
+  }
+
+  /// Eq. (3): dⁿ⁺¹ = dⁿ + h/2 (uⁿ + uⁿ⁺¹), collisions; the fluid solution at x.
+  CoupledSolution finish(const VecX& x) {
+    ScopedTimer timer(m_ctx.phases, "update");
+    solid::SolidWorld& world = m_ctx.world;
+    for (Index b = 0; b < m_nb; ++b) {
+      if (!m_eq[b]) continue;
+      solid::SolidBody& body = world.bodies[b];
+      const VecX ub = part(x, b);
+      solid::advance_trapezoidal(body, ub, m_ctx.h);
+      m_last.u[b] = ub;
+      m_rep.contacts += solid::resolve_collisions(body, world.obstacles);
+      check_finite(body, m_ctx.h);
+    }
+    return std::move(m_last);
+  }
+
+ private:
+  VecX part(const VecX& x, Index b) const { return x.segment(m_off[b], m_off[b + 1] - m_off[b]); }
+
+  /// x split per body (empty for kinematic bodies).
+  std::vector<VecX> per_body(const VecX& x) const {
+    std::vector<VecX> u(m_nb);
+    for (Index b = 0; b < m_nb; ++b)
+      if (m_eq[b]) u[b] = part(x, b);
+    return u;
+  }
+
+  void add_phases(const CoupledSolution& s) {
+    add_solve_phases(m_ctx.phases, s.report);
+    ++m_rep.fluid_solves;
+  }
+
+  /// The fluid-only solve with the Solid faces of deformable bodies at n·(H x).
+  CoupledSolution fluid_at(const VecX& x) {
+    CoupledSolution s;
+    if (m_cache.combine(x, s)) return s;
+    VecX ustar = m_pred.u_star;
+    m_ops.apply_H(per_body(x), ustar);
+    CoupledInput in = make_input(m_pred, m_ctx.fluid.params(), m_ops, m_held);
+    in.u_star = &ustar;
+    // The forces need not be more accurate than RTOL resolves: the fluid solve stops at
+    // 1e-2 RTOL relative (at most 1e-8; the scene's coupling.rel_tol if that is looser).
+    CoupledOptions o = m_params.solve;
+    o.rel_tol = std::max(o.rel_tol, std::min(1e-8, 1e-2 * m_ctx.world.equilibrium.rtol));
+    o.reuse = &m_amg;  // every fluid-only solve of this step has the same P = C
+    s = solve_coupled(in, o);
+    add_phases(s);
+    TETFSI_REQUIRE(SolverError, s.report.converged,
+                   "coupling.scheme {}: a fluid solve did not converge ({} iterations, residual "
+                   "{:.3g}); raise coupling.max_iterations or reduce time.dt",
+                   to_string(m_params.scheme), s.report.iterations, s.report.residual);
+    m_cache.add(x, s);
+    return s;
+  }
+
+  /// g(u) = the bodies' trapezoidal out-of-balance force + the fluid's forces of the
+  /// projection with the Solid faces at n·(H u)   [BatheSonnad80, Eq. (6)]
+  VecX residual(const VecX& x) {
+    CoupledSolution s = fluid_at(x);
+    ScopedTimer timer(m_ctx.phases, "solid");
+    VecX g(m_off[m_nb]);
+    for (Index b = 0; b < m_nb; ++b) {
+      if (!m_eq[b]) continue;
+      VecX gb = m_eq[b]->residual(part(x, b)) + s.fluid_force[b];
+      for (Index l = 0; l < gb.size(); ++l)
+        if (m_ctx.world.bodies[b].is_fixed(l)) gb[l] = 0.0;
+      g.segment(m_off[b], gb.size()) = gb;
+    }
+    m_last_x = x;
+    m_last = std::move(s);
+    return g;
+  }
+
+  /// newton: the increment with the fluid in the matrix — the coupled system on homogeneous
+  /// fluid data (v* = 0, no open pressure, no gravity), A the bodies' tangents, b the residual.
+  InverseOperator newton_inverse(const VecX& x) {
+    auto bodies = std::make_shared<std::vector<CoupledBody>>(m_nb);
+    {
+      ScopedTimer timer(m_ctx.phases, "solid");
+      for (Index b = 0; b < m_nb; ++b) {
+        if (!m_eq[b]) continue;
+        CoupledBody& cb = (*bodies)[b];
+        const solid::SolidBody& body = m_ctx.world.bodies[b];
+        cb.free = true;
+        cb.A = m_eq[b]->tangent(part(x, b));
+        cb.fixed = body.fixed_dofs();
+        cb.x = body.positions();
+        cb.u = flat(body.velocity);
+      }
+    }
+    return [this, bodies](const VecX& r) -> VecX {
+      for (Index b = 0; b < m_nb; ++b)
+        if (m_eq[b]) (*bodies)[b].b = part(r, b);
+      const VecX zero_f = VecX::Zero(m_pred.mesh.num_faces());
+      CoupledInput in = make_input(m_pred, m_ctx.fluid.params(), m_ops, *bodies);
+      in.u_star = &zero_f;
+      in.p_open = &zero_f;
+      in.gravity = Vec3::Zero();
+      CoupledOptions o = m_params.solve;
+      o.conserve_volume = false;
+      // An increment only has to be a good direction: at 1e-10 the CG stalled just above
+      // the tolerance on the small right-hand sides of late iterations (measured 1-4e-10).
+      o.rel_tol = std::max(o.rel_tol, 1e-8);
+      const CoupledSolution s = solve_coupled(in, o);
+      add_phases(s);
+      VecX dx(m_off[m_nb]);
+      for (Index b = 0; b < m_nb; ++b)
+        if (m_eq[b]) dx.segment(m_off[b], m_off[b + 1] - m_off[b]) = s.u[b];
+      return dx;
+    };
+  }
+
+  /// bfgs, modified_newton: [BatheSonnad80, Eq. (15)], the bodies' own (h/4) K̂, block
+  /// diagonal, no fluid.
+  InverseOperator body_inverse(const VecX& x) {
+    ScopedTimer timer(m_ctx.phases, "solid");
+    std::vector<InverseOperator> inv(m_nb);
+    for (Index b = 0; b < m_nb; ++b)
+      if (m_eq[b]) inv[b] = solid::factor_inverse(m_eq[b]->tangent(part(x, b)));
+    return [inv, off = m_off, nb = m_nb](const VecX& r) -> VecX {
+      VecX dx = VecX::Zero(r.size());
+      for (Index b = 0; b < nb; ++b)
+        if (inv[b])
+          dx.segment(off[b], off[b + 1] - off[b]) = inv[b](r.segment(off[b], off[b + 1] - off[b]));
+      return dx;
+    };
+  }
+
+  StepContext& m_ctx;
+  fluid::FluidPrediction& m_pred;
+  const CouplingParams& m_params;
+  CoupledStepReport& m_rep;
+  const InterfaceOperators m_ops;
+  Index m_nb = 0;
+  std::vector<Index> m_off;  ///< first unknown of each body
+  std::vector<std::unique_ptr<solid::TrapezoidalEquilibrium>> m_eq;
+  std::vector<CoupledBody> m_held;
+  VecX m_last_x;
+  CoupledSolution m_last;
+  AffineFluidCache m_cache;
+  SolveCache m_amg;
+};
+
+class IteratedScheme final : public CouplingScheme {
+ public:
+  explicit IteratedScheme(CouplingParams p) : m_params(std::move(p)) {}
+  Scheme kind() const override { return m_params.scheme; }
+
+  CoupledSolution advance(StepContext& ctx, fluid::FluidPrediction& pred,
+                          CoupledStepReport& rep) override {
+    for (solid::SolidBody& body : ctx.world.bodies)
+      if (body.is_kinematic()) body.set_kinematic_state(ctx.world.time + ctx.h);
+    pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h,
+                             surface_motion(ctx.world, ctx.surfaces), ctx.phases);
+    refuse_sealed_regions(pred.mesh, ctx.world, to_string(m_params.scheme));
+    IteratedStep step(ctx, pred, m_params, rep);
+    const VecX x = step.solve(m_history);
+    return step.finish(x);
+  }
+
+ private:
+  CouplingParams m_params;
+  EquilibriumHistory m_history;  ///< Eq. (12)'s largest force, the kept matrix
+};
+
+}  // namespace
+
+std::unique_ptr<CouplingScheme> make_iterated_scheme(const CouplingParams& params) {
+  TETFSI_CHECK(is_iterated(params.scheme), "make_iterated_scheme: {} is not iterated",
+               to_string(params.scheme));
+  return std::make_unique<IteratedScheme>(params);
+}
+
+}  // namespace tetfsi::coupling

@@ -1,0 +1,90 @@
+/// @file scheme_simultaneous.cpp
+/// The simultaneous scheme [Chentanez06, §3.3] (scheme.hpp): Eq. (4) per body at dⁿ, the mesh
+/// around x*, one coupled solve of Eq. (7), Eq. (8), Eq. (5), collisions.
+#include "core/dof_elimination.hpp"
+#include "core/error.hpp"
+#include "coupling/contacts.hpp"
+#include "coupling/scheme.hpp"
+#include "solid/integrator.hpp"
+#include "solid/obstacles.hpp"
+
+namespace tetfsi::coupling {
+
+namespace {
+
+class SimultaneousScheme final : public CouplingScheme {
+ public:
+  explicit SimultaneousScheme(CouplingParams p) : m_params(std::move(p)) {}
+  Scheme kind() const override { return Scheme::Simultaneous; }
+
+  CoupledSolution advance(StepContext& ctx, fluid::FluidPrediction& pred,
+                          CoupledStepReport& rep) override {
+    solid::SolidWorld& world = ctx.world;
+    const Index nb = static_cast<Index>(world.bodies.size());
+    std::vector<CoupledBody> cb(nb);
+    std::vector<std::vector<Contact>> contacts(nb);
+    {  // 1. each deformable body's Eq. (4) at dⁿ; kinematic bodies to tⁿ⁺¹
+      ScopedTimer timer(ctx.phases, "coupled_assembly");
+      for (Index b = 0; b < nb; ++b) contacts[b] = assemble_body(world, b, ctx.h, cb[b]);
+    }
+    // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
+    pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h,
+                             surface_motion(world, ctx.surfaces), ctx.phases);
+    // 4. [Chentanez06, Eq. (7)]
+    const InterfaceOperators ops(pred.mesh, body_interfaces(world, ctx.surfaces));
+    CoupledSolution sol = solve_coupled(
+        make_input(pred, ctx.fluid.params(), ops, cb, &m_targets), m_params.solve);
+    add_solve_phases(ctx.phases, sol.report);
+    // 5. Eq. (5), collisions
+    ScopedTimer timer(ctx.phases, "update");
+    for (Index b = 0; b < nb; ++b) {
+      solid::SolidBody& body = world.bodies[b];
+      if (!cb[b].free) continue;
+      solid::advance_trapezoidal(body, sol.u[b], ctx.h);
+      land_contacts(body, contacts[b], world.gravity, ctx.h);
+      rep.contacts += static_cast<Index>(contacts[b].size());
+      rep.contacts += solid::resolve_collisions(body, world.obstacles);
+      check_finite(body, ctx.h);
+    }
+    return sol;
+  }
+
+ private:
+  /// Body b's Eq. (4) with its floor contacts eliminated (a kinematic body: moved to tⁿ⁺¹).
+  static std::vector<Contact> assemble_body(solid::SolidWorld& world, Index b, double h,
+                                            CoupledBody& cb) {
+    solid::SolidBody& body = world.bodies[b];
+    if (body.is_kinematic()) {
+      body.set_kinematic_state(world.time + h);
+      return {};
+    }
+    solid::TrapezoidalSystem sys = solid::assemble_trapezoidal(
+        body, h, body.external_forces(world.gravity), world.trapezoid);
+    cb.free = true;
+    cb.A = std::move(sys.A);
+    cb.b = std::move(sys.b);
+    cb.fixed = body.fixed_dofs();
+    cb.prescribed = VecX::Zero(body.num_dofs());
+    std::vector<Contact> contacts =
+        floor_contacts(body, world.obstacles, world.gravity, h, cb.prescribed, cb.fixed);
+    std::vector<std::uint8_t> mask(body.num_dofs(), 0);
+    for (const Contact& c : contacts) mask[3 * c.node + c.axis] = 1;
+    if (!contacts.empty())
+      eliminate_dofs(cb.A, mask, [&](Index i) { return body.lumped_mass()[i / 3] / h; }, &cb.b,
+                     &cb.prescribed);
+    cb.x = body.positions();
+    cb.u = flat(body.velocity);
+    return contacts;
+  }
+
+  CouplingParams m_params;
+  VolumeTargets m_targets;  ///< the enclosed regions' volumes when first seen
+};
+
+}  // namespace
+
+std::unique_ptr<CouplingScheme> make_simultaneous_scheme(const CouplingParams& params) {
+  return std::make_unique<SimultaneousScheme>(params);
+}
+
+}  // namespace tetfsi::coupling

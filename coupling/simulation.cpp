@@ -1,0 +1,173 @@
+#include "coupling/simulation.hpp"
+
+#include <exception>
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+
+namespace tetfsi::coupling {
+
+namespace {
+
+std::vector<MatX3> current_positions(const solid::SolidWorld& world) {
+  std::vector<MatX3> x;
+  x.reserve(world.bodies.size());
+  for (const solid::SolidBody& b : world.bodies) x.push_back(b.positions());
+  return x;
+}
+
+std::string fmt_point(const Vec3& v) {
+  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
+}
+
+}  // namespace
+
+RemeshPolicy::RemeshPolicy(mesh::FluidDomain domain, mesh::Sizing sizing,
+                           const solid::SolidWorld& world)
+    : m_domain(std::move(domain)), m_sizing(std::move(sizing)) {
+  // Each body's boundary (SolidBody::boundary_triangles of its rest mesh) is compacted once to
+  // the nodes it uses; every rebuild only gathers their positions.
+  for (const solid::SolidBody& b : world.bodies) {
+    m_surfaces.push_back(body_surface(b));
+    m_names.push_back(b.name());
+    m_legend += fmt::format("{}body {} is '{}'", m_legend.empty() ? "" : ", ",
+                            m_surfaces.size() - 1, b.name());
+  }
+}
+
+void RemeshPolicy::check_inside(size_t index, const MatX3& x) const {
+  const Vec3& lo = m_domain.lo;
+  const Vec3& hi = m_domain.hi;
+  for (Index k = 0; k < x.rows(); ++k) {
+    const Vec3 p = x.row(k).transpose();
+    if ((p.array() > lo.array()).all() && (p.array() < hi.array()).all()) continue;
+    const Vec3 blo = x.colwise().minCoeff().transpose();
+    const Vec3 bhi = x.colwise().maxCoeff().transpose();
+    throw MeshError(fmt::format(
+        "body '{}' (bodies[{}]) is not strictly inside the fluid box {}..{}: node {} is at {} "
+        "and the body spans {}..{}; enlarge fluid.domain or keep the body inside",
+        m_names[index], index, fmt_point(lo), fmt_point(hi), m_surfaces[index].nodes[k],
+        fmt_point(p), fmt_point(blo), fmt_point(bhi)));
+  }
+}
+
+mesh::TetMesh RemeshPolicy::build(const std::vector<MatX3>& positions,
+                                  const fluid::RefineField* refine,
+                                  mesh::RemeshReport* report) const {
+  TETFSI_CHECK(positions.size() == m_surfaces.size(), "fluid remesh: {} position sets for {} bodies",
+               positions.size(), m_surfaces.size());
+  std::vector<mesh::SolidSurface> solids(m_surfaces.size());
+  for (size_t i = 0; i < m_surfaces.size(); ++i) {
+    const BodySurface& bd = m_surfaces[i];
+    mesh::SolidSurface& s = solids[i];
+    s.body = static_cast<int>(i);
+    s.triangles = bd.triangles;
+    TETFSI_CHECK(bd.nodes.size() == 0 || positions[i].rows() > bd.nodes.maxCoeff(),
+                 "fluid remesh: {} positions for body '{}', its surface uses node {}",
+                 positions[i].rows(), m_names[i], bd.nodes.maxCoeff());
+    s.vertices.resize(bd.nodes.size(), 3);
+    for (Index k = 0; k < bd.nodes.size(); ++k) s.vertices.row(k) = positions[i].row(bd.nodes[k]);
+    check_inside(i, s.vertices);
+  }
+  mesh::Sizing sizing = m_sizing;
+  if (refine) sizing.refine = *refine;  // finer where smoke / vorticity is
+  try {
+    return mesh::remesh(m_domain, solids, sizing, report);
+  } catch (const std::exception& e) {
+    // tetfsi errors, and also what CGAL or the allocator may throw (std::logic_error,
+    // std::bad_alloc): the run stops like on any failed step instead of losing its summary.
+    std::string why = e.what();
+    if (why.rfind("remesh: ", 0) == 0) why = why.substr(8);
+    throw MeshError(fmt::format("fluid remesh: {} ({})", why, m_legend));
+  }
+}
+
+FsiSimulation::FsiSimulation(solid::SolidWorld world, std::optional<FluidSetup> fluid,
+                             std::optional<CouplingParams> coupling)
+    : m_world(std::move(world)) {
+  TETFSI_REQUIRE(InputError, fluid || !coupling,
+                 "a two-way coupling ({}) needs a fluid", coupling ? to_string(coupling->scheme) : "");
+  if (!fluid) return;
+  m_fluid.emplace(fluid->params);
+  m_policy.emplace(std::move(fluid->domain), std::move(fluid->sizing), m_world);
+  if (coupling) m_stepper.emplace(std::move(*coupling), m_world);
+}
+
+const fluid::FluidSimulation& FsiSimulation::fluid() const {
+  TETFSI_CHECK(m_fluid.has_value(), "FsiSimulation::fluid: the simulation has no fluid");
+  return *m_fluid;
+}
+
+fluid::FluidSimulation& FsiSimulation::fluid() {
+  TETFSI_CHECK(m_fluid.has_value(), "FsiSimulation::fluid: the simulation has no fluid");
+  return *m_fluid;
+}
+
+const mesh::TetMesh* FsiSimulation::mesh() const {
+  return m_fluid && m_started ? &m_fluid->mesh() : nullptr;
+}
+
+mesh::TetMesh FsiSimulation::build_mesh(const std::vector<MatX3>& positions, PhaseTimes& phases) {
+  ScopedTimer timer(phases, "remesh");
+  mesh::RemeshReport report;
+  fluid::RefineField refine;
+  if (m_started) refine = m_fluid->refinement_field();
+  mesh::TetMesh m = m_policy->build(positions, m_started ? &refine : nullptr, &report);
+  const double seconds = timer.stop();
+  if (m_observer) m_observer(m, report, seconds, phases);
+  return m;
+}
+
+void FsiSimulation::start(PhaseTimes& phases) {
+  if (!m_fluid) return;
+  m_started = false;
+  m_fluid->initialize(build_mesh(current_positions(m_world), phases));
+  m_started = true;
+}
+
+void FsiSimulation::rebuild_at_rest(PhaseTimes& phases) {
+  if (!m_fluid) return;
+  m_fluid->initialize(build_mesh(current_positions(m_world), phases));
+  m_started = true;
+}
+
+FsiStepReport FsiSimulation::step(double h, PhaseTimes& phases) {
+  TETFSI_CHECK(!m_fluid || m_started, "FsiSimulation::step before start");
+  if (m_stepper) return step_two_way(h, phases);
+  return step_one_way(h, phases);
+}
+
+FsiStepReport FsiSimulation::step_one_way(double h, PhaseTimes& phases) {
+  FsiStepReport r;
+  const double ts = now_seconds();
+  r.solid = m_world.step(h, phases);
+  r.solid_s = now_seconds() - ts;
+  if (!m_fluid) return r;
+  mesh::TetMesh m = build_mesh(current_positions(m_world), phases);
+  PhaseTimes fp;
+  const double t0 = now_seconds();
+  r.fluid = m_fluid->step(std::move(m), h, surface_motion(m_world, m_policy->surfaces()), fp);
+  r.fluid_s = now_seconds() - t0;
+  phases.add("transfer", fp.get("transfer"));
+  phases.add("forces", fp.get("forces"));
+  phases.add("pressure_assembly", fp.get("assembly"));
+  phases.add("pressure_solve", fp.get("solve"));
+  return r;
+}
+
+FsiStepReport FsiSimulation::step_two_way(double h, PhaseTimes& phases) {
+  // The builder times the remesh (and the observer's work) into `phases` itself; the
+  // stepper's own phases are collected apart to tell the fluid's share.
+  const MeshBuilder build = [this, &phases](const std::vector<MatX3>& x) {
+    return build_mesh(x, phases);
+  };
+  PhaseTimes sp;
+  FsiStepReport r;
+  r.coupled = m_stepper->step(m_world, *m_fluid, build, h, sp);
+  for (const auto& [name, seconds] : sp.entries()) phases.add(name, seconds);
+  r.fluid_s = sp.get("transfer") + sp.get("forces") + sp.get("coupled_assembly") +
+              sp.get("coupled_solve");
+  return r;
+}
+
+}  // namespace tetfsi::coupling
