@@ -170,9 +170,9 @@ bool RemeshContext::tag_solid_face(TetMesh& m, Index f, int a, int b, int c) con
   m.face_kind[f] = FaceKind::Solid;
   m.face_body(f) = solids[set.tri_body[g]].body;
   m.face_triangle(f) = set.local(g);
-  const Vec3 w = (surf->bary(surface_id(a), g) + surf->bary(surface_id(b), g) +
-                  surf->bary(surface_id(c), g)) /
-                 3.0;
+  const Vec3 w =
+      (surf->bary(surface_id(a), g) + surf->bary(surface_id(b), g) + surf->bary(surface_id(c), g)) /
+      3.0;
   m.face_bary.row(f) = w.transpose();
   return true;
 }
