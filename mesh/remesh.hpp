@@ -2,7 +2,8 @@
 /// @file remesh.hpp
 /// The fluid remesher: every time step a new Delaunay tet mesh of the fluid domain around
 /// the current solid boundary triangles (DESIGN.md §2 step 2, §3, §6). The implementation is
-/// in remesh.cpp; CGAL only in delaunay.cpp.
+/// in mesh/remesh*.cpp, one function per stage of the internal RemeshContext
+/// (remesh_stages.hpp); CGAL only in delaunay.cpp.
 ///
 /// Steps:
 ///  1. vertex placement: a graded BCC lattice (corners and centres of the leaves of a
