@@ -31,7 +31,7 @@ const char* to_string(IterationMethod m) {
 double rank_one_condition(const VecX& v, const VecX& w) {
   const double s = w.dot(v);
   const double sum = 2.0 + 2.0 * s + v.squaredNorm() * w.squaredNorm();  // σ₁² + σ₂²
-  const double prod = (1.0 + s) * (1.0 + s);                              // σ₁² σ₂²
+  const double prod = (1.0 + s) * (1.0 + s);                             // σ₁² σ₂²
   if (prod == 0.0) return std::numeric_limits<double>::infinity();
   const double disc = std::max(0.0, sum * sum - 4.0 * prod);
   const double big = 0.5 * (sum + std::sqrt(disc));
@@ -40,6 +40,7 @@ double rank_one_condition(const VecX& v, const VecX& w) {
 }
 
 VecX BfgsInverse::apply(const VecX& r) const {
+  // (K̂⁻¹)⁽ⁱ⁾ r = A⁽ⁱ⁾ᵀ … A⁽¹⁾ᵀ (K̂⁻¹)⁽⁰⁾ A⁽¹⁾ … A⁽ⁱ⁾ r, A = I + v wᵀ  [BatheSonnad80, Eq. (11)]
   VecX s = r;
   for (auto it = m_vw.rbegin(); it != m_vw.rend(); ++it) s += it->first * it->second.dot(s);  // A s
   s = m_h0(s);
@@ -71,11 +72,11 @@ void BfgsInverse::reset(InverseOperator k0_inverse) {
 LineSearchResult line_search(const std::function<VecX(const VecX&)>& residual, const VecX& x,
                              const VecX& dx, const VecX& g, const EquilibriumOptions& opt) {
   const double phi0 = dx.dot(g);
-  const double target = opt.stol * std::abs(phi0);
+  const double target = opt.stol * std::abs(phi0);  // [BatheSonnad80, Eq. (10)], |·| both sides
   LineSearchResult best;
   double best_phi = std::numeric_limits<double>::infinity();
   auto at = [&](double beta) {
-    VecX xb = x + beta * dx;
+    VecX xb = x + beta * dx;  // [BatheSonnad80, Eq. (9)]
     VecX gb = residual(xb);
     ++best.evaluations;
     const double phi = gb.allFinite() ? dx.dot(gb) : std::numeric_limits<double>::quiet_NaN();
@@ -181,7 +182,7 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
   for (int i = 1; i <= opt.max_iterations; ++i) {
     rep.iterations = i;
     if ((newton && i > 1) || (bfgs && H.updates() >= opt.max_updates)) reform(x);
-    VecX dx = H.apply(g);
+    VecX dx = H.apply(g);  // Δx⁽ⁱ⁾ = (K̂⁻¹)⁽ⁱ⁻¹⁾ g⁽ⁱ⁻¹⁾  [BatheSonnad80, Eq. (8)]
     double phi0 = dx.dot(g);
     if (bfgs && H.updates() > 0 && !(phi0 > 0.0)) {
       // The updated matrix lost positive definiteness along g: start again from the tangent.
@@ -205,7 +206,7 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
     VecX xn, gn;
     double beta = 1.0;
     const bool search = bfgs ? opt.line_search : opt.line_search_newton;
-    if (search && phi0 > 0.0) {  // [BatheSonnad80, Eqs. (9), (10)]
+    if (search && phi0 > 0.0) {  // see [BatheSonnad80, Eqs. (9), (10)]
       LineSearchResult ls = line_search(problem.residual, x, dx, g, opt);
       rep.evaluations += ls.evaluations;
       beta = ls.beta;
@@ -220,7 +221,7 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
       rep.failure = fmt::format("the out-of-balance force became non-finite at iteration {}", i);
       return rep;
     }
-    if (bfgs) {  // [BatheSonnad80, Eq. (11)]: K̂⁽ⁱ⁻¹⁾ δ = β g⁽ⁱ⁻¹⁾
+    if (bfgs) {  // K̂⁽ⁱ⁻¹⁾ δ = β g⁽ⁱ⁻¹⁾, see [BatheSonnad80, Eq. (11)]
       if (H.update(xn - x, g - gn, beta * g, opt.max_condition))
         ++rep.updates;
       else
@@ -230,9 +231,10 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
     g = std::move(gn);
     if (g.norm() > 1e12 * history.max_force) {
       rep.force_ratio = g.norm() / history.max_force;
-      rep.failure = fmt::format("diverged: the out-of-balance force grew to {:.3g} times the "
-                                "largest seen, at iteration {}",
-                                rep.force_ratio, i);
+      rep.failure = fmt::format(
+          "diverged: the out-of-balance force grew to {:.3g} times the "
+          "largest seen, at iteration {}",
+          rep.force_ratio, i);
       return rep;
     }
   }

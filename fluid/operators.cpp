@@ -180,7 +180,7 @@ Index apply_pressure_gradient(const TetMesh& m, const VecX& d_eff, const Pressur
   const bool has_q_open = q_open.size() == nf;
   Index internal = 0;
 
-  // u = u* − G q on the faces between groups and on Open faces [Chentanez06, Eq. (2)];
+  // u = u* − G q on the faces between groups and on Open faces [Chentanez06, Eq. (8)];
   // the least-squares gradient of each group from those faces (A_f n nᵀ g = A_f n (Gq)_f).
   std::vector<Mat3> nn(static_cast<size_t>(ng), Mat3::Zero());
   MatX3 rhs = MatX3::Zero(ng, 3);
@@ -271,7 +271,8 @@ ProjectionReport project(const TetMesh& m, double min_dual_fraction, const VecX&
   const Index ng = groups.count;
   rep.groups = ng;
   const SparseMatrix M = pressure_matrix(m, d_eff, groups, regions);
-  // Right-hand side: M q = −V D u* + Σ_open (A/d̃) q_open, summed over each group's cells
+  // D u = 0 [Chentanez06, Eq. (2)] for u = u* − G q: M q = −V D u* + Σ_open (A/d̃) q_open,
+  // summed over each group's cells
   // (the fluxes of its internal faces cancel).
   const VecX flux = net_flux(m, u);
   rep.divergence_before = nt > 0 ? flux.cwiseQuotient(m.volumes).cwiseAbs().maxCoeff() : 0.0;

@@ -165,7 +165,7 @@ void StvkElasticity::forces_and_jacobian(const MatX3& x, VecX& forces,
     const double v0 = m_rest_volume[t];
     const Eigen::Matrix<double, 3, 4> h = v0 * s.P * g;
     for (int a = 0; a < 4; ++a) forces.segment<3>(3 * tet[a]) += h.col(a);
-    // K' = ∂K/∂d  [Chentanez06, Eq. (16)]
+    // K' = ∂K/∂d, see [Chentanez06, Eq. (16)]
     const Mat12 ke = tet_jacobian(s, g, v0, m_lame);
     const Index* slot = m_slot.data() + static_cast<std::size_t>(t) * 144;
     for (int i = 0; i < 12; ++i)

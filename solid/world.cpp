@@ -45,7 +45,7 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
     }
     SolveReport rep;  // the linearized integrator's linear solve
     if (integrator != Integrator::Linearized) {
-      // [BatheSonnad80, Eqs. (1)–(13)]: iterated to equilibrium, the body advanced
+      // iterated to equilibrium, the body advanced: see [BatheSonnad80, Eqs. (1)–(13)]
       EquilibriumOptions opt = equilibrium;
       opt.method = iteration_method(integrator);
       EquilibriumReport er;
@@ -64,7 +64,7 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
       TrapezoidalSystem sys;
       {
         ScopedTimer timer(times, "assemble");
-        // A u = b  [Chentanez06, Eq. (4)] with f_p = 0 (no fluid here).
+        // A u = b, see [Chentanez06, Eq. (4)], with f_p = 0 (no fluid here).
         sys = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
       }
       VecX u = flat(body.velocity);  // initial guess for iterative backends
@@ -93,7 +93,7 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
       report.iterations += rep.iterations;
       report.residual = std::max(report.residual, rep.residual);
       ScopedTimer timer(times, "update");
-      advance_trapezoidal(body, u, h);  // [Chentanez06, Eq. (5)]
+      advance_trapezoidal(body, u, h);  // see [Chentanez06, Eq. (5)]
     }
     {
       ScopedTimer timer(times, "update");

@@ -1,0 +1,114 @@
+#!/usr/bin/env python3
+"""Check that no layer includes a header of a layer above it.
+
+Layers: core <- mesh <- {fluid, solid} <- coupling <- tools; fluid and solid never include
+each other, and no layer includes tests/. Every quoted #include in core/, mesh/, fluid/,
+solid/, coupling/ and tools/ is resolved — `"<layer>/x.hpp"` by its first folder, any other
+quoted include relative to the including file — and must land in the file's own layer or one
+below.
+
+Usage: check_layers.py SOURCE_DIR   (exit 1 and one line per violation)
+       check_layers.py --self-test
+"""
+
+import os
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cxx_scan  # noqa: E402
+
+# What each layer may include (itself and everything below it).
+ALLOWED = {
+    "core": {"core"},
+    "mesh": {"core", "mesh"},
+    "fluid": {"core", "mesh", "fluid"},
+    "solid": {"core", "mesh", "solid"},
+    "coupling": {"core", "mesh", "fluid", "solid", "coupling"},
+    "tools": {"core", "mesh", "fluid", "solid", "coupling", "tools"},
+}
+TOP_LEVEL = set(ALLOWED) | {"tests"}
+
+
+def target_layer(root, including, target):
+    """The top-level folder a quoted include resolves to, or None (outside the tree's
+    folders, e.g. a third-party header)."""
+    first = target.split("/")[0]
+    if first in TOP_LEVEL:
+        return first
+    here = os.path.normpath(os.path.join(os.path.dirname(including), target))
+    rel = os.path.relpath(here, root)
+    top = rel.split(os.sep)[0]
+    return top if top in TOP_LEVEL and os.path.exists(here) else None
+
+
+def check(root):
+    errors = []
+    for layer in ALLOWED:
+        for dirpath, dirnames, filenames in os.walk(os.path.join(root, layer)):
+            dirnames.sort()
+            for f in sorted(filenames):
+                if not f.endswith((".cpp", ".hpp", ".h")):
+                    continue
+                full = os.path.join(dirpath, f)
+                rel = os.path.relpath(full, root)
+                for line, quoted, target in cxx_scan.read(full).includes:
+                    if not quoted:
+                        continue
+                    to = target_layer(root, full, target)
+                    if to is not None and to not in ALLOWED[layer]:
+                        errors.append(f"{rel}:{line}: #include \"{target}\": {layer}/ may "
+                                      f"include only {', '.join(sorted(ALLOWED[layer]))} "
+                                      f"(core <- mesh <- {{fluid, solid}} <- coupling <- tools)")
+    return errors
+
+
+def self_test():
+    cases = [
+        ("clean", {"mesh/a.hpp": '#include "core/types.hpp"\n#include <vector>\n',
+                   "tools/b.cpp": '#include "coupling/x.hpp"\n#include "b.hpp"\n'}, []),
+        ("lower includes higher", {"core/a.cpp": '// x\n#include "mesh/tet_mesh.hpp"\n'},
+         ['core/a.cpp:2: #include "mesh/tet_mesh.hpp": core/ may include only core']),
+        ("siblings", {"fluid/a.hpp": '#include "solid/world.hpp"\n'},
+         ['fluid/a.hpp:1: #include "solid/world.hpp": fluid/ may include only core, fluid, mesh']),
+        ("relative path", {"solid/a.cpp": '#include "../coupling/c.hpp"\n',
+                           "coupling/c.hpp": ""},
+         ['solid/a.cpp:1: #include "../coupling/c.hpp": solid/ may include only']),
+        ("tests", {"coupling/a.cpp": '#include "tests/test_util.hpp"\n'},
+         ['coupling/a.cpp:1: #include "tests/test_util.hpp": coupling/ may include only']),
+        ("commented out", {"core/a.cpp": '/*\n#include "tools/x.hpp"\n*/\n'}, []),
+    ]
+    failed = 0
+    for name, files, expected in cases:
+        with tempfile.TemporaryDirectory() as d:
+            for rel, text in files.items():
+                os.makedirs(os.path.dirname(os.path.join(d, rel)), exist_ok=True)
+                with open(os.path.join(d, rel), "w", encoding="utf-8") as f:
+                    f.write(text)
+            got = check(d)
+        ok = len(got) == len(expected) and all(g.startswith(e) for g, e in zip(got, expected))
+        if not ok:
+            failed += 1
+            print(f"self-test '{name}': expected {expected}, got {got}")
+    print(f"self-test: {len(cases) - failed} of {len(cases)} cases as expected")
+    return 1 if failed else 0
+
+
+def main(argv):
+    if argv[1:] == ["--self-test"]:
+        return self_test()
+    if len(argv) != 2 or not os.path.isdir(argv[1]):
+        print("usage: check_layers.py SOURCE_DIR | --self-test", file=sys.stderr)
+        return 2
+    errors = check(argv[1])
+    for e in errors:
+        print(e)
+    if errors:
+        print(f"{len(errors)} include(s) against the layering")
+        return 1
+    print("layers: no layer includes a header of a layer above it")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
