@@ -123,7 +123,8 @@ VecX second_row(const CoupledInput& in, CoupledSystem& sys, const VecX& r_prescr
   const VecX flux = fluid::net_flux(m, v0);
   rep.divergence_before =
       nt ? fluid::net_flux(m, *in.u_star).cwiseQuotient(m.volumes).cwiseAbs().maxCoeff() : 0.0;
-  VecX r = r_prescribed;  // −J_freeᵀ u − C p = V D2 v* + J_prescribedᵀ v − ...
+  // [Chentanez06, Eq. (6)] times V: −J_freeᵀ u − C p = V D2 v* + J_prescribedᵀ v − ...
+  VecX r = r_prescribed;
   for (Index t = 0; t < nt; ++t) r[sys.groups.cell_group[t]] += flux[t];
   for (Index f = 0; f < nf; ++f)
     if (m.is_boundary(f) && m.face_kind[f] == FaceKind::Open) {
@@ -194,7 +195,8 @@ CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt
   VecX hydro, r_prescribed;
   assemble_J(in, sys, hydro, r_prescribed);
 
-  // the pressure block C = diag(h/ρ_g) L, pins only where nothing fixes the level
+  // [Chentanez06, Eq. (7)] in the symmetric form: A per body, J (above), and the pressure
+  // block C = diag(h/ρ_g) L, pins only where nothing fixes the level
   sys.pin_regions = sys.regions;
   for (Index r = 0; r < sys.nr; ++r)
     sys.pin_regions.has_open[r] = sys.regions.has_open[r] || sys.lifted[r];
@@ -202,6 +204,7 @@ CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt
   sys.gs = VecX::Constant(sys.ng, in.h).cwiseQuotient(sys.grho);  // h/ρ per group
   sys.C = sys.gs.asDiagonal() * sys.C;
 
+  // the second block row's right-hand side, see [Chentanez06, Eq. (6)]
   const VecX r = second_row(in, sys, r_prescribed, rep);
   sys.bs = VecX(sys.ns);
   for (Index b = 0; b < sys.nb; ++b)

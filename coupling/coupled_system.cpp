@@ -128,7 +128,8 @@ void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX
     sol.u[b] = ub;
   }
   rep.interface_power = sys.ns > 0 ? (sys.J * pg).dot(u) : 0.0;
-  // Eq. (8): v* − (h/ρ) G p on interior and Open faces, (H u)_f on the faces of free bodies.
+  // see [Chentanez06, Eq. (8)]: v* − (h/ρ) G p on interior and Open faces, (H u)_f on the
+  // faces of free bodies.
   sol.u_face = *in.u_star;
   in.interface->apply_H(sol.u, sol.u_face);
   VecX q(nt), source = VecX::Zero(nt);
@@ -142,7 +143,7 @@ void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX
     if (m.is_boundary(f) && m.face_kind[f] == FaceKind::Open)
       q_open[f] = (*in.p_open)[f] * in.h / (*in.rho)[m.face_tets(f, 0)];
   fluid::apply_pressure_gradient(m, sys.d_eff, sys.groups, q, q_open, sol.u_face,
-                                 ne ? &source : nullptr);  // [Chentanez06, Eq. (8)]
+                                 ne ? &source : nullptr);
   rep.divergence_after =
       nt ? (fluid::net_flux(m, sol.u_face) - source).cwiseQuotient(m.volumes).cwiseAbs().maxCoeff()
          : 0.0;

@@ -262,6 +262,7 @@ class IteratedStep {
   /// diagonal, no fluid.
   InverseOperator body_inverse(const VecX& x) {
     ScopedTimer timer(m_ctx.phases, "solid");
+    // the bodies' own tangents, no fluid: [BatheSonnad80, Eq. (15)]
     std::vector<InverseOperator> inv(m_nb);
     for (Index b = 0; b < m_nb; ++b)
       if (m_eq[b]) inv[b] = solid::factor_inverse(m_eq[b]->tangent(part(x, b)));

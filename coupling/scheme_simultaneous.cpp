@@ -30,7 +30,7 @@ class SimultaneousScheme final : public CouplingScheme {
     // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
     pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h,
                              surface_motion(world, ctx.surfaces), ctx.phases);
-    // 4. [Chentanez06, Eq. (7)]
+    // 4. the coupled solve, see [Chentanez06, Eq. (7)]
     const InterfaceOperators ops(pred.mesh, body_interfaces(world, ctx.surfaces));
     CoupledSolution sol = solve_coupled(
         make_input(pred, ctx.fluid.params(), ops, cb, &m_targets), m_params.solve);

@@ -187,7 +187,7 @@ FluidPrediction FluidSimulation::predict(TetMesh nm, double h,
   FluidPrediction pred;
   pred.h = h;
   FluidState s;
-  {
+  {  // [Chentanez06, Eq. (1)] without the pressure: advection (the transfer), then the forces
     ScopedTimer timer(phases, "transfer");
     TransferInput in;
     in.old_mesh = &I.mesh;

@@ -64,7 +64,9 @@ TrapezoidalEquilibrium::TrapezoidalEquilibrium(const SolidBody& body, double h, 
 }
 
 VecX TrapezoidalEquilibrium::displacement(const VecX& u1) const {
-  return m_d0 + (0.5 * m_h) * (m_u0 + u1);  // [BatheSonnad80, Eq. (3)]
+  VecX d = m_d0;
+  trapezoidal_displace(d, m_u0, u1, m_h);  // [BatheSonnad80, Eq. (3)]
+  return d;
 }
 
 MatX3 TrapezoidalEquilibrium::positions(const VecX& u1) const {
@@ -131,7 +133,7 @@ EquilibriumReport step_nonlinear(SolidBody& body, double h, const VecX& f_e,
   problem.factor = [&](const VecX& u) { return factor_inverse(eq.tangent(u)); };
   VecX u = eq.start();
   const EquilibriumReport rep = solve_equilibrium(problem, u, opt, history);
-  if (rep.converged) advance_trapezoidal(body, u, h);  // [BatheSonnad80, Eq. (3)]
+  if (rep.converged) advance_trapezoidal(body, u, h);  // see [BatheSonnad80, Eq. (3)]
   return rep;
 }
 
