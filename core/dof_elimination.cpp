@@ -7,8 +7,8 @@ namespace tetfsi {
 void eliminate_dofs(SparseMatrix& A, const std::vector<std::uint8_t>& mask,
                     const std::function<double(Index)>& diag, VecX* b, const VecX* values) {
   const Index n = A.cols();
-  TETFSI_CHECK(A.rows() == n && static_cast<Index>(mask.size()) == n &&
-                   (!b || b->size() == n) && (!values || values->size() == n),
+  TETFSI_CHECK(A.rows() == n && static_cast<Index>(mask.size()) == n && (!b || b->size() == n) &&
+                   (!values || values->size() == n),
                "eliminate_dofs: A is {} x {}, mask {}, b {}, values {}", A.rows(), n, mask.size(),
                b ? b->size() : -1, values ? values->size() : -1);
   if (b && values)  // the prescribed columns move to the right-hand side

@@ -168,8 +168,8 @@ struct SchurOperator {
 
 /// Preconditioned CG on S x = rhs, x = Z xa + xy, stopped on the true residual (up to 4
 /// restarts). Sets `breakdown` if dᵀ S d ≤ 0 (S not positive definite along d).
-SolveReport schur_pcg(const SchurOperator& op, const CoupledOptions& opt, const VecX& rhs,
-                      VecX& xa, VecX& xy, bool& breakdown) {
+SolveReport schur_pcg(const SchurOperator& op, const CoupledOptions& opt, const VecX& rhs, VecX& xa,
+                      VecX& xy, bool& breakdown) {
   const Index nz = op.nz;
   SolveReport sr{"schur_amg", false, 0, 0.0, 0.0, 0.0};
   const double t1 = now_seconds();

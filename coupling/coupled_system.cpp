@@ -93,9 +93,8 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
   if (!rep.converged)
     logger().warn("coupled solve ({}) did not converge: {} iterations, residual {:.3g}",
                   rep.backend, rep.iterations, rep.residual);
-  const VecX c = sys.enclosed.empty()
-                     ? VecX()
-                     : solve_enclosed_volumes(sys, x, *in.volume_targets, rep);
+  const VecX c =
+      sys.enclosed.empty() ? VecX() : solve_enclosed_volumes(sys, x, *in.volume_targets, rep);
   finish_coupled(sys, x, c, sol);
   return sol;
 }

@@ -249,8 +249,7 @@ VecX solve_enclosed_volumes(const CoupledSystem& sys, const CoupledSolves& x,
 std::vector<MatX3> positions_after_step(const CoupledSystem& sys, const VecX& u);
 
 /// The signed volume the cavity's triangles enclose at node positions x (per body).
-double cavity_volume(const Cavity& cav, const InterfaceOperators& ops,
-                     const std::vector<MatX3>& x);
+double cavity_volume(const Cavity& cav, const InterfaceOperators& ops, const std::vector<MatX3>& x);
 
 /// Combine the solves with the fluxes c and finish: p per cell, u per body, the interface
 /// power, Eq. (8) for the face velocities, the divergence after, the fluid's forces.

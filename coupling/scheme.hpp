@@ -69,8 +69,8 @@ struct CoupledStepReport {
   int solid_iterations = 0;  ///< splitting: the bodies' own solves
   /// Iterated schemes: the equilibrium iteration (iterations = the seed's Table I count).
   EquilibriumReport equilibrium;
-  int fluid_solves = 0;  ///< iterated schemes: fluid solves (residual evaluations + newton's)
-  Index contacts = 0;    ///< nodes in contact with obstacles after the step
+  int fluid_solves = 0;        ///< iterated schemes: fluid solves (residual evaluations + newton's)
+  Index contacts = 0;          ///< nodes in contact with obstacles after the step
   bool predicted_mesh = true;  ///< the mesh was built around x* (else around xⁿ)
   double solid_kinetic_energy = 0.0, elastic_energy = 0.0;  ///< after the step (J)
   /// fluid kinetic + solid kinetic + elastic (J), after the step

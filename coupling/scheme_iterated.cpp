@@ -97,7 +97,10 @@ class IteratedStep {
  public:
   IteratedStep(StepContext& ctx, fluid::FluidPrediction& pred, const CouplingParams& params,
                CoupledStepReport& rep)
-      : m_ctx(ctx), m_pred(pred), m_params(params), m_rep(rep),
+      : m_ctx(ctx),
+        m_pred(pred),
+        m_params(params),
+        m_rep(rep),
         m_ops(pred.mesh, body_interfaces(ctx.world, ctx.surfaces)) {
     const solid::SolidWorld& world = ctx.world;
     m_nb = static_cast<Index>(world.bodies.size());

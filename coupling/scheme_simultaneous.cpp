@@ -28,12 +28,12 @@ class SimultaneousScheme final : public CouplingScheme {
       for (Index b = 0; b < nb; ++b) contacts[b] = assemble_body(world, b, ctx.h, cb[b]);
     }
     // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
-    pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h,
-                             surface_motion(world, ctx.surfaces), ctx.phases);
+    pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h, surface_motion(world, ctx.surfaces),
+                             ctx.phases);
     // 4. the coupled solve, see [Chentanez06, Eq. (7)]
     const InterfaceOperators ops(pred.mesh, body_interfaces(world, ctx.surfaces));
-    CoupledSolution sol = solve_coupled(
-        make_input(pred, ctx.fluid.params(), ops, cb, &m_targets), m_params.solve);
+    CoupledSolution sol =
+        solve_coupled(make_input(pred, ctx.fluid.params(), ops, cb, &m_targets), m_params.solve);
     add_solve_phases(ctx.phases, sol.report);
     // 5. Eq. (5), collisions
     ScopedTimer timer(ctx.phases, "update");
@@ -58,8 +58,8 @@ class SimultaneousScheme final : public CouplingScheme {
       body.set_kinematic_state(world.time + h);
       return {};
     }
-    solid::TrapezoidalSystem sys = solid::assemble_trapezoidal(
-        body, h, body.external_forces(world.gravity), world.trapezoid);
+    solid::TrapezoidalSystem sys =
+        solid::assemble_trapezoidal(body, h, body.external_forces(world.gravity), world.trapezoid);
     cb.free = true;
     cb.A = std::move(sys.A);
     cb.b = std::move(sys.b);
@@ -70,8 +70,9 @@ class SimultaneousScheme final : public CouplingScheme {
     std::vector<std::uint8_t> mask(body.num_dofs(), 0);
     for (const Contact& c : contacts) mask[3 * c.node + c.axis] = 1;
     if (!contacts.empty())
-      eliminate_dofs(cb.A, mask, [&](Index i) { return body.lumped_mass()[i / 3] / h; }, &cb.b,
-                     &cb.prescribed);
+      eliminate_dofs(
+          cb.A, mask, [&](Index i) { return body.lumped_mass()[i / 3] / h; }, &cb.b,
+          &cb.prescribed);
     cb.x = body.positions();
     cb.u = flat(body.velocity);
     return contacts;

@@ -28,12 +28,11 @@ class SplittingScheme final : public CouplingScheme {
     // 2. the mesh around the bodies at tⁿ⁺¹, the fluid with their velocities held
     mesh::TetMesh m = ctx.build(
         node_positions(world, [&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
-    pred = ctx.fluid.predict(std::move(m), ctx.h, surface_motion(world, ctx.surfaces),
-                             ctx.phases);
+    pred = ctx.fluid.predict(std::move(m), ctx.h, surface_motion(world, ctx.surfaces), ctx.phases);
     const InterfaceOperators ops(pred.mesh, body_interfaces(world, ctx.surfaces));
     const std::vector<CoupledBody> held(nb);  // every body prescribed
-    CoupledSolution sol = solve_coupled(make_input(pred, ctx.fluid.params(), ops, held),
-                                        m_params.solve);
+    CoupledSolution sol =
+        solve_coupled(make_input(pred, ctx.fluid.params(), ops, held), m_params.solve);
     add_solve_phases(ctx.phases, sol.report);
     m_held_force = sol.fluid_force;
     m_have_force = true;

@@ -54,8 +54,8 @@ void RemeshPolicy::check_inside(size_t index, const MatX3& x) const {
 mesh::TetMesh RemeshPolicy::build(const std::vector<MatX3>& positions,
                                   const fluid::RefineField* refine,
                                   mesh::RemeshReport* report) const {
-  TETFSI_CHECK(positions.size() == m_surfaces.size(), "fluid remesh: {} position sets for {} bodies",
-               positions.size(), m_surfaces.size());
+  TETFSI_CHECK(positions.size() == m_surfaces.size(),
+               "fluid remesh: {} position sets for {} bodies", positions.size(), m_surfaces.size());
   std::vector<mesh::SolidSurface> solids(m_surfaces.size());
   for (size_t i = 0; i < m_surfaces.size(); ++i) {
     const BodySurface& bd = m_surfaces[i];
@@ -85,8 +85,8 @@ mesh::TetMesh RemeshPolicy::build(const std::vector<MatX3>& positions,
 FsiSimulation::FsiSimulation(solid::SolidWorld world, std::optional<FluidSetup> fluid,
                              std::optional<CouplingParams> coupling)
     : m_world(std::move(world)) {
-  TETFSI_REQUIRE(InputError, fluid || !coupling,
-                 "a two-way coupling ({}) needs a fluid", coupling ? to_string(coupling->scheme) : "");
+  TETFSI_REQUIRE(InputError, fluid || !coupling, "a two-way coupling ({}) needs a fluid",
+                 coupling ? to_string(coupling->scheme) : "");
   if (!fluid) return;
   m_fluid.emplace(fluid->params);
   m_policy.emplace(std::move(fluid->domain), std::move(fluid->sizing), m_world);
@@ -165,8 +165,8 @@ FsiStepReport FsiSimulation::step_two_way(double h, PhaseTimes& phases) {
   FsiStepReport r;
   r.coupled = m_stepper->step(m_world, *m_fluid, build, h, sp);
   for (const auto& [name, seconds] : sp.entries()) phases.add(name, seconds);
-  r.fluid_s = sp.get("transfer") + sp.get("forces") + sp.get("coupled_assembly") +
-              sp.get("coupled_solve");
+  r.fluid_s =
+      sp.get("transfer") + sp.get("forces") + sp.get("coupled_assembly") + sp.get("coupled_solve");
   return r;
 }
 

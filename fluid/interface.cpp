@@ -68,9 +68,8 @@ SparseMatrix InterfaceOperators::H() const {
 
 SparseMatrix InterfaceOperators::J() const {
   Triplets tr;
-  for_each_J_entry([&](Index, Index t, Index, Index, Index dof, double w) {
-    tr.emplace_back(dof, t, w);
-  });
+  for_each_J_entry(
+      [&](Index, Index t, Index, Index, Index dof, double w) { tr.emplace_back(dof, t, w); });
   SparseMatrix J(num_dofs(), m_mesh->num_tets());
   J.setFromTriplets(tr.begin(), tr.end());
   return J;

@@ -200,8 +200,7 @@ void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
               keyed.end());
   tets.resize(static_cast<Index>(keyed.size()), 4);
   for (std::size_t t = 0; t < keyed.size(); ++t)
-    for (int k = 0; k < 4; ++k)
-      tets(static_cast<Index>(t), k) = keyed[t].second->vertex(k)->info();
+    for (int k = 0; k < 4; ++k) tets(static_cast<Index>(t), k) = keyed[t].second->vertex(k)->info();
 }
 
 void Delaunay::cells_touching(int min_id, MatX4i& tets) const {

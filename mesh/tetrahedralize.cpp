@@ -30,8 +30,7 @@ using Point = Kernel::Point_3;
 using CgalSurface = CGAL::Surface_mesh<Point>;
 using Domain = CGAL::Polyhedral_mesh_domain_with_features_3<Kernel, CgalSurface>;
 // Sequential: on this machine the parallel mesher measured slower (DESIGN.md §6).
-using Triangulation =
-    CGAL::Mesh_triangulation_3<Domain, CGAL::Default, CGAL::Sequential_tag>::type;
+using Triangulation = CGAL::Mesh_triangulation_3<Domain, CGAL::Default, CGAL::Sequential_tag>::type;
 using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Triangulation, Domain::Corner_index,
                                                      Domain::Curve_index>;
 using Criteria = CGAL::Mesh_criteria_3<Triangulation>;
@@ -50,9 +49,9 @@ CgalSurface to_cgal(const SurfaceMesh& s, const std::string& source) {
   }
   for (Index f = 0; f < s.num_triangles(); ++f) {
     const auto r = s.triangles.row(f);
-    const auto face = sm.add_face(vid[static_cast<std::size_t>(r(0))],
-                                  vid[static_cast<std::size_t>(r(1))],
-                                  vid[static_cast<std::size_t>(r(2))]);
+    const auto face =
+        sm.add_face(vid[static_cast<std::size_t>(r(0))], vid[static_cast<std::size_t>(r(1))],
+                    vid[static_cast<std::size_t>(r(2))]);
     TETFSI_REQUIRE(MeshError, face != CgalSurface::null_face(),
                    "{}: triangle {} (vertices {} {} {}) cannot be added to a manifold surface "
                    "(two sheets touch at a vertex?); separate the parts or remesh the surface",
@@ -94,8 +93,7 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
   namespace P = CGAL::parameters;
   const Criteria criteria(P::edge_size = size, P::facet_angle = params.facet_angle_deg,
                           P::facet_size = size, P::facet_distance = distance,
-                          P::cell_radius_edge_ratio = params.cell_radius_edge,
-                          P::cell_size = size);
+                          P::cell_radius_edge_ratio = params.cell_radius_edge, P::cell_size = size);
   C3t3 c3t3;
   try {
     if (params.lloyd && params.exude) {
@@ -108,9 +106,9 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
       c3t3 = run_mesher(domain, criteria, P::no_lloyd(), P::no_exude());
     }
   } catch (const CGAL::Failure_exception& e) {
-    throw MeshError(fmt::format(
-        "{}: CGAL Mesh_3 failed ({}); check that the surface does not intersect itself",
-        source, e.message()));
+    throw MeshError(
+        fmt::format("{}: CGAL Mesh_3 failed ({}); check that the surface does not intersect itself",
+                    source, e.message()));
   }
 
   // Cells in the complex → tets; vertices numbered compactly in order of first use.
@@ -149,10 +147,9 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
   Index num_swapped = 0;
   for (std::size_t t = 0; t < tets.size(); ++t) {
     Vec4i tet = tets[t];
-    const double v = signed_volume(points[static_cast<std::size_t>(tet(0))],
-                                   points[static_cast<std::size_t>(tet(1))],
-                                   points[static_cast<std::size_t>(tet(2))],
-                                   points[static_cast<std::size_t>(tet(3))]);
+    const double v = signed_volume(
+        points[static_cast<std::size_t>(tet(0))], points[static_cast<std::size_t>(tet(1))],
+        points[static_cast<std::size_t>(tet(2))], points[static_cast<std::size_t>(tet(3))]);
     if (v < 0.0) {
       std::swap(tet(2), tet(3));
       ++num_swapped;
@@ -160,8 +157,8 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
     m.tets.row(static_cast<Index>(t)) = tet.transpose();
   }
   if (num_swapped > 0) {
-    logger().debug("{}: {} of {} Mesh_3 cells had negative floating-point volume; swapped",
-                   source, num_swapped, m.num_tets());
+    logger().debug("{}: {} of {} Mesh_3 cells had negative floating-point volume; swapped", source,
+                   num_swapped, m.num_tets());
   }
   logger().info("{}: Mesh_3 made {} vertices, {} tets from {} surface triangles in {:.2f} s",
                 source, m.num_vertices(), m.num_tets(), surface.num_triangles(),

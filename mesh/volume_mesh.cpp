@@ -90,8 +90,8 @@ void validate_impl(const VolumeMesh& m, const std::string& source, const MeshLab
     for (int a = 0; a < 4; ++a) {
       for (int b = a + 1; b < 4; ++b) {
         TETFSI_REQUIRE(MeshError, r(a) != r(b),
-                       "{}: {} uses a vertex twice; remove the collapsed element or remesh",
-                       source, describe_tet(m, t, labels));
+                       "{}: {} uses a vertex twice; remove the collapsed element or remesh", source,
+                       describe_tet(m, t, labels));
       }
     }
     const Vec3 p0 = m.vertices.row(r(0)), p1 = m.vertices.row(r(1)), p2 = m.vertices.row(r(2)),
@@ -217,8 +217,10 @@ MatX3i boundary_triangles(const VolumeMesh& m, VecXi* owner_tet) {
   std::vector<int> slot_face(capacity, -1);
   std::vector<std::uint8_t> slot_count(capacity, 0);
   std::vector<std::uint32_t> face_slot(num_faces);
-  TETFSI_CHECK(indices_in_range(m), "boundary_triangles needs tet indices in 0..{} (call "
-               "validate_volume_mesh first)", m.num_vertices() - 1);
+  TETFSI_CHECK(indices_in_range(m),
+               "boundary_triangles needs tet indices in 0..{} (call "
+               "validate_volume_mesh first)",
+               m.num_vertices() - 1);
   for (Index t = 0; t < nt; ++t) {
     for (int f = 0; f < 4; ++f) {
       const std::size_t id = 4 * static_cast<std::size_t>(t) + static_cast<std::size_t>(f);
@@ -271,8 +273,8 @@ void validate_closed_surface(const SurfaceMesh& s, const std::string& source) {
   for (Index v = 0; v < nv; ++v) {
     const auto p = s.vertices.row(v);
     TETFSI_REQUIRE(MeshError, p.allFinite(),
-                   "{}: vertex {} has a non-finite coordinate ({} {} {}); fix the file", source,
-                   v, p(0), p(1), p(2));
+                   "{}: vertex {} has a non-finite coordinate ({} {} {}); fix the file", source, v,
+                   p(0), p(1), p(2));
   }
   double volume6 = 0.0;
   for (Index f = 0; f < nf; ++f) {
@@ -286,12 +288,12 @@ void validate_closed_surface(const SurfaceMesh& s, const std::string& source) {
     const Vec3 a = s.vertices.row(r(0)), b = s.vertices.row(r(1)), c = s.vertices.row(r(2));
     const double twice_area = (b - a).cross(c - a).norm();
     const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    TETFSI_REQUIRE(MeshError,
-                   r(0) != r(1) && r(1) != r(2) && r(2) != r(0) &&
-                       twice_area > 1e-12 * longest * longest,
-                   "{}: triangle {} (vertices {} {} {}) is degenerate (area {:.3g} m^2); remove "
-                   "it and close the gap or remesh the surface",
-                   source, f, r(0), r(1), r(2), 0.5 * twice_area);
+    TETFSI_REQUIRE(
+        MeshError,
+        r(0) != r(1) && r(1) != r(2) && r(2) != r(0) && twice_area > 1e-12 * longest * longest,
+        "{}: triangle {} (vertices {} {} {}) is degenerate (area {:.3g} m^2); remove "
+        "it and close the gap or remesh the surface",
+        source, f, r(0), r(1), r(2), 0.5 * twice_area);
     volume6 += a.dot(b.cross(c));
   }
   // Directed edges a→b packed as a 64-bit key with the triangle that owns them, sorted.
@@ -323,8 +325,7 @@ void validate_closed_surface(const SurfaceMesh& s, const std::string& source) {
     for (int k = 0; k < 3; ++k) {
       const Index a = s.triangles(f, k), b = s.triangles(f, (k + 1) % 3);
       const auto same = find(pack(a, b));
-      TETFSI_CHECK(same != edges.end(), "edge {} {} of triangle {} not in the edge list", a, b,
-                   f);
+      TETFSI_CHECK(same != edges.end(), "edge {} {} of triangle {} not in the edge list", a, b, f);
       if (same + 1 != edges.end() && (same + 1)->key == same->key) {
         const Index other = same->tri == f ? (same + 1)->tri : same->tri;
         const auto opposite = find(pack(b, a));

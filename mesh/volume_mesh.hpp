@@ -21,8 +21,8 @@ struct VolumeMesh {
 
 /// A triangle surface mesh (for closed surfaces: outward normals by the right-hand rule).
 struct SurfaceMesh {
-  MatX3 vertices;      ///< #V × 3 positions (m)
-  MatX3i triangles;    ///< #F × 3 zero-based vertex indices
+  MatX3 vertices;    ///< #V × 3 positions (m)
+  MatX3i triangles;  ///< #F × 3 zero-based vertex indices
   Index num_vertices() const { return static_cast<Index>(vertices.rows()); }
   Index num_triangles() const { return static_cast<Index>(triangles.rows()); }
 };
@@ -56,8 +56,7 @@ struct MeshLabels {
 
 /// validate_volume_mesh, but messages say "element <tet_ids[t]> (nodes <vertex_ids[..]>)"
 /// instead of zero-based indices where `labels` provides ids.
-void validate_volume_mesh(const VolumeMesh& m, const std::string& source,
-                          const MeshLabels& labels);
+void validate_volume_mesh(const VolumeMesh& m, const std::string& source, const MeshLabels& labels);
 
 /// If every tet is negatively oriented (a file written with the opposite convention), swap
 /// two vertices of each so that all are positive. Mixed orientations are left alone (and

@@ -7,7 +7,9 @@
 
 namespace tetfsi::solid {
 
-const char* to_string(Trapezoid t) { return t == Trapezoid::Paper ? "paper" : "midpoint"; }
+const char* to_string(Trapezoid t) {
+  return t == Trapezoid::Paper ? "paper" : "midpoint";
+}
 
 TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e,
                                        Trapezoid variant) {
@@ -41,7 +43,8 @@ TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const Ve
     for (SparseMatrix::InnerIterator it(sys.A, col); it; ++it)
       if (it.row() == col && !fixed[col]) it.valueRef() += m_coef * mass[col / 3];
   // fixed DOFs: zero rows and columns, diagonal m/h, b = 0
-  eliminate_dofs(sys.A, fixed, [&](Index i) { return mass[i / 3] / h; }, &sys.b);
+  eliminate_dofs(
+      sys.A, fixed, [&](Index i) { return mass[i / 3] / h; }, &sys.b);
   return sys;
 }
 

@@ -205,8 +205,7 @@ EquilibriumReport solve_static_iterated(SolidBody& body, const VecX& f_e,
     rep.line_searches += r.line_searches;
     rep.force_ratio = r.force_ratio;
     rep.energy_ratio = r.energy_ratio;
-    if (!r.converged)
-      rep.failure = fmt::format("load step {}/{}: {}", step, load_steps, r.failure);
+    if (!r.converged) rep.failure = fmt::format("load step {}/{}: {}", step, load_steps, r.failure);
   }
   if (rep.converged) {
     flat(body.displacement) = d;

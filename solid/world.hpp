@@ -6,9 +6,9 @@
 /// exists; it keeps the same per-body systems.)
 #include <vector>
 
+#include "core/equilibrium.hpp"
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
-#include "core/equilibrium.hpp"
 #include "solid/integrator.hpp"
 #include "solid/nonlinear_trapezoid.hpp"
 #include "solid/obstacles.hpp"
@@ -62,7 +62,7 @@ class SolidWorld {
   double elastic_energy() const;
 
  private:
-  bool m_warned_fallback = false;  ///< the CHOLMOD → UMFPACK fallback was logged once
+  bool m_warned_fallback = false;             ///< the CHOLMOD → UMFPACK fallback was logged once
   std::vector<EquilibriumHistory> m_history;  ///< per body, nonlinear integrators
 };
 

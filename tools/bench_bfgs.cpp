@@ -18,8 +18,8 @@
 #include "core/log.hpp"
 #include "core/timer.hpp"
 #include "coupling/simulation.hpp"
-#include "tools/run.hpp"
 #include "tools/output.hpp"
+#include "tools/run.hpp"
 #include "tools/scene.hpp"
 
 namespace tetfsi::tools {

@@ -19,12 +19,12 @@
 #include "core/log.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
+#include "coupling/simulation.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/integrator.hpp"
-#include "coupling/simulation.hpp"
-#include "tools/run.hpp"
 #include "tools/output.hpp"
+#include "tools/run.hpp"
 #include "tools/scene.hpp"
 
 namespace tetfsi::tools {

@@ -19,11 +19,11 @@
 #include "core/linear_solver.hpp"
 #include "core/log.hpp"
 #include "core/timer.hpp"
+#include "coupling/simulation.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
-#include "coupling/simulation.hpp"
-#include "tools/run.hpp"
 #include "tools/output.hpp"
+#include "tools/run.hpp"
 #include "tools/scene.hpp"
 
 namespace tetfsi::tools {
@@ -142,8 +142,7 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
     {
       ScopedTimer timer(ph, "output");
       const FluidFrameFields fields = frame_fields(sim.fluid());
-      write_fluid_vtu(dir / fmt::format("fluid_{:06d}.vtu", k), *sim.mesh(), compression,
-                      &fields);
+      write_fluid_vtu(dir / fmt::format("fluid_{:06d}.vtu", k), *sim.mesh(), compression, &fields);
     }
     const double step_s = now_seconds() - t0;
     logger().debug("bench step: scale {:.4g}, step {}: {:.3f} s, {} cells", scale, k + 1, step_s,

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "solid/world.hpp"
 #include "coupling/simulation.hpp"
+#include "solid/world.hpp"
 #include "tools/run_stats.hpp"
 #include "tools/scene.hpp"
 
@@ -82,8 +82,8 @@ struct RunResult {
   double elastic_energy = 0.0;     ///< final, J
   double gravity_potential = 0.0;  ///< final, J
   std::vector<BodySummary> bodies;
-  std::optional<FluidSummary> fluid;  ///< set for a scene with a fluid
-  std::optional<CouplingSummary> coupling;  ///< set for a two-way coupled run
+  std::optional<FluidSummary> fluid;              ///< set for a scene with a fluid
+  std::optional<CouplingSummary> coupling;        ///< set for a two-way coupled run
   std::optional<EquilibriumSummary> equilibrium;  ///< set if the run iterates to equilibrium
 
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
@@ -95,8 +95,8 @@ coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld wo
 
 /// Run a scene. Writes frame 0 at t = 0, then
 ///  - dynamic: `world.step(dt)` per step (then the fluid, one-way), or, two-way coupled
-///    (Scene::two_way), the coupling scheme (coupling::FsiSimulation::step); a frame every `output.every` steps and
-///    always the last one; a stats row every step;
+///    (Scene::two_way), the coupling scheme (coupling::FsiSimulation::step); a frame every
+///    `output.every` steps and always the last one; a stats row every step;
 ///  - static: `solid::solve_static` on each body with f_e = external_forces(gravity) and the
 ///    scene's static options (kinematic bodies stay at their t = 0 pose), then frame 1 at
 ///    pseudo-time 1.0 and one stats row.

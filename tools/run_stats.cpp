@@ -54,8 +54,7 @@ void RunRecorder::record(const coupling::FsiStepReport& r, const coupling::FsiSi
   }
 }
 
-void RunRecorder::record_fluid_step(const fluid::FluidStepReport& r, double seconds,
-                                    double time) {
+void RunRecorder::record_fluid_step(const fluid::FluidStepReport& r, double seconds, double time) {
   m_summary.fluid_s += seconds;
   FluidStepStats& s = m_stats;
   s.pressure_iterations = r.iterations;
@@ -79,9 +78,10 @@ void RunRecorder::record_fluid_step(const fluid::FluidStepReport& r, double seco
   f.smoke_mass = r.smoke_mass;
   f.fluid_kinetic_energy = r.kinetic_energy;
   if (r.cfl > 5.0)
-    logger().warn("fluid CFL number {:.3g} at t = {:.6g} s: semi-Lagrangian advection stays "
-                  "stable but smears; reduce time.dt for accuracy",
-                  r.cfl, time);
+    logger().warn(
+        "fluid CFL number {:.3g} at t = {:.6g} s: semi-Lagrangian advection stays "
+        "stable but smears; reduce time.dt for accuracy",
+        r.cfl, time);
 }
 
 void RunRecorder::record_coupled_step(const coupling::CoupledStepReport& rep, double time) {

@@ -294,7 +294,7 @@ struct Scene {
   StaticSpec statics;
   std::vector<BodySpec> bodies;
   std::vector<solid::Obstacle> obstacles;
-  std::optional<FluidSpec> fluid;  ///< set if the scene has a "fluid" section
+  std::optional<FluidSpec> fluid;        ///< set if the scene has a "fluid" section
   std::optional<CouplingSpec> coupling;  ///< set iff `fluid` is (resolved default, see above)
   /// True if the run couples the fluid and the bodies both ways (a dynamic fluid scene whose
   /// coupling scheme is not "none").

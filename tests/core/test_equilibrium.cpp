@@ -48,7 +48,9 @@ InverseOperator dense_inverse(const Dense& K) {
   return [lu](const VecX& r) -> VecX { return lu->solve(r); };
 }
 
-double rel(const VecX& a, const VecX& b) { return (a - b).norm() / b.norm(); }
+double rel(const VecX& a, const VecX& b) {
+  return (a - b).norm() / b.norm();
+}
 
 }  // namespace
 
@@ -199,8 +201,9 @@ TEST_CASE("Newton, modified Newton and BFGS solve the same nonlinear problem") {
     REQUIRE(rep.converged);
     CHECK(p.g(sol[k]).norm() <= 1e-10 * p.g(VecX::Zero(n)).norm());
     its[k] = rep.iterations;
-    MESSAGE(std::string(to_string(methods[k])), ": ", rep.iterations, " iterations, ", rep.evaluations,
-            " evaluations, ", rep.factorizations, " factorizations, ", rep.updates, " updates");
+    MESSAGE(std::string(to_string(methods[k])), ": ", rep.iterations, " iterations, ",
+            rep.evaluations, " evaluations, ", rep.factorizations, " factorizations, ", rep.updates,
+            " updates");
     if (methods[k] == IterationMethod::Newton) CHECK(rep.factorizations == rep.iterations);
     if (methods[k] != IterationMethod::Newton) CHECK(rep.factorizations == 1);
   }

@@ -144,9 +144,9 @@ CoupledRig released_sphere(double rho_s, double a, double R, double size, int su
   const Vec3 c(0.5, 0.5, 0.5);
   r.world().gravity = Vec3(0, 0, -9.81);
   r.world().bodies.emplace_back("sphere", mesh::make_ball(c, a, subdiv),
-                              make_material(rho_s, 1e12, 0.3));
+                                make_material(rho_s, 1e12, 0.3));
   r.world().bodies.emplace_back("container", mesh::make_spherical_shell(c, R, R + 0.04, subdiv, 1),
-                              make_material(1000, 1e9, 0.3));
+                                make_material(1000, 1e9, 0.3));
   r.world().bodies[1].kinematic = solid::KinematicMotion{};
   r.domain = box_domain(Vec3::Constant(0.2), Vec3::Constant(0.8));
   r.sizing = sizing(size, 4 * size);
@@ -259,7 +259,7 @@ CoupledRig toy(double E, double h_drop) {
   const Vec3 c(0.5, 0.5, 0.2 + 0.12 + h_drop);
   r.world().gravity = Vec3(0, 0, -9.81);
   r.world().bodies.emplace_back("toy", mesh::make_spherical_shell(c, 0.1, 0.12, 2, 1),
-                              make_material(1100, E, 0.3, 0.0, 0.002));
+                                make_material(1100, E, 0.3, 0.0, 0.002));
   solid::Obstacle floor;
   floor.point = Vec3(0, 0, 0.2);
   floor.normal = Vec3::UnitZ();
@@ -337,7 +337,7 @@ CoupledRig piston(bool with_fluid, double load) {
   const double t = 0.04;
   r.world().gravity = Vec3::Zero();
   r.world().bodies.emplace_back("column", mesh::make_hollow_box(lo, hi, t, Vec3i(4, 4, 3)),
-                              make_material(1000, 1e6, 0.3, 0.0, 0.01));
+                                make_material(1000, 1e6, 0.3, 0.0, 0.01));
   solid::SolidBody& b = r.world().bodies[0];
   b.applied_force = MatX3::Zero(b.num_nodes(), 3);
   std::vector<Index> lid;

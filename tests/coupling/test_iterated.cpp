@@ -41,7 +41,9 @@ CoupledRig plate(Scheme scheme, double rtol = 1e-3, double etol = 1e-5, double E
   return r;
 }
 
-double max_abs(const MatX3& m) { return m.cwiseAbs().maxCoeff(); }
+double max_abs(const MatX3& m) {
+  return m.cwiseAbs().maxCoeff();
+}
 
 }  // namespace
 
@@ -74,9 +76,10 @@ TEST_CASE("iterated schemes: newton and bfgs converge to the simultaneous answer
     MESSAGE("step " << n + 1 << " (|u| " << scale << " m/s): newton " << rn.equilibrium.iterations
                     << " iterations (" << rn.fluid_solves << " fluid solves), bfgs "
                     << rb.equilibrium.iterations << " at RTOL 1e-9, " << rl.equilibrium.iterations
-                    << " at RTOL 1e-3 (" << rl.fluid_solves << " fluid solves); |u - u_sim| / max|u|: newton "
-                    << dn << ", bfgs " << db << ", bfgs at RTOL 1e-3 " << dl
-                    << "; newton vs bfgs " << nb << "; pressure (bfgs) " << dp);
+                    << " at RTOL 1e-3 (" << rl.fluid_solves
+                    << " fluid solves); |u - u_sim| / max|u|: newton " << dn << ", bfgs " << db
+                    << ", bfgs at RTOL 1e-3 " << dl << "; newton vs bfgs " << nb
+                    << "; pressure (bfgs) " << dp);
     if (n == 0) {  // the same mesh for all four
       CHECK(dn < 2e-4);
       CHECK(db < 2e-4);
@@ -114,9 +117,9 @@ TEST_CASE("iterated schemes: modified Newton cannot learn the added mass; BFGS d
 TEST_CASE("iterated schemes: a liquid sealed in a body is refused with a clear error") {
   CoupledRig r;
   r.world().gravity = Vec3::Zero();
-  r.world().bodies.emplace_back(
-      "balloon", mesh::make_spherical_shell(Vec3(0.5, 0.5, 0.5), 0.15, 0.2, 2, 1),
-      make_material(1000, 1e5, 0.3));
+  r.world().bodies.emplace_back("balloon",
+                                mesh::make_spherical_shell(Vec3(0.5, 0.5, 0.5), 0.15, 0.2, 2, 1),
+                                make_material(1000, 1e5, 0.3));
   r.domain = box_domain(Vec3::Zero(), Vec3::Ones());
   r.fluid_params.density = 1000;
   r.fluid_params.gravity = Vec3::Zero();

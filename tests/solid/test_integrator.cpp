@@ -298,7 +298,8 @@ TEST_SUITE("unit") {
       return b.kinetic_energy() + 0.5 * d.dot(K0 * d);
     };
     // Lowest mode: cantilever bending, ω1 ≈ 1.875² sqrt(EI/(ρA L⁴)) ≈ 3.5e2 rad/s.
-    const double omega1 = 1.875 * 1.875 * std::sqrt(1e6 * 0.1 * 0.1 / 12.0 / (1000.0 * 0.16 * 0.16));
+    const double omega1 =
+        1.875 * 1.875 * std::sqrt(1e6 * 0.1 * 0.1 / 12.0 / (1000.0 * 0.16 * 0.16));
     const double h = 2.0 * M_PI / omega1 / 20.0;
     const double e0 = energy();
     double worst = 0.0;

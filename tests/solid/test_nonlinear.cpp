@@ -37,7 +37,9 @@ void pluck(SolidBody& b, double speed) {
   }
 }
 
-double energy(const SolidBody& b) { return b.kinetic_energy() + b.elastic_energy(); }
+double energy(const SolidBody& b) {
+  return b.kinetic_energy() + b.elastic_energy();
+}
 
 const IterationMethod kMethods[3] = {IterationMethod::Newton, IterationMethod::ModifiedNewton,
                                      IterationMethod::Bfgs};
@@ -49,7 +51,8 @@ TEST_SUITE("unit") {
     SolidBody b = column(2.0, 0.003);
     pluck(b, 0.8);
     for (Index i = 0; i < b.num_nodes(); ++i)  // a large deformation: a sheared, bent column
-      if (!b.is_fixed(3 * i)) b.displacement(i, 0) = 0.15 * std::pow(b.rest_positions()(i, 2) / 0.4, 2);
+      if (!b.is_fixed(3 * i))
+        b.displacement(i, 0) = 0.15 * std::pow(b.rest_positions()(i, 2) / 0.4, 2);
     const double h = 0.01;
     const TrapezoidalEquilibrium eq(b, h, b.external_forces(Vec3(0, 0, -9.81)));
     VecX u = flat(b.velocity) * 1.3;
@@ -128,7 +131,9 @@ TEST_SUITE("unit") {
       w.gravity = Vec3::Zero();
       w.bodies.push_back(column(0.0, 0.001));
       pluck(w.bodies[0], 1.5);  // tip travels ~ 0.15 m on a 0.4 m column: geometric nonlinearity
-      w.integrator = k == 0 ? Integrator::Newton : k == 1 ? Integrator::ModifiedNewton : Integrator::Bfgs;
+      w.integrator = k == 0   ? Integrator::Newton
+                     : k == 1 ? Integrator::ModifiedNewton
+                              : Integrator::Bfgs;
       w.equilibrium.rtol = 1e-7;
       w.equilibrium.etol = 1e-14;
       w.equilibrium.max_iterations = 100;
@@ -141,8 +146,8 @@ TEST_SUITE("unit") {
         tip[k].push_back(w.bodies[0].displacement(a, 0));
       }
       avg[k] = total / 40.0;
-      MESSAGE(std::string(to_string(w.integrator)) << ": " << avg[k] << " iterations per step, tip x "
-                                      << tip[k].back());
+      MESSAGE(std::string(to_string(w.integrator))
+              << ": " << avg[k] << " iterations per step, tip x " << tip[k].back());
     }
     double amp = 0.0, diff = 0.0;
     for (size_t s = 0; s < tip[0].size(); ++s) {
@@ -212,9 +217,9 @@ TEST_SUITE("unit") {
           solve_static_iterated(b, b.external_forces(Vec3(0, -2.0, 0)), opt, 10);
       INFO(std::string(to_string(m)), ": ", rep.failure);
       REQUIRE(rep.converged);
-      MESSAGE(std::string(to_string(m)) << ": " << rep.iterations << " iterations, "
-                                        << rep.factorizations << " factorizations, u_y(A) = "
-                                        << b.displacement(a, 1));
+      MESSAGE(std::string(to_string(m))
+              << ": " << rep.iterations << " iterations, " << rep.factorizations
+              << " factorizations, u_y(A) = " << b.displacement(a, 1));
       CHECK(b.displacement(a, 1) == doctest::Approx(uy).epsilon(1e-5));
       CHECK(b.displacement(a, 0) == doctest::Approx(ref.displacement(a, 0)).epsilon(1e-4));
     }
