@@ -6,7 +6,13 @@
 
 namespace tetfsi::solid {
 
-const char* to_string(Trapezoid t) { return t == Trapezoid::Paper ? "paper" : "midpoint"; }
+Trapezoid parse_trapezoid(const std::string& name) {
+  return k_trapezoid_names.parse(name);
+}
+
+const char* to_string(Trapezoid t) {
+  return k_trapezoid_names.name(t);
+}
 
 TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e,
                                        Trapezoid variant) {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "solid/world.hpp"
 #include "tools/fluid_driver.hpp"
 #include "tools/scene.hpp"
@@ -23,6 +24,11 @@ enum class ProgressMode {
   Off,
 };
 
+inline constexpr EnumNames<ProgressMode, 4> k_progress_mode_names{"progress mode",
+                                                                  {{{ProgressMode::Auto, "auto"},
+                                                                    {ProgressMode::Tty, "tty"},
+                                                                    {ProgressMode::Plain, "plain"},
+                                                                    {ProgressMode::Off, "off"}}}};
 /// "auto" | "tty" | "plain" | "off". @throws InputError naming the value.
 ProgressMode parse_progress_mode(const std::string& name);
 
@@ -81,8 +87,8 @@ struct RunResult {
   double elastic_energy = 0.0;     ///< final, J
   double gravity_potential = 0.0;  ///< final, J
   std::vector<BodySummary> bodies;
-  std::optional<FluidSummary> fluid;  ///< set for a scene with a fluid
-  std::optional<CouplingSummary> coupling;  ///< set for a two-way coupled run
+  std::optional<FluidSummary> fluid;              ///< set for a scene with a fluid
+  std::optional<CouplingSummary> coupling;        ///< set for a two-way coupled run
   std::optional<EquilibriumSummary> equilibrium;  ///< set if the run iterates to equilibrium
 
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
