@@ -5,7 +5,9 @@
 /// error naming the path and the problem. Relative paths resolve against the scene file's
 /// folder. Physics never sees JSON: `build_world` turns a Scene into solid:: objects.
 ///
-/// Schema (every key optional unless marked; defaults in the structs below):
+/// Every key with its type, default, range, unit and meaning is declared once, in the tables
+/// of scene_keys.hpp (`tetfsi scene --keys`); the parser, the resolved scene and README.md's
+/// key tables come from them. Schema (every key optional unless marked):
 /// ```json
 /// {
 ///   "name": "sheet_sag",
