@@ -750,7 +750,7 @@ Section<solid::Obstacle> obstacle_section(const char* type,
                           .doc = "Coulomb coefficient",
                           .range = k_non_negative},
                          TETFSI_AT(friction)));
-  return {fmt::format("obstacles[] ({})", type), "", std::move(rows)};
+  return {"obstacles[]", "", std::move(rows), type};
 }
 
 }  // namespace
@@ -869,6 +869,8 @@ const Section<PatchKeys>& patch_keys() {
   using mesh::FaceKind;
   // A condition of one kind of patch: written for that kind only.
   const auto condition = [](KeySpec spec, FaceKind kind, auto acc) -> Field<P> {
+    const fluid::PatchConditions defaults;
+    spec.default_text = key_value_text(json(acc(defaults)));  // of any kind of patch
     return {
         std::move(spec),
         [kind, acc](const P& p) { return p.patch.kind == kind ? json(acc(p.conditions)) : json(); },
@@ -1176,8 +1178,8 @@ std::string range_text(const KeySpec& k) {
 
 template <class T>
 KeySection rows_of(const Section<T>& s) {
-  KeySection out{s.path, s.title, {}};
-  static const T defaults{};  // static: GCC 12 -O3 warns of a local one (a false positive)
+  KeySection out{s.path, s.title, {}, s.variant};
+  const T defaults = T();
   for (const auto& f : s.fields) {
     std::string d = f.spec.default_text;
     if (d.empty()) d = f.spec.required ? "required" : f.get ? key_value_text(f.get(defaults)) : "";
@@ -1234,8 +1236,13 @@ const std::vector<KeySection>& scene_key_sections() {
   return sections;
 }
 
-std::string section_markdown(const KeySection& s) {
+std::string section_name(const KeySection& s) {
   const std::string name = s.path.empty() ? "(top level)" : s.path;
+  return s.variant.empty() ? name : name + " (" + s.variant + ")";
+}
+
+std::string section_markdown(const KeySection& s) {
+  const std::string name = section_name(s);
   std::string out = fmt::format("<!-- keys:begin {} -->\n**`{}`**: {}\n\n", name, name, s.title);
   out += "| key | type | default | range | unit | meaning |\n|---|---|---|---|---|---|\n";
   for (const KeyRow& r : s.rows) {
@@ -1248,25 +1255,30 @@ std::string section_markdown(const KeySection& s) {
 
 std::string scene_keys_markdown() {
   std::string out;
-  for (const KeySection& s : scene_key_sections())
-    out += (out.empty() ? "" : "\n") + section_markdown(s);
+  for (const KeySection& s : scene_key_sections()) {
+    if (!out.empty()) out += '\n';
+    out += section_markdown(s);
+  }
   return out;
 }
 
 std::string scene_keys_text() {
-  std::vector<std::array<std::string, 6>> lines;
+  const auto plain = [](std::string t) {  // without markdown's backticks
+    t.erase(std::remove(t.begin(), t.end(), '`'), t.end());
+    return t;
+  };
   std::string out;
   for (const KeySection& s : scene_key_sections()) {
-    lines.clear();
-    lines.push_back({"key", "type", "default", "range", "unit", "meaning"});
+    std::vector<std::array<std::string, 6>> lines = {
+        {"key", "type", "default", "range", "unit", "meaning"}};
     for (const KeyRow& r : s.rows)
-      lines.push_back({full_key(s, r), to_string(r.spec.type), r.default_text, range_text(r.spec),
-                       r.spec.unit, r.spec.doc});
+      lines.push_back({full_key(s, r), to_string(r.spec.type), plain(r.default_text),
+                       plain(range_text(r.spec)), r.spec.unit, plain(r.spec.doc)});
     std::array<std::size_t, 5> width{};
     for (const auto& l : lines)
       for (std::size_t c = 0; c < width.size(); ++c) width[c] = std::max(width[c], l[c].size());
-    out += fmt::format("{}{}: {}\n", out.empty() ? "" : "\n",
-                       s.path.empty() ? "(top level)" : s.path, s.title);
+    if (!out.empty()) out += '\n';
+    out += fmt::format("{}: {}\n", section_name(s), plain(s.title));
     for (const auto& l : lines) {
       std::string line = "  ";
       for (std::size_t c = 0; c < width.size(); ++c)
@@ -1274,7 +1286,6 @@ std::string scene_keys_text() {
       out += line + l[5] + "\n";
     }
   }
-  out.erase(std::remove(out.begin(), out.end(), '`'), out.end());  // markdown only
   return out;
 }
 

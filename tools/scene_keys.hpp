@@ -101,6 +101,7 @@ struct Section {
   std::string path;
   std::string title;  ///< one line: what the section is
   std::vector<Field<T>> fields;
+  std::string variant;  ///< of one path with several sections ("plane", "box"), else ""
 
   std::vector<std::string> keys() const {
     std::vector<std::string> out;
@@ -189,7 +190,12 @@ struct KeySection {
   std::string path;  ///< "" for the top level
   std::string title;
   std::vector<KeyRow> rows;
+  std::string variant;  ///< Section::variant
 };
+
+/// What the tables and README.md's markers call a section: "time", "(top level)",
+/// "obstacles[] (plane)".
+std::string section_name(const KeySection& s);
 
 /// A value as the default column shows it: "0.01", "1e-8", "`lz4`", "[0, 0, -9.81]", "-" (null).
 std::string key_value_text(const nlohmann::json& v);

@@ -50,10 +50,6 @@ std::map<std::string, std::string> readme_blocks(const std::string& text) {
   return blocks;
 }
 
-std::string section_name(const KeySection& s) {
-  return s.path.empty() ? "(top level)" : s.path;
-}
-
 /// A fluid scene with one body and every fluid sub-section given empty (all defaults).
 json fluid_scene() {
   return json::parse(R"({
@@ -121,15 +117,18 @@ TEST_CASE("README.md's scene key tables are the generated ones") {
                   "README.md has a table of an unknown section '" << name << "'; remove it");
   // --markdown is the blocks, in order, one blank line apart.
   std::string all;
-  for (const KeySection& s : scene_key_sections())
-    all += (all.empty() ? "" : "\n") + section_markdown(s);
+  for (const KeySection& s : scene_key_sections()) {
+    if (!all.empty()) all += '\n';
+    all += section_markdown(s);
+  }
   CHECK(scene_keys_markdown() == all);
 }
 
 TEST_CASE("every section's keys are unique and documented") {
   std::set<std::string> paths;
   for (const KeySection& s : scene_key_sections()) {
-    CHECK_MESSAGE(paths.insert(s.path).second, "section '" << s.path << "' twice");
+    CHECK_MESSAGE(paths.insert(section_name(s)).second,
+                  "section '" << section_name(s) << "' twice");
     CHECK_FALSE(s.title.empty());
     std::set<std::string> keys;
     for (const KeyRow& r : s.rows) {
@@ -179,7 +178,8 @@ TEST_CASE("every key's typo is caught with a suggestion, every bound is checked"
       // A typo: one letter doubled.
       json j = fluid_scene();
       json& section = sec.path.empty() ? j : *at_path(j, sec.path);
-      const std::string typo = r.spec.key + r.spec.key.back();
+      std::string typo = r.spec.key;
+      typo.push_back(typo.back());
       section[typo] = 1;
       const std::string prefix = sec.path.empty() ? typo : sec.path + "." + typo;
       CHECK(parse_error(j) ==
