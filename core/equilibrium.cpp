@@ -19,7 +19,7 @@ const char* to_string(IterationMethod m) {
 double rank_one_condition(const VecX& v, const VecX& w) {
   const double s = w.dot(v);
   const double sum = 2.0 + 2.0 * s + v.squaredNorm() * w.squaredNorm();  // σ₁² + σ₂²
-  const double prod = (1.0 + s) * (1.0 + s);                             // σ₁² σ₂²
+  const double prod = (1.0 + s) * (1.0 + s);                              // σ₁² σ₂²
   if (prod == 0.0) return std::numeric_limits<double>::infinity();
   const double disc = std::max(0.0, sum * sum - 4.0 * prod);
   const double big = 0.5 * (sum + std::sqrt(disc));
@@ -218,10 +218,9 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
     g = std::move(gn);
     if (g.norm() > 1e12 * history.max_force) {
       rep.force_ratio = g.norm() / history.max_force;
-      rep.failure = fmt::format(
-          "diverged: the out-of-balance force grew to {:.3g} times the "
-          "largest seen, at iteration {}",
-          rep.force_ratio, i);
+      rep.failure = fmt::format("diverged: the out-of-balance force grew to {:.3g} times the "
+                                "largest seen, at iteration {}",
+                                rep.force_ratio, i);
       return rep;
     }
   }

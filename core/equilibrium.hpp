@@ -29,10 +29,10 @@
 /// a linear problem with the exact matrix takes 2, as in the seed's Table I.
 ///
 /// The line search belongs to BFGS, as in the seed (Newton and modified Newton are plain
-/// iterations unless `line_search_newton`). It uses |·| on both sides of Eq. (10): the literal
-/// inequality would accept any overshoot (a large negative Δxᵀg). It tries β = 1, doubles β while
-/// Δxᵀg keeps its sign (up to `max_step`), then closes a sign change by regula falsi (Illinois);
-/// after `max_line_search` extra evaluations it keeps the best β found.
+/// iterations unless `line_search_newton`). It uses |·| on both sides of Eq. (10): the literal inequality would accept any
+/// overshoot (a large negative Δxᵀg). It tries β = 1, doubles β while Δxᵀg keeps its sign
+/// (up to `max_step`), then closes a sign change by regula falsi (Illinois); after
+/// `max_line_search` extra evaluations it keeps the best β found.
 #include <functional>
 #include <string>
 #include <utility>
@@ -62,18 +62,18 @@ using InverseOperator = std::function<VecX(const VecX&)>;
 
 struct EquilibriumOptions {
   IterationMethod method = IterationMethod::Bfgs;
-  double rtol = 1e-3;       ///< out-of-balance force tolerance, Eq. (12)
-  double etol = 1e-5;       ///< energy tolerance, Eq. (13)
-  double stol = 0.5;        ///< line-search tolerance, Eq. (10)
-  int max_iterations = 30;  ///< iterations per solve before it is declared failed
+  double rtol = 1e-3;        ///< out-of-balance force tolerance, Eq. (12)
+  double etol = 1e-5;        ///< energy tolerance, Eq. (13)
+  double stol = 0.5;         ///< line-search tolerance, Eq. (10)
+  int max_iterations = 30;   ///< iterations per solve before it is declared failed
   /// The line search of Eqs. (9)–(10) in BFGS (off: β = 1 always).
   bool line_search = true;
   /// Also in Newton and modified Newton (the seed's are plain iterations; a line search keeps
   /// Newton from overshooting far from the solution, e.g. a static solve from d = 0).
   bool line_search_newton = false;
-  int max_line_search = 8;     ///< residual evaluations per line search after β = 1
-  double max_step = 16.0;      ///< largest β the line search tries
-  int max_updates = 20;        ///< BFGS: re-form the matrix after this many updates
+  int max_line_search = 8;   ///< residual evaluations per line search after β = 1
+  double max_step = 16.0;    ///< largest β the line search tries
+  int max_updates = 20;      ///< BFGS: re-form the matrix after this many updates
   double max_condition = 1e5;  ///< BFGS: skip an update whose A is worse conditioned
   /// Modified Newton and BFGS: form the starting matrix once per run (the first solve's,
   /// kept in EquilibriumHistory) instead of at the start of every solve. BFGS then also
@@ -130,15 +130,15 @@ struct EquilibriumHistory {
 
 struct EquilibriumReport {
   bool converged = false;
-  int iterations = 0;         ///< directions Δx computed (the seed's Table I counts these)
-  int evaluations = 0;        ///< residual evaluations, the line searches' included
-  int factorizations = 0;     ///< coefficient matrices formed and factored
-  int updates = 0;            ///< BFGS updates made
-  int skipped_updates = 0;    ///< BFGS updates skipped (δᵀγ ≤ 0 or ill-conditioned)
-  int line_searches = 0;      ///< iterations that took β ≠ 1
-  double force_ratio = 0.0;   ///< ||g||₂ / max ||g⁽⁰⁾||₂ at the end, Eq. (12)
-  double energy_ratio = 0.0;  ///< the last |Δxᵀg| / |Δx⁽¹⁾ᵀ g⁽⁰⁾|, Eq. (13)
-  std::string failure;        ///< empty if converged, else why not
+  int iterations = 0;        ///< directions Δx computed (the seed's Table I counts these)
+  int evaluations = 0;       ///< residual evaluations, the line searches' included
+  int factorizations = 0;    ///< coefficient matrices formed and factored
+  int updates = 0;           ///< BFGS updates made
+  int skipped_updates = 0;   ///< BFGS updates skipped (δᵀγ ≤ 0 or ill-conditioned)
+  int line_searches = 0;     ///< iterations that took β ≠ 1
+  double force_ratio = 0.0;  ///< ||g||₂ / max ||g⁽⁰⁾||₂ at the end, Eq. (12)
+  double energy_ratio = 0.0; ///< the last |Δxᵀg| / |Δx⁽¹⁾ᵀ g⁽⁰⁾|, Eq. (13)
+  std::string failure;       ///< empty if converged, else why not
 };
 
 struct LineSearchResult {

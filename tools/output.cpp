@@ -488,8 +488,8 @@ void PvdWriter::add(double time, const std::string& relative_file) {
 const std::vector<std::string>& StatsWriter::phase_columns(bool fluid, bool coupled) {
   static const std::vector<std::string> p = {"assemble", "solve", "update", "output", "total"};
   static const std::vector<std::string> pf = {
-      "assemble",          "solve",          "update", "remesh", "transfer", "forces",
-      "pressure_assembly", "pressure_solve", "output", "total"};
+      "assemble", "solve",          "update",         "remesh", "transfer",
+      "forces",   "pressure_assembly", "pressure_solve", "output", "total"};
   static const std::vector<std::string> pc = {"remesh",           "transfer",      "forces",
                                               "coupled_assembly", "coupled_solve", "solid",
                                               "update",           "output",        "total"};
@@ -580,12 +580,11 @@ void StatsWriter::write(const StepStats& r) {
       line += fmt::format(",{},{},{},{},{:.6g}", f.cells, f.vertices, f.steiner_points,
                           f.recovery_rounds, f.remesh_s);
       for (const auto& [name, value] : f.quality) line += fmt::format(",{:.17g}", value);
-      line += fmt::format(
-          ",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
-          "{:.17g},{:.6g},{}",
-          f.pressure_iterations, f.pressure_residual, f.divergence_before, f.divergence,
-          f.fluid_kinetic_energy, f.smoke_mass, f.inflow_flux, f.outflow_flux, f.solid_flux,
-          f.max_speed, f.cfl, f.traces_clamped);
+      line += fmt::format(",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
+                          "{:.17g},{:.6g},{}",
+                          f.pressure_iterations, f.pressure_residual, f.divergence_before,
+                          f.divergence, f.fluid_kinetic_energy, f.smoke_mass, f.inflow_flux,
+                          f.outflow_flux, f.solid_flux, f.max_speed, f.cfl, f.traces_clamped);
     } else {
       for (size_t k = 0; k < 5 + nq + 12; ++k) line += ",nan";
     }
@@ -675,7 +674,8 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
 }
 
 void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
-                               const mesh::TetMesh* fluid, const FluidFrameFields* fluid_fields) {
+                               const mesh::TetMesh* fluid,
+                               const FluidFrameFields* fluid_fields) {
   TETFSI_CHECK(world.bodies.size() == m_pvd.size(), "world has {} bodies, output has {}",
                world.bodies.size(), m_pvd.size());
   // Every file first, then the collections: a frame that fails half-way is in none of them.

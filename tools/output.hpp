@@ -198,8 +198,8 @@ struct FluidStepStats {
 
 /// The two-way coupling part of a stats.csv row (coupling::CoupledStepReport of the step).
 struct CoupledStepStats {
-  int iterations = 0;     ///< coupled_iterations: of the coupled solve (1 for LU)
-  double residual = NAN;  ///< coupled_residual: its worst relative residual
+  int iterations = 0;            ///< coupled_iterations: of the coupled solve (1 for LU)
+  double residual = NAN;         ///< coupled_residual: its worst relative residual
   /// W, pᵀ Jᵀ uⁿ⁺¹ of the dynamic pressure on the free bodies (CoupledReport::
   /// interface_power); 0 in the splitting scheme, whose solve holds every body.
   double interface_power = NAN;

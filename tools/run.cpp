@@ -145,6 +145,7 @@ class StateSnapshot {
   std::vector<std::pair<MatX3, MatX3>> m_state;
 };
 
+
 /// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
 void write_frame(OutputWriter& out, const solid::SolidWorld& world, int step, double t,
                  const FluidDriver* fluid) {
@@ -309,8 +310,8 @@ std::optional<EquilibriumSummary> equilibrium_summary(const Scene& scene) {
   return e;
 }
 
-void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid, OutputWriter& out,
-                RunResult& r) {
+void run_static(const Scene& scene, solid::SolidWorld& world, FluidDriver* fluid,
+                OutputWriter& out, RunResult& r) {
   r.steps_planned = 1;
   r.dt = 1.0;
   if (!world.obstacles.empty())
@@ -547,8 +548,8 @@ void print_summary(const RunResult& r, std::ostream& out) {
           "iterations per step, max divergence {:.3g} 1/s, max CFL {:.3g}; smoke mass {:.6g} "
           "kg, kinetic energy {:.6g} J{}\n",
           f.fluid_steps, 1e3 * f.fluid_s / f.fluid_steps,
-          static_cast<double>(f.pressure_iterations) / f.fluid_steps, f.max_divergence, f.max_cfl,
-          f.smoke_mass, f.fluid_kinetic_energy,
+          static_cast<double>(f.pressure_iterations) / f.fluid_steps, f.max_divergence,
+          f.max_cfl, f.smoke_mass, f.fluid_kinetic_energy,
           f.unconverged_pressure_solves > 0
               ? fmt::format("; {} unconverged pressure solves", f.unconverged_pressure_solves)
               : std::string());

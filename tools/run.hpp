@@ -87,8 +87,8 @@ struct RunResult {
   double elastic_energy = 0.0;     ///< final, J
   double gravity_potential = 0.0;  ///< final, J
   std::vector<BodySummary> bodies;
-  std::optional<FluidSummary> fluid;              ///< set for a scene with a fluid
-  std::optional<CouplingSummary> coupling;        ///< set for a two-way coupled run
+  std::optional<FluidSummary> fluid;  ///< set for a scene with a fluid
+  std::optional<CouplingSummary> coupling;  ///< set for a two-way coupled run
   std::optional<EquilibriumSummary> equilibrium;  ///< set if the run iterates to equilibrium
 
   double ms_per_step() const { return steps_done > 0 ? 1e3 * wall_s / steps_done : 0.0; }
