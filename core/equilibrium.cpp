@@ -9,23 +9,11 @@
 namespace tetfsi {
 
 IterationMethod parse_iteration_method(const std::string& name) {
-  if (name == "newton") return IterationMethod::Newton;
-  if (name == "modified_newton") return IterationMethod::ModifiedNewton;
-  if (name == "bfgs") return IterationMethod::Bfgs;
-  throw InputError(
-      fmt::format("unknown iteration method '{}': use newton, modified_newton or bfgs", name));
+  return k_iteration_method_names.parse(name);
 }
 
 const char* to_string(IterationMethod m) {
-  switch (m) {
-    case IterationMethod::Newton:
-      return "newton";
-    case IterationMethod::ModifiedNewton:
-      return "modified_newton";
-    case IterationMethod::Bfgs:
-      return "bfgs";
-  }
-  return "?";
+  return k_iteration_method_names.name(m);
 }
 
 double rank_one_condition(const VecX& v, const VecX& w) {

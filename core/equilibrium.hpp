@@ -38,6 +38,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/types.hpp"
 
 namespace tetfsi {
@@ -47,6 +48,11 @@ enum class IterationMethod {
   ModifiedNewton,  ///< the starting matrix kept (for the step, or the run)
   Bfgs,            ///< the starting matrix with BFGS updates [BatheSonnad80, Eq. (11)]
 };
+inline constexpr EnumNames<IterationMethod, 3> k_iteration_method_names{
+    "iteration method",
+    {{{IterationMethod::Newton, "newton"},
+      {IterationMethod::ModifiedNewton, "modified_newton"},
+      {IterationMethod::Bfgs, "bfgs"}}}};
 /// "newton" | "modified_newton" | "bfgs". @throws InputError naming the value.
 IterationMethod parse_iteration_method(const std::string& name);
 const char* to_string(IterationMethod m);

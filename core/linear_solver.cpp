@@ -16,19 +16,6 @@ namespace tetfsi {
 
 namespace {
 
-struct NamedKind {
-  SolverKind kind;
-  const char* name;
-};
-constexpr NamedKind k_kinds[] = {
-    {SolverKind::Cholmod, "cholmod"},
-    {SolverKind::Umfpack, "umfpack"},
-    {SolverKind::BiCgStabIlut, "bicgstab_ilut"},
-    {SolverKind::CgIc, "cg_ic"},
-    {SolverKind::Amg, "amg"},
-    {SolverKind::AmgGamg, "amg_gamg"},
-};
-
 /// Restarted solves after the Krylov loop stopped with a true residual still above tol
 /// (the recursively updated residual drifts from b − A x); at most this many.
 constexpr int k_max_restarts = 5;
@@ -232,25 +219,16 @@ using CgIc = Eigen::ConjugateGradient<
 }  // namespace
 
 const std::vector<std::string>& solver_names() {
-  static const std::vector<std::string> names = [] {
-    std::vector<std::string> v;
-    for (const auto& k : k_kinds) v.emplace_back(k.name);
-    return v;
-  }();
+  static const std::vector<std::string> names = k_solver_kind_names.names();
   return names;
 }
 
 SolverKind parse_solver_kind(const std::string& name) {
-  for (const auto& k : k_kinds)
-    if (name == k.name) return k.kind;
-  throw InputError(fmt::format("unknown linear solver '{}': use one of {}", name,
-                               fmt::join(solver_names(), ", ")));
+  return k_solver_kind_names.parse(name);
 }
 
 std::string to_string(SolverKind kind) {
-  for (const auto& k : k_kinds)
-    if (kind == k.kind) return k.name;
-  throw InternalError(fmt::format("to_string: invalid SolverKind {}", static_cast<int>(kind)));
+  return k_solver_kind_names.name(kind);
 }
 
 std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts) {

@@ -33,11 +33,20 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/types.hpp"
 
 namespace tetfsi {
 
 enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg };
+inline constexpr EnumNames<SolverKind, 6> k_solver_kind_names{
+    "linear solver",
+    {{{SolverKind::Cholmod, "cholmod"},
+      {SolverKind::Umfpack, "umfpack"},
+      {SolverKind::BiCgStabIlut, "bicgstab_ilut"},
+      {SolverKind::CgIc, "cg_ic"},
+      {SolverKind::Amg, "amg"},
+      {SolverKind::AmgGamg, "amg_gamg"}}}};
 
 /// All backend names in a stable order, e.g. for `--help` and benchmarks.
 const std::vector<std::string>& solver_names();

@@ -18,35 +18,12 @@ namespace tetfsi::coupling {
 using mesh::FaceKind;
 using mesh::TetMesh;
 
-const std::vector<std::string>& coupled_solver_names() {
-  static const std::vector<std::string> n = {"schur_amg", "umfpack", "bicgstab_ilut",
-                                             "symmetric_umfpack"};
-  return n;
-}
-
 CoupledSolverKind parse_coupled_solver(const std::string& name) {
-  if (name == "schur_amg") return CoupledSolverKind::SchurAmg;
-  if (name == "umfpack") return CoupledSolverKind::Umfpack;
-  if (name == "bicgstab_ilut") return CoupledSolverKind::BiCgStabIlut;
-  if (name == "symmetric_umfpack") return CoupledSolverKind::SymmetricUmfpack;
-  throw InputError(
-      fmt::format("unknown coupled solver '{}': use schur_amg, umfpack, "
-                  "bicgstab_ilut or symmetric_umfpack",
-                  name));
+  return k_coupled_solver_names.parse(name);
 }
 
 const char* to_string(CoupledSolverKind k) {
-  switch (k) {
-    case CoupledSolverKind::SchurAmg:
-      return "schur_amg";
-    case CoupledSolverKind::Umfpack:
-      return "umfpack";
-    case CoupledSolverKind::BiCgStabIlut:
-      return "bicgstab_ilut";
-    case CoupledSolverKind::SymmetricUmfpack:
-      return "symmetric_umfpack";
-  }
-  return "?";
+  return k_coupled_solver_names.name(k);
 }
 
 CoupledInput make_input(const fluid::FluidPrediction& pred, const fluid::FluidParams& params,

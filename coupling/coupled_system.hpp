@@ -47,6 +47,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
 #include "fluid/interface.hpp"
@@ -57,11 +58,16 @@
 namespace tetfsi::coupling {
 
 enum class CoupledSolverKind { SchurAmg, Umfpack, BiCgStabIlut, SymmetricUmfpack };
-/// "schur_amg" | "umfpack" | "bicgstab_ilut" | "symmetric_umfpack".
+inline constexpr EnumNames<CoupledSolverKind, 4> k_coupled_solver_names{
+    "coupled solver",
+    {{{CoupledSolverKind::SchurAmg, "schur_amg"},
+      {CoupledSolverKind::Umfpack, "umfpack"},
+      {CoupledSolverKind::BiCgStabIlut, "bicgstab_ilut"},
+      {CoupledSolverKind::SymmetricUmfpack, "symmetric_umfpack"}}}};
+/// "schur_amg" | "umfpack" | "bicgstab_ilut" | "symmetric_umfpack" (k_coupled_solver_names).
 /// @throws InputError naming the value and the valid ones.
 CoupledSolverKind parse_coupled_solver(const std::string& name);
 const char* to_string(CoupledSolverKind k);
-const std::vector<std::string>& coupled_solver_names();
 
 using fluid::BodyInterface;
 using fluid::InterfaceOperators;

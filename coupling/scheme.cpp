@@ -11,30 +11,11 @@ std::unique_ptr<CouplingScheme> make_splitting_scheme(const CouplingParams& para
 std::unique_ptr<CouplingScheme> make_iterated_scheme(const CouplingParams& params);
 
 Scheme parse_scheme(const std::string& name) {
-  if (name == "simultaneous") return Scheme::Simultaneous;
-  if (name == "splitting") return Scheme::Splitting;
-  if (name == "bfgs") return Scheme::Bfgs;
-  if (name == "modified_newton") return Scheme::ModifiedNewton;
-  if (name == "newton") return Scheme::Newton;
-  throw InputError(fmt::format(
-      "unknown coupling scheme '{}': use simultaneous, splitting, bfgs, modified_newton or newton",
-      name));
+  return k_scheme_names.parse(name);
 }
 
 const char* to_string(Scheme s) {
-  switch (s) {
-    case Scheme::Simultaneous:
-      return "simultaneous";
-    case Scheme::Splitting:
-      return "splitting";
-    case Scheme::Bfgs:
-      return "bfgs";
-    case Scheme::ModifiedNewton:
-      return "modified_newton";
-    case Scheme::Newton:
-      return "newton";
-  }
-  return "?";
+  return k_scheme_names.name(s);
 }
 
 bool is_iterated(Scheme s) {

@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/equilibrium.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
@@ -38,7 +39,13 @@
 namespace tetfsi::coupling {
 
 enum class Scheme { Simultaneous, Splitting, Bfgs, ModifiedNewton, Newton };
-/// "simultaneous" | "splitting" | "bfgs" | "modified_newton" | "newton".
+inline constexpr EnumNames<Scheme, 5> k_scheme_names{"coupling scheme",
+                                                     {{{Scheme::Simultaneous, "simultaneous"},
+                                                       {Scheme::Splitting, "splitting"},
+                                                       {Scheme::Bfgs, "bfgs"},
+                                                       {Scheme::ModifiedNewton, "modified_newton"},
+                                                       {Scheme::Newton, "newton"}}}};
+/// "simultaneous" | "splitting" | "bfgs" | "modified_newton" | "newton" (k_scheme_names).
 /// @throws InputError naming the value and the valid ones.
 Scheme parse_scheme(const std::string& name);
 const char* to_string(Scheme s);

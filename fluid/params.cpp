@@ -5,14 +5,11 @@
 namespace tetfsi::fluid {
 
 Reconstruction parse_reconstruction(const std::string& name) {
-  if (name == "vertex_ls") return Reconstruction::VertexLeastSquares;
-  if (name == "whitney") return Reconstruction::Whitney;
-  throw InputError(
-      fmt::format("unknown velocity reconstruction '{}': use vertex_ls or whitney", name));
+  return k_reconstruction_names.parse(name);
 }
 
 const char* to_string(Reconstruction r) {
-  return r == Reconstruction::Whitney ? "whitney" : "vertex_ls";
+  return k_reconstruction_names.name(r);
 }
 
 }  // namespace tetfsi::fluid

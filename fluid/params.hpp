@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
 
@@ -56,6 +57,9 @@ enum class Reconstruction {
                        ///< (exact for uniform flow, discontinuous between tets)
 };
 
+inline constexpr EnumNames<Reconstruction, 2> k_reconstruction_names{
+    "velocity reconstruction",
+    {{{Reconstruction::VertexLeastSquares, "vertex_ls"}, {Reconstruction::Whitney, "whitney"}}}};
 /// "vertex_ls" | "whitney". @throws InputError naming the value.
 Reconstruction parse_reconstruction(const std::string& name);
 const char* to_string(Reconstruction r);

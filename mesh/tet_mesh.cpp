@@ -94,19 +94,7 @@ class FaceTable {
 }  // namespace
 
 const char* to_string(FaceKind k) {
-  switch (k) {
-    case FaceKind::Interior:
-      return "interior";
-    case FaceKind::Wall:
-      return "wall";
-    case FaceKind::Inflow:
-      return "inflow";
-    case FaceKind::Open:
-      return "open";
-    case FaceKind::Solid:
-      return "solid";
-  }
-  return "unknown";
+  return k_face_kind_names.name(k);
 }
 
 Vec3 circumcentre(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/types.hpp"
 
 namespace tetfsi::mesh {
@@ -34,6 +35,12 @@ enum class FaceKind : std::uint8_t {
   Solid = 4,   ///< on a solid body's boundary triangle (moves with the solid)
 };
 
+inline constexpr EnumNames<FaceKind, 5> k_face_kind_names{"face kind",
+                                                          {{{FaceKind::Interior, "interior"},
+                                                            {FaceKind::Wall, "wall"},
+                                                            {FaceKind::Inflow, "inflow"},
+                                                            {FaceKind::Open, "open"},
+                                                            {FaceKind::Solid, "solid"}}}};
 /// "interior", "wall", "inflow", "open", "solid".
 const char* to_string(FaceKind k);
 

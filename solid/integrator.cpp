@@ -7,8 +7,12 @@
 
 namespace tetfsi::solid {
 
+Trapezoid parse_trapezoid(const std::string& name) {
+  return k_trapezoid_names.parse(name);
+}
+
 const char* to_string(Trapezoid t) {
-  return t == Trapezoid::Paper ? "paper" : "midpoint";
+  return k_trapezoid_names.name(t);
 }
 
 TrapezoidalSystem assemble_trapezoidal(const SolidBody& body, double h, const VecX& f_e,

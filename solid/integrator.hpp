@@ -1,6 +1,7 @@
 #pragma once
 /// @file integrator.hpp
 /// The linearised implicit trapezoidal rule of [Chentanez06, Eqs. (4)–(5), (9)–(18)].
+#include "core/enum_names.hpp"
 #include "core/types.hpp"
 #include "solid/solid_body.hpp"
 
@@ -33,7 +34,10 @@ enum class Trapezoid {
   Midpoint,  ///< K((dⁿ + dⁿ⁺¹)/2) linearised, weight h/4: energy-conserving on linear systems
 };
 
-/// "paper" / "midpoint" (scene key solid.trapezoid).
+inline constexpr EnumNames<Trapezoid, 2> k_trapezoid_names{
+    "trapezoid variant", {{{Trapezoid::Paper, "paper"}, {Trapezoid::Midpoint, "midpoint"}}}};
+/// "paper" / "midpoint" (scene key solid.trapezoid). @throws InputError naming the value.
+Trapezoid parse_trapezoid(const std::string& name);
 const char* to_string(Trapezoid t);
 
 struct TrapezoidalSystem {

@@ -11,26 +11,11 @@
 namespace tetfsi::solid {
 
 Integrator parse_integrator(const std::string& name) {
-  if (name == "linearized") return Integrator::Linearized;
-  if (name == "newton") return Integrator::Newton;
-  if (name == "modified_newton") return Integrator::ModifiedNewton;
-  if (name == "bfgs") return Integrator::Bfgs;
-  throw InputError(fmt::format(
-      "unknown solid integrator '{}': use linearized, newton, modified_newton or bfgs", name));
+  return k_integrator_names.parse(name);
 }
 
 const char* to_string(Integrator i) {
-  switch (i) {
-    case Integrator::Linearized:
-      return "linearized";
-    case Integrator::Newton:
-      return "newton";
-    case Integrator::ModifiedNewton:
-      return "modified_newton";
-    case Integrator::Bfgs:
-      return "bfgs";
-  }
-  return "?";
+  return k_integrator_names.name(i);
 }
 
 IterationMethod iteration_method(Integrator i) {

@@ -25,6 +25,7 @@
 /// The coupled iteration (coupling/coupled_step) adds the fluid's nodal forces to g.
 #include <string>
 
+#include "core/enum_names.hpp"
 #include "core/equilibrium.hpp"
 #include "core/types.hpp"
 #include "solid/solid_body.hpp"
@@ -33,6 +34,12 @@ namespace tetfsi::solid {
 
 /// solid.integrator: "linearized" (integrator.hpp) | "newton" | "modified_newton" | "bfgs".
 enum class Integrator { Linearized, Newton, ModifiedNewton, Bfgs };
+inline constexpr EnumNames<Integrator, 4> k_integrator_names{
+    "solid integrator",
+    {{{Integrator::Linearized, "linearized"},
+      {Integrator::Newton, "newton"},
+      {Integrator::ModifiedNewton, "modified_newton"},
+      {Integrator::Bfgs, "bfgs"}}}};
 /// @throws InputError naming the value and the valid ones.
 Integrator parse_integrator(const std::string& name);
 const char* to_string(Integrator i);

@@ -181,7 +181,7 @@ double largest_displacement(const std::vector<Sample>& hist) {
 
 /// max over the samples of `a` (times ≤ the end of `b`) and the probes of |a − b(t)|, b
 /// interpolated at a's times; `probe` is set to "A" or "B", where it is largest.
-double max_difference(const Run& a, const Run& b, std::string& probe) {
+double max_difference(const Run& a, const Run& b, const char*& probe) {
   double m = 0.0;
   probe = "A";
   for (const Sample& s : a.history) {
@@ -332,7 +332,7 @@ int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& 
     for (const Run* r : ok) scale = std::max(scale, largest_displacement(r->history));
     for (size_t i = 0; i < ok.size(); ++i) {
       for (size_t k = i + 1; k < ok.size(); ++k) {
-        std::string probe;
+        const char* probe = "A";
         const double d = max_difference(*ok[i], *ok[k], probe);
         if (d > diff || worst.empty()) {
           diff = std::max(diff, d);

@@ -10,6 +10,7 @@
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
+///   tetfsi scene --keys [--markdown]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
 /// command-line usage errors are reported by CLI11 with its exit code. Ctrl-C (or SIGTERM)
@@ -19,7 +20,9 @@
 #include <csignal>
 #include <cstdio>
 #include <exception>
+#include <functional>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -37,6 +40,7 @@
 #include "tools/quality_cmd.hpp"
 #include "tools/run.hpp"
 #include "tools/scene.hpp"
+#include "tools/scene_keys.hpp"
 
 #ifndef TETFSI_VERSION
 #define TETFSI_VERSION "unknown"
@@ -65,6 +69,284 @@ int report_error(std::string message) {
   return 1;
 }
 
+/// A subcommand and what it does once the command line is parsed (its options live in the
+/// action's captures).
+struct Command {
+  CLI::App* app;
+  std::function<int()> action;
+};
+
+/// An integer option that must be at least 1.
+const CLI::Validator& at_least_one() {
+  static const CLI::Validator v(
+      [](std::string& s) -> std::string {
+        try {
+          std::size_t used = 0;
+          if (std::stoll(s, &used) >= 1 && used == s.size()) return {};
+        } catch (const std::exception&) {
+        }
+        return "must be an integer >= 1, got '" + s + "'";
+      },
+      ">= 1");
+  return v;
+}
+
+/// `--set KEY=VALUE` (repeatable) into `sets`.
+void add_set_option(CLI::App* cmd, std::vector<std::string>& sets, const std::string& help) {
+  cmd->add_option("--set", sets, help)->allow_extra_args(false)->type_name("KEY=VALUE");
+}
+
+Command add_run(CLI::App& app) {
+  using namespace tetfsi;
+  struct Opt {
+    std::string scene_file, out, progress = "auto";
+    std::vector<std::string> sets;
+    int steps = 0;
+    double end_time = 0.0;
+    CLI::Option *steps_opt = nullptr, *end_opt = nullptr;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* run = app.add_subcommand("run", "simulate a scene and write ParaView output");
+  run->add_option("SCENE", o->scene_file, "scene file (JSON)")->required()->type_name("FILE");
+  run->add_option("--out,-o", o->out, "output folder (default: out/<scene name>)")
+      ->type_name("DIR");
+  add_set_option(run, o->sets,
+                 "override a scene value, e.g. --set time.dt=0.002 --set "
+                 "bodies.0.material.density=500 (repeatable)");
+  o->steps_opt = run->add_option("--steps", o->steps, "number of steps (overrides the scene)")
+                     ->type_name("N")
+                     ->check(at_least_one());
+  o->end_opt = run->add_option("--end-time", o->end_time,
+                               "end time in s: ceil(T / dt) steps (overrides the scene)")
+                   ->type_name("T");
+  o->steps_opt->excludes(o->end_opt);
+  run->add_option("--progress", o->progress,
+                  "progress on stderr: auto (live line on a terminal, else plain), tty, plain, off")
+      ->type_name("MODE")
+      ->check(CLI::IsMember(tools::k_progress_mode_names.names()))
+      ->capture_default_str();
+  return {run, [o] {
+            const tools::Scene scene = tools::load_scene(o->scene_file, o->sets);
+            tools::RunOptions opt;
+            opt.out_dir = o->out.empty()
+                              ? std::filesystem::path("out") / tools::file_safe_name(scene.name)
+                              : std::filesystem::path(o->out);
+            if (*o->steps_opt) opt.steps = o->steps;
+            if (*o->end_opt) opt.end_time = o->end_time;
+            opt.progress = tools::parse_progress_mode(o->progress);
+            opt.stop = &g_stop;
+            std::signal(SIGINT, on_stop_signal);
+            std::signal(SIGTERM, on_stop_signal);
+            const tools::RunResult r = tools::run_scene(scene, opt);
+            std::signal(SIGINT, SIG_DFL);
+            std::signal(SIGTERM, SIG_DFL);
+            tools::print_summary(r, std::cout);
+            std::cout.flush();
+            if (r.interrupted) {
+              report_error(r.error);
+              return 130;  // the shell convention for "ended by SIGINT"
+            }
+            if (!r.completed) return report_error(r.error);
+            return 0;
+          }};
+}
+
+Command add_validate(CLI::App& app) {
+  using namespace tetfsi;
+  struct Opt {
+    std::string scene_file;
+    std::vector<std::string> sets;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* validate =
+      app.add_subcommand("validate", "check a scene: parse it, build its bodies, print a summary");
+  validate->add_option("SCENE", o->scene_file, "scene file (JSON)")->required()->type_name("FILE");
+  add_set_option(validate, o->sets, "override a scene value (repeatable)");
+  return {validate, [o] {
+            const tools::Scene scene = tools::load_scene(o->scene_file, o->sets);
+            const solid::SolidWorld world = tools::build_world(scene);
+            tools::print_world_summary(scene, world, std::cout);
+            std::cout << "ok\n";
+            return 0;
+          }};
+}
+
+Command add_scene(CLI::App& app) {
+  struct Opt {
+    bool keys = false, markdown = false;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* scene =
+      app.add_subcommand("scene", "about scene files: every key, its default and range");
+  scene->add_flag("--keys", o->keys, "print every scene key: type, default, range, unit, meaning")
+      ->required();
+  scene->add_flag("--markdown", o->markdown,
+                  "as the markdown tables of README.md's \"Scene files\" (with their markers)");
+  return {scene, [o] {
+            std::cout << (o->markdown ? tetfsi::tools::scene_keys_markdown()
+                                      : tetfsi::tools::scene_keys_text());
+            return 0;
+          }};
+}
+
+Command add_bench_solvers(CLI::App& bench) {
+  struct Opt {
+    int n = 100000;
+    std::string json;
+    std::vector<std::string> backends;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd =
+      bench.add_subcommand("solvers", "time the linear-solver backends on a 3D Poisson problem");
+  cmd->add_option("--n", o->n, "approximate number of unknowns")
+      ->type_name("N")
+      ->check(at_least_one())
+      ->capture_default_str();
+  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
+  std::string names;
+  for (const auto& n : tetfsi::solver_names()) names += (names.empty() ? "" : ",") + n;
+  cmd->add_option("--backends", o->backends, "comma-separated backends (default: all): " + names)
+      ->delimiter(',')
+      ->type_name("A,B");
+  return {cmd, [o] { return tetfsi::tools::bench_solvers(o->n, o->json, o->backends, std::cout); }};
+}
+
+Command add_bench_remesh(CLI::App& bench) {
+  struct Opt {
+    std::string json;
+    long max_cells = 1000000;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "remesh", "time the fluid remesher against the bare CGAL Delaunay of the same vertices");
+  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
+  cmd->add_option("--max-cells", o->max_cells, "skip the cases above this size (30k, 250k, 1M)")
+      ->type_name("N")
+      ->check(at_least_one())
+      ->capture_default_str();
+  return {cmd, [o] { return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout); }};
+}
+
+Command add_bench_step(CLI::App& bench) {
+  struct Opt {
+    std::string scene, json;
+    tetfsi::tools::BenchStepOptions bench;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "step",
+      "time whole steps of a fluid scene at three mesh sizes against the floor: the bare CGAL "
+      "Delaunay of the same vertices + one AMG pressure solve");
+  cmd->add_option("SCENE", o->scene, "fluid scene file (JSON)")->required()->type_name("FILE");
+  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
+  cmd->add_option("--steps", o->bench.steps,
+                  "steps per size; the first is a warm-up and is not in the figures (>= 2)")
+      ->type_name("N")
+      ->check(CLI::Range(2, 1000000))
+      ->capture_default_str();
+  cmd->add_option("--sizes", o->bench.scales,
+                  "comma-separated factors on the scene's fluid mesh sizes (default: chosen for "
+                  "about 30k, 100k and 250k cells)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
+      ->type_name("A,B,C");
+  return {cmd, [o] {
+            o->bench.json_path = o->json;
+            return tetfsi::tools::bench_step(o->scene, o->bench, std::cout);
+          }};
+}
+
+Command add_bench_coupled(CLI::App& bench) {
+  struct Opt {
+    std::string scene, json;
+    tetfsi::tools::BenchCoupledOptions bench;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "coupled",
+      "the two coupling schemes side by side: each one's largest stable step, seconds per step, "
+      "and the coupled solve against a fluid-only projection on the same mesh");
+  cmd->add_option("SCENE", o->scene, "two-way fluid scene file (JSON)")
+      ->required()
+      ->type_name("FILE");
+  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
+  cmd->add_option("--time", o->bench.time, "simulated seconds of each stability run (> 0)")
+      ->type_name("T")
+      ->capture_default_str();
+  cmd->add_option("--steps-down", o->bench.steps_down,
+                  "halvings of the largest step 2 dt tried: h = 2 dt / 2^k, k = 0..N (0..12)")
+      ->type_name("N")
+      ->capture_default_str();
+  cmd->add_option("--timed-steps", o->bench.timed_steps,
+                  "steps per scheme at dt for the seconds per step, the first a warm-up (>= 4)")
+      ->type_name("N")
+      ->capture_default_str();
+  add_set_option(cmd, o->bench.overrides, "override a scene value (repeatable)");
+  return {cmd, [o] {
+            o->bench.json_path = o->json;
+            return tetfsi::tools::bench_coupled(o->scene, o->bench, std::cout);
+          }};
+}
+
+Command add_bench_bfgs(CLI::App& bench) {
+  struct Opt {
+    std::string scene = tetfsi::tools::k_bench_bfgs_scene;
+    tetfsi::tools::BenchBfgsOptions bench;
+    std::string json, history;
+    double time = 0.0;
+    CLI::Option* time_opt = nullptr;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "bfgs",
+      "the seed's Table I [BatheSonnad80]: BFGS, modified Newton and Newton at dt and R dt, "
+      "iterations per step, convergence, and the agreement of two probes' displacements");
+  cmd->add_option("SCENE", o->scene,
+                  "dynamic scene file (JSON): two-way coupled (coupling.scheme = method) or not "
+                  "(solid.integrator = method)")
+      ->type_name("FILE")
+      ->capture_default_str();
+  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
+  cmd->add_option("--history", o->history,
+                  "also write the probes' histories (method, dt, step, t, dA_x, dB_x, uA_x, "
+                  "uB_x) to this CSV file")
+      ->type_name("FILE.csv");
+  cmd->add_option("--ratio", o->bench.ratio, "the larger step is R times the scene's dt (> 1)")
+      ->type_name("R")
+      ->capture_default_str();
+  o->time_opt = cmd->add_option("--time", o->time,
+                                "simulated seconds of each run (> 0; default: the scene's end "
+                                "time)")
+                    ->type_name("T");
+  add_set_option(cmd, o->bench.overrides, "override a scene value (repeatable)");
+  return {cmd, [o] {
+            o->bench.json_path = o->json;
+            o->bench.history_path = o->history;
+            if (*o->time_opt) o->bench.time = o->time;
+            return tetfsi::tools::bench_bfgs(o->scene, o->bench, std::cout);
+          }};
+}
+
+Command add_quality(CLI::App& app) {
+  struct Opt {
+    std::string file, json, png;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* quality = app.add_subcommand(
+      "quality",
+      "mesh-quality figures of any tetrahedral .vtu: dihedral angles, shape, dual lengths, "
+      "histograms");
+  quality->add_option("FILE", o->file, "VTK XML unstructured grid (VTK_TETRA cells are used)")
+      ->required()
+      ->type_name("FILE.vtu");
+  quality->add_option("--json", o->json, "also write the figures and histograms as JSON")
+      ->type_name("FILE");
+  quality->add_option("--png", o->png, "also draw the four histograms as bar charts into this PNG")
+      ->type_name("FILE");
+  return {quality,
+          [o] { return tetfsi::tools::quality_command(o->file, o->json, o->png, std::cout); }};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -89,21 +371,10 @@ int main(int argc, char** argv) {
       "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
       "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
       "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
+      "  tetfsi scene --keys   # every scene key with its default and range\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
       "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
-
-  /// An integer option that must be at least 1.
-  const CLI::Validator at_least_one(
-      [](std::string& v) -> std::string {
-        try {
-          std::size_t used = 0;
-          if (std::stoll(v, &used) >= 1 && used == v.size()) return {};
-        } catch (const std::exception&) {
-        }
-        return "must be an integer >= 1, got '" + v + "'";
-      },
-      ">= 1");
 
   std::string log_level = "info";
   app.add_option("--log-level", log_level,
@@ -112,198 +383,14 @@ int main(int argc, char** argv) {
       ->type_name("LEVEL")
       ->capture_default_str();
 
-  // ---- run ----
-  CLI::App* run = app.add_subcommand("run", "simulate a scene and write ParaView output");
-  std::string run_scene_file;
-  std::string run_out;
-  std::vector<std::string> run_sets;
-  int run_steps = 0;
-  double run_end_time = 0.0;
-  std::string run_progress = "auto";
-  run->add_option("SCENE", run_scene_file, "scene file (JSON)")->required()->type_name("FILE");
-  run->add_option("--out,-o", run_out, "output folder (default: out/<scene name>)")
-      ->type_name("DIR");
-  run->add_option("--set", run_sets,
-                  "override a scene value, e.g. --set time.dt=0.002 --set "
-                  "bodies.0.material.density=500 (repeatable)")
-      ->allow_extra_args(false)
-      ->type_name("KEY=VALUE");
-  auto* steps_opt = run->add_option("--steps", run_steps, "number of steps (overrides the scene)")
-                        ->type_name("N")
-                        ->check(at_least_one);
-  auto* end_opt = run->add_option("--end-time", run_end_time,
-                                  "end time in s: ceil(T / dt) steps (overrides the scene)")
-                      ->type_name("T");
-  steps_opt->excludes(end_opt);
-  run->add_option("--progress", run_progress,
-                  "progress on stderr: auto (live line on a terminal, else plain), tty, plain, off")
-      ->type_name("MODE")
-      ->check(CLI::IsMember({"auto", "tty", "plain", "off"}))
-      ->capture_default_str();
-
-  // ---- validate ----
-  CLI::App* validate =
-      app.add_subcommand("validate", "check a scene: parse it, build its bodies, print a summary");
-  std::string val_scene_file;
-  std::vector<std::string> val_sets;
-  validate->add_option("SCENE", val_scene_file, "scene file (JSON)")->required()->type_name("FILE");
-  validate->add_option("--set", val_sets, "override a scene value (repeatable)")
-      ->allow_extra_args(false)
-      ->type_name("KEY=VALUE");
-
-  // ---- bench ----
+  std::vector<Command> commands = {add_run(app), add_validate(app)};
   CLI::App* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
-  CLI::App* bench_solvers_cmd =
-      bench->add_subcommand("solvers", "time the linear-solver backends on a 3D Poisson problem");
-  int bench_n = 100000;
-  std::string bench_json;
-  std::vector<std::string> bench_backends;
-  bench_solvers_cmd->add_option("--n", bench_n, "approximate number of unknowns")
-      ->type_name("N")
-      ->check(at_least_one)
-      ->capture_default_str();
-  bench_solvers_cmd->add_option("--json", bench_json, "also write the results to this JSON file")
-      ->type_name("FILE");
-  bench_solvers_cmd
-      ->add_option(
-          "--backends", bench_backends,
-          "comma-separated backends (default: all): " +
-              [] {
-                std::string s;
-                for (const auto& n : solver_names()) s += (s.empty() ? "" : ",") + n;
-                return s;
-              }())
-      ->delimiter(',')
-      ->type_name("A,B");
-
-  CLI::App* bench_remesh_cmd = bench->add_subcommand(
-      "remesh", "time the fluid remesher against the bare CGAL Delaunay of the same vertices");
-  std::string bench_remesh_json;
-  long bench_remesh_max = 1000000;
-  bench_remesh_cmd
-      ->add_option("--json", bench_remesh_json, "also write the results to this JSON file")
-      ->type_name("FILE");
-  bench_remesh_cmd
-      ->add_option("--max-cells", bench_remesh_max,
-                   "skip the cases above this size (30k, 250k, 1M)")
-      ->type_name("N")
-      ->check(at_least_one)
-      ->capture_default_str();
-
-  CLI::App* bench_step_cmd = bench->add_subcommand(
-      "step",
-      "time whole steps of a fluid scene at three mesh sizes against the floor: the bare CGAL "
-      "Delaunay of the same vertices + one AMG pressure solve");
-  std::string bench_step_scene;
-  std::string bench_step_json;
-  int bench_step_steps = 3;
-  std::vector<double> bench_step_sizes;
-  bench_step_cmd->add_option("SCENE", bench_step_scene, "fluid scene file (JSON)")
-      ->required()
-      ->type_name("FILE");
-  bench_step_cmd->add_option("--json", bench_step_json, "also write the results to this JSON file")
-      ->type_name("FILE");
-  bench_step_cmd
-      ->add_option("--steps", bench_step_steps,
-                   "steps per size; the first is a warm-up and is not in the figures (>= 2)")
-      ->type_name("N")
-      ->check(CLI::Range(2, 1000000))
-      ->capture_default_str();
-  bench_step_cmd
-      ->add_option("--sizes", bench_step_sizes,
-                   "comma-separated factors on the scene's fluid mesh sizes (default: chosen for "
-                   "about 30k, 100k and 250k cells)")
-      ->delimiter(',')
-      ->check(CLI::PositiveNumber)
-      ->type_name("A,B,C");
-
-  CLI::App* bench_coupled_cmd = bench->add_subcommand(
-      "coupled",
-      "the two coupling schemes side by side: each one's largest stable step, seconds per step, "
-      "and the coupled solve against a fluid-only projection on the same mesh");
-  std::string bench_coupled_scene;
-  tools::BenchCoupledOptions bench_coupled_opt;
-  std::string bench_coupled_json;
-  bench_coupled_cmd->add_option("SCENE", bench_coupled_scene, "two-way fluid scene file (JSON)")
-      ->required()
-      ->type_name("FILE");
-  bench_coupled_cmd
-      ->add_option("--json", bench_coupled_json, "also write the results to this JSON file")
-      ->type_name("FILE");
-  bench_coupled_cmd
-      ->add_option("--time", bench_coupled_opt.time,
-                   "simulated seconds of each stability run (> 0)")
-      ->type_name("T")
-      ->capture_default_str();
-  bench_coupled_cmd
-      ->add_option("--steps-down", bench_coupled_opt.steps_down,
-                   "halvings of the largest step 2 dt tried: h = 2 dt / 2^k, k = 0..N (0..12)")
-      ->type_name("N")
-      ->capture_default_str();
-  bench_coupled_cmd
-      ->add_option("--timed-steps", bench_coupled_opt.timed_steps,
-                   "steps per scheme at dt for the seconds per step, the first a warm-up (>= 4)")
-      ->type_name("N")
-      ->capture_default_str();
-  bench_coupled_cmd
-      ->add_option("--set", bench_coupled_opt.overrides, "override a scene value (repeatable)")
-      ->allow_extra_args(false)
-      ->type_name("KEY=VALUE");
-
-  CLI::App* bench_bfgs_cmd = bench->add_subcommand(
-      "bfgs",
-      "the seed's Table I [BatheSonnad80]: BFGS, modified Newton and Newton at dt and R dt, "
-      "iterations per step, convergence, and the agreement of two probes' displacements");
-  std::string bench_bfgs_scene = tools::k_bench_bfgs_scene;
-  tools::BenchBfgsOptions bench_bfgs_opt;
-  std::string bench_bfgs_json, bench_bfgs_history;
-  double bench_bfgs_time = 0.0;
-  bench_bfgs_cmd
-      ->add_option("SCENE", bench_bfgs_scene,
-                   "dynamic scene file (JSON): two-way coupled (coupling.scheme = method) or not "
-                   "(solid.integrator = method)")
-      ->type_name("FILE")
-      ->capture_default_str();
-  bench_bfgs_cmd->add_option("--json", bench_bfgs_json, "also write the results to this JSON file")
-      ->type_name("FILE");
-  bench_bfgs_cmd
-      ->add_option("--history", bench_bfgs_history,
-                   "also write the probes' histories (method, dt, step, t, dA_x, dB_x, uA_x, "
-                   "uB_x) to this CSV file")
-      ->type_name("FILE.csv");
-  bench_bfgs_cmd
-      ->add_option("--ratio", bench_bfgs_opt.ratio,
-                   "the larger step is R times the scene's dt (> 1)")
-      ->type_name("R")
-      ->capture_default_str();
-  auto* bench_bfgs_time_opt =
-      bench_bfgs_cmd
-          ->add_option("--time", bench_bfgs_time,
-                       "simulated seconds of each run (> 0; default: the scene's end time)")
-          ->type_name("T");
-  bench_bfgs_cmd
-      ->add_option("--set", bench_bfgs_opt.overrides, "override a scene value (repeatable)")
-      ->allow_extra_args(false)
-      ->type_name("KEY=VALUE");
-
-  // ---- quality ----
-  CLI::App* quality = app.add_subcommand(
-      "quality",
-      "mesh-quality figures of any tetrahedral .vtu: dihedral angles, shape, dual lengths, "
-      "histograms");
-  std::string quality_file;
-  std::string quality_json;
-  std::string quality_png;
-  quality->add_option("FILE", quality_file, "VTK XML unstructured grid (VTK_TETRA cells are used)")
-      ->required()
-      ->type_name("FILE.vtu");
-  quality->add_option("--json", quality_json, "also write the figures and histograms as JSON")
-      ->type_name("FILE");
-  quality
-      ->add_option("--png", quality_png,
-                   "also draw the four histograms as bar charts into this PNG")
-      ->type_name("FILE");
+  for (auto add :
+       {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_coupled, add_bench_bfgs})
+    commands.push_back(add(*bench));
+  commands.push_back(add_quality(app));
+  commands.push_back(add_scene(app));
 
   try {
     app.parse(argc, argv);
@@ -313,63 +400,8 @@ int main(int argc, char** argv) {
 
   try {
     set_log_level(log_level);
-
-    if (*run) {
-      const tools::Scene scene = tools::load_scene(run_scene_file, run_sets);
-      tools::RunOptions opt;
-      opt.out_dir = run_out.empty()
-                        ? std::filesystem::path("out") / tools::file_safe_name(scene.name)
-                        : std::filesystem::path(run_out);
-      if (*steps_opt) opt.steps = run_steps;
-      if (*end_opt) opt.end_time = run_end_time;
-      opt.progress = tools::parse_progress_mode(run_progress);
-      opt.stop = &g_stop;
-      std::signal(SIGINT, on_stop_signal);
-      std::signal(SIGTERM, on_stop_signal);
-      const tools::RunResult r = tools::run_scene(scene, opt);
-      std::signal(SIGINT, SIG_DFL);
-      std::signal(SIGTERM, SIG_DFL);
-      tools::print_summary(r, std::cout);
-      std::cout.flush();
-      if (r.interrupted) {
-        report_error(r.error);
-        return 130;  // the shell convention for "ended by SIGINT"
-      }
-      if (!r.completed) return report_error(r.error);
-      return 0;
-    }
-    if (*validate) {
-      const tools::Scene scene = tools::load_scene(val_scene_file, val_sets);
-      const solid::SolidWorld world = tools::build_world(scene);
-      tools::print_world_summary(scene, world, std::cout);
-      std::cout << "ok\n";
-      return 0;
-    }
-    if (*bench_solvers_cmd) {
-      return tools::bench_solvers(bench_n, bench_json, bench_backends, std::cout);
-    }
-    if (*bench_remesh_cmd) {
-      return tools::bench_remesh(bench_remesh_json, bench_remesh_max, std::cout);
-    }
-    if (*bench_step_cmd) {
-      tools::BenchStepOptions o;
-      o.json_path = bench_step_json;
-      o.steps = bench_step_steps;
-      o.scales = bench_step_sizes;
-      return tools::bench_step(bench_step_scene, o, std::cout);
-    }
-    if (*bench_coupled_cmd) {
-      bench_coupled_opt.json_path = bench_coupled_json;
-      return tools::bench_coupled(bench_coupled_scene, bench_coupled_opt, std::cout);
-    }
-    if (*bench_bfgs_cmd) {
-      bench_bfgs_opt.json_path = bench_bfgs_json;
-      bench_bfgs_opt.history_path = bench_bfgs_history;
-      if (*bench_bfgs_time_opt) bench_bfgs_opt.time = bench_bfgs_time;
-      return tools::bench_bfgs(bench_bfgs_scene, bench_bfgs_opt, std::cout);
-    }
-    if (*quality) {
-      return tools::quality_command(quality_file, quality_json, quality_png, std::cout);
+    for (const Command& c : commands) {
+      if (*c.app) return c.action();
     }
   } catch (const std::exception& e) {
     return report_error(e.what());  // tetfsi::Error and everything else: one line

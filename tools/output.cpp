@@ -237,22 +237,11 @@ std::string xml_escape(const std::string& s) {
 // ---------------------------------------------------------------------------------------------
 
 Compression parse_compression(const std::string& name) {
-  if (name == "none") return Compression::None;
-  if (name == "lz4") return Compression::LZ4;
-  if (name == "zlib") return Compression::ZLib;
-  throw InputError(fmt::format("unknown compression '{}': use 'lz4', 'zlib' or 'none'", name));
+  return k_compression_names.parse(name);
 }
 
 std::string to_string(Compression c) {
-  switch (c) {
-    case Compression::None:
-      return "none";
-    case Compression::LZ4:
-      return "lz4";
-    case Compression::ZLib:
-      return "zlib";
-  }
-  return "?";
+  return k_compression_names.name(c);
 }
 
 std::string file_safe_name(const std::string& name) {

@@ -36,6 +36,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/timer.hpp"
 #include "core/types.hpp"
 #include "mesh/tet_mesh.hpp"
@@ -54,6 +55,10 @@ struct Scene;
 /// of each): LZ4 0.15 s, 51 MiB (the default); ZLib level 1 0.77 s, 38 MiB; none 0.13 s,
 /// 63 MiB.
 enum class Compression { None, LZ4, ZLib };
+/// The scene key output.compression, in the order its docs list them.
+inline constexpr EnumNames<Compression, 3> k_compression_names{
+    "compression",
+    {{{Compression::LZ4, "lz4"}, {Compression::ZLib, "zlib"}, {Compression::None, "none"}}}};
 
 /// "none" | "lz4" | "zlib" → Compression. @throws InputError naming the value and the valid ones.
 Compression parse_compression(const std::string& name);

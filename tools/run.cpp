@@ -21,11 +21,7 @@
 namespace tetfsi::tools {
 
 ProgressMode parse_progress_mode(const std::string& name) {
-  if (name == "auto") return ProgressMode::Auto;
-  if (name == "tty") return ProgressMode::Tty;
-  if (name == "plain") return ProgressMode::Plain;
-  if (name == "off") return ProgressMode::Off;
-  throw InputError(fmt::format("unknown progress mode '{}': use auto, tty, plain or off", name));
+  return k_progress_mode_names.parse(name);
 }
 
 namespace {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "coupling/simulation.hpp"
 #include "solid/world.hpp"
 #include "tools/run_stats.hpp"
@@ -24,6 +25,11 @@ enum class ProgressMode {
   Off,
 };
 
+inline constexpr EnumNames<ProgressMode, 4> k_progress_mode_names{"progress mode",
+                                                                  {{{ProgressMode::Auto, "auto"},
+                                                                    {ProgressMode::Tty, "tty"},
+                                                                    {ProgressMode::Plain, "plain"},
+                                                                    {ProgressMode::Off, "off"}}}};
 /// "auto" | "tty" | "plain" | "off". @throws InputError naming the value.
 ProgressMode parse_progress_mode(const std::string& name);
 

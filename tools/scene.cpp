@@ -17,6 +17,8 @@
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "mesh/tetrahedralize.hpp"
+#include "solid/integrator.hpp"
+#include "tools/scene_keys.hpp"
 
 namespace tetfsi::tools {
 
@@ -102,40 +104,19 @@ std::string fmt_vec2(const Vec2& v) {
   return fmt::format("[{:.6g}, {:.6g}]", v.x(), v.y());
 }
 
-json to_json(const Vec3& v) {
-  return json::array({v.x(), v.y(), v.z()});
-}
-
-json to_json(const Vec2& v) {
-  return json::array({v.x(), v.y()});
-}
-
-/// Names of the box sides in the order of DomainPatch::side (0..5).
-const std::vector<std::string>& side_names() {
-  static const std::vector<std::string> names = {"-x", "+x", "-y", "+y", "-z", "+z"};
-  return names;
-}
-
-/// The boundary kinds a box face or patch may have.
-const std::vector<std::string>& boundary_kind_names() {
-  static const std::vector<std::string> names = {"wall", "inflow", "open"};
-  return names;
-}
-
-mesh::FaceKind boundary_kind(const std::string& name) {
-  if (name == "inflow") return mesh::FaceKind::Inflow;
-  if (name == "open") return mesh::FaceKind::Open;
-  return mesh::FaceKind::Wall;
-}
-
 /// The two axes of a box side's plane, in increasing order (side ±y: x, z).
 std::pair<int, int> side_axes(int side) {
   const int a = side / 2;
   return {a == 0 ? 1 : 0, a == 2 ? 1 : 2};
 }
 
+json to_json(const Vec3& v) {
+  return json::array({v.x(), v.y(), v.z()});
+}
+
 // ---------------------------------------------------------------------------------------------
-// The parser: a JSON value plus its path, and typed getters that throw InputError naming both.
+// The parser: a JSON value plus its path, typed getters that throw InputError naming both, and
+// `read`, which checks an object against its section of scene_keys.hpp and stores its values.
 
 class Parser {
  public:
@@ -178,15 +159,80 @@ class Parser {
     return {n.j.at(key), child_path(n.path, key)};
   }
 
+  /// Check `n` against `section` (unknown keys, types, ranges, required keys) and store the
+  /// values of the rows that have a `set` in `t`; the Object / Array rows are the caller's.
+  template <class T>
+  void read(const Node& n, const Section<T>& section, T& t) const {
+    expect_object(n, section.keys());
+    for (const Field<T>& f : section.fields) {
+      if (!has(n, f.spec.key)) {
+        if (f.spec.required && f.set)
+          fail(n.path, fmt::format("missing required key '{}'", f.spec.key));
+        continue;
+      }
+      if (f.set) f.set(t, value(child(n, f.spec.key), f.spec));
+    }
+  }
+
+  /// The value at `n` checked against its row: type, choices, non-empty, range or check.
+  json value(const Node& n, const KeySpec& k) const {
+    json v;
+    switch (k.type) {
+      case KeyType::Number:
+        v = number(n);
+        break;
+      case KeyType::Integer:
+        v = integer(n);
+        break;
+      case KeyType::Boolean:
+        if (!n.j.is_boolean()) fail(n.path, "expected true or false, got " + describe(n.j));
+        v = n.j.get<bool>();
+        break;
+      case KeyType::String:
+        v = k.choices.empty() ? string(n) : choice(n, k.choices, k.choice_what);
+        if (k.non_empty && v.get<std::string>().empty()) fail(n.path, "must not be empty");
+        break;
+      case KeyType::Vec2: {
+        const Vec2 x = vec2(n);
+        v = json::array({x.x(), x.y()});
+        break;
+      }
+      case KeyType::Vec3:
+        v = to_json(vec3(n));
+        break;
+      case KeyType::Cells: {
+        const Vec3i c = cells(n);
+        v = json::array({c.x(), c.y(), c.z()});
+        break;
+      }
+      case KeyType::Nodes:
+        v = node_list(n);
+        break;
+      case KeyType::File:
+        v = existing_file(n).string();
+        break;
+      case KeyType::Object:
+      case KeyType::Array:
+        throw InternalError(fmt::format("{}: read by its own section", n.path));
+    }
+    if (k.check) {
+      const std::string problem = k.check(v);
+      if (!problem.empty()) fail(n.path, problem);
+    } else if (v.is_number() && !k.range.contains(v.get<double>())) {
+      const std::string note = k.note.empty() ? k.unit : k.note;
+      const std::string got = k.type == KeyType::Integer ? fmt::format("{}", v.get<int>())
+                                                         : fmt::format("{}", v.get<double>());
+      fail(n.path, fmt::format("must be {}{}, got {}", k.range.text(k.type == KeyType::Integer),
+                               note.empty() ? "" : " (" + note + ")", got));
+    }
+    return v;
+  }
+
   double number(const Node& n) const {
     if (!n.j.is_number()) fail(n.path, "expected a number, got " + describe(n.j));
     const double v = n.j.get<double>();
     if (!std::isfinite(v)) fail(n.path, "expected a finite number, got " + describe(n.j));
     return v;
-  }
-  /// Number at `key` if present, else `fallback`.
-  double number(const Node& n, const std::string& key, double fallback) const {
-    return has(n, key) ? number(child(n, key)) : fallback;
   }
 
   int integer(const Node& n) const {
@@ -198,16 +244,10 @@ class Parser {
       fail(n.path, "integer out of range: " + n.j.dump());
     return static_cast<int>(v);
   }
-  int integer(const Node& n, const std::string& key, int fallback) const {
-    return has(n, key) ? integer(child(n, key)) : fallback;
-  }
 
   std::string string(const Node& n) const {
     if (!n.j.is_string()) fail(n.path, "expected a string, got " + describe(n.j));
     return n.j.get<std::string>();
-  }
-  std::string string(const Node& n, const std::string& key, const std::string& fallback) const {
-    return has(n, key) ? string(child(n, key)) : fallback;
   }
 
   /// A string that must be one of `choices`.
@@ -230,9 +270,6 @@ class Parser {
     for (int a = 0; a < 3; ++a) v[a] = number({n.j[a], index_path(n.path, a)});
     return v;
   }
-  Vec3 vec3(const Node& n, const std::string& key, const Vec3& fallback) const {
-    return has(n, key) ? vec3(child(n, key)) : fallback;
-  }
 
   Vec2 vec2(const Node& n) const {
     if (!n.j.is_array() || n.j.size() != 2)
@@ -240,49 +277,6 @@ class Parser {
     Vec2 v;
     for (int a = 0; a < 2; ++a) v[a] = number({n.j[a], index_path(n.path, a)});
     return v;
-  }
-
-  Node require(const Node& n, const std::string& key) const {
-    if (!has(n, key)) fail(n.path, fmt::format("missing required key '{}'", key));
-    return child(n, key);
-  }
-
-  /// A file path resolved against the scene's folder; it must exist.
-  fs::path existing_file(const Node& n) const {
-    const std::string s = string(n);
-    if (s.empty()) fail(n.path, "expected a file name, got an empty string");
-    fs::path p = fs::path(s);
-    if (p.is_relative()) p = m_folder / p;
-    p = p.lexically_normal();
-    std::error_code ec;
-    if (!fs::exists(p, ec)) fail(n.path, fmt::format("no such file '{}'", p.string()));
-    if (fs::is_directory(p, ec))
-      fail(n.path, fmt::format("'{}' is a folder, not a file", p.string()));
-    return p;
-  }
-
-  // ---- scene parts ----
-
-  /// An object {"lo", "hi"}; `strict`: lo < hi (a solid box), else lo <= hi (a selection box
-  /// may be flat, e.g. to pick the nodes of one face).
-  BoxSpec box(const Node& n, bool strict) const {
-    expect_object(n, {"lo", "hi"});
-    return bounds(n, strict);
-  }
-
-  /// lo/hi held by `n` (which may hold other keys too).
-  BoxSpec bounds(const Node& n, bool strict) const {
-    BoxSpec b;
-    b.lo = vec3(require(n, "lo"));
-    b.hi = vec3(require(n, "hi"));
-    for (int a = 0; a < 3; ++a) {
-      const bool bad = strict ? b.lo[a] >= b.hi[a] : b.lo[a] > b.hi[a];
-      if (bad) {
-        fail(n.path, fmt::format("lo must be {} hi in every axis, got lo = {}, hi = {} (axis {})",
-                                 strict ? "<" : "<=", fmt_vec(b.lo), fmt_vec(b.hi), "xyz"[a]));
-      }
-    }
-    return b;
   }
 
   /// An array of 3 positive integers (cell counts).
@@ -299,29 +293,85 @@ class Parser {
     return out;
   }
 
-  /// An integer at `key` (default `fallback`) in lo..hi; `what` says what it counts.
-  int bounded_integer(const Node& n, const std::string& key, int fallback, int lo, int hi,
-                      const char* what) const {
-    const int v = integer(n, key, fallback);
-    if (v < lo || v > hi)
-      fail(child_path(n.path, key), fmt::format("must be {}..{} ({}), got {}", lo, hi, what, v));
-    return v;
+  /// A non-empty array of node indices >= 0.
+  json node_list(const Node& list) const {
+    if (!list.j.is_array() || list.j.empty())
+      fail(list.path, "expected a non-empty array of node indices, got " + describe(list.j));
+    json out = json::array();
+    for (std::size_t i = 0; i < list.j.size(); ++i) {
+      const Node e{list.j[i], index_path(list.path, i)};
+      const int v = integer(e);
+      if (v < 0) fail(e.path, fmt::format("node indices are >= 0, got {}", v));
+      out.push_back(v);
+    }
+    return out;
   }
 
-  /// A number > 0 at `key` (required).
-  double positive(const Node& n, const std::string& key, const char* what) const {
-    const Node c = require(n, key);
-    const double v = number(c);
-    if (v <= 0) fail(c.path, fmt::format("must be > 0 ({}), got {}", what, v));
-    return v;
+  Node require(const Node& n, const std::string& key) const {
+    if (!has(n, key)) fail(n.path, fmt::format("missing required key '{}'", key));
+    return child(n, key);
+  }
+
+  /// An array (the value of an Array row): `n` checked, each element passed to `each`.
+  template <class Each>
+  void for_each(const Node& list, const char* expected, Each each) const {
+    if (!list.j.is_array()) fail(list.path, std::string(expected) + ", got " + describe(list.j));
+    for (std::size_t i = 0; i < list.j.size(); ++i)
+      each(Node{list.j[i], index_path(list.path, i)}, i);
+  }
+
+  /// A file path resolved against the scene's folder; it must exist.
+  fs::path existing_file(const Node& n) const {
+    const std::string s = string(n);
+    if (s.empty()) fail(n.path, "expected a file name, got an empty string");
+    fs::path p = fs::path(s);
+    if (p.is_relative()) p = m_folder / p;
+    p = p.lexically_normal();
+    std::error_code ec;
+    if (!fs::exists(p, ec)) fail(n.path, fmt::format("no such file '{}'", p.string()));
+    if (fs::is_directory(p, ec))
+      fail(n.path, fmt::format("'{}' is a folder, not a file", p.string()));
+    return p;
+  }
+
+  // ---- scene parts: the sections, and the rules that tie their keys together ----
+
+  /// lo/hi of the box at `n`: `strict`: lo < hi (a solid box), else lo <= hi (a selection box
+  /// may be flat, e.g. to pick the nodes of one face).
+  void check_box(const Node& n, const Vec3& lo, const Vec3& hi, bool strict) const {
+    for (int a = 0; a < 3; ++a) {
+      const bool bad = strict ? lo[a] >= hi[a] : lo[a] > hi[a];
+      if (bad) {
+        fail(n.path, fmt::format("lo must be {} hi in every axis, got lo = {}, hi = {} (axis {})",
+                                 strict ? "<" : "<=", fmt_vec(lo), fmt_vec(hi), "xyz"[a]));
+      }
+    }
+  }
+
+  /// A box object of `section` (lo, hi) at `n`.
+  BoxSpec box(const Node& n, const Section<BoxSpec>& section, bool strict) const {
+    BoxSpec b;
+    read(n, section, b);
+    check_box(n, b.lo, b.hi, strict);
+    return b;
+  }
+
+  void inner_below_outer(const Node& n, const MeshSpec& m, bool name_key) const {
+    if (m.inner_radius < m.outer_radius) return;
+    if (name_key) {
+      fail(child_path(n.path, "inner_radius"),
+           fmt::format("must be < outer_radius, got inner_radius {} and outer_radius {}",
+                       m.inner_radius, m.outer_radius));
+    }
+    fail(n.path, fmt::format("need inner_radius < outer_radius, got {} and {}; for a solid ball "
+                             "use 'sphere'",
+                             m.inner_radius, m.outer_radius));
   }
 
   MeshSpec mesh(const Node& n) const {
     const std::vector<std::string> kinds = {"box",   "file",       "surface", "sphere",
                                             "shell", "hollow_box", "tube"};
-    std::vector<std::string> allowed = kinds;
-    allowed.push_back("cell_size");
-    expect_object(n, allowed);
+    expect_object(n, mesh_keys().keys());
     std::vector<std::string> given;
     for (const std::string& k : kinds) {
       if (has(n, k)) given.push_back(fmt::format("'{}'", k));
@@ -333,72 +383,34 @@ class Parser {
       fail(n.path, given.empty() ? what : what + ", got " + join(given, " and "));
     }
     MeshSpec m;
+    read(n, mesh_keys(), m);  // file, surface (with their kinds), cell_size
     if (has(n, "box")) {
       m.kind = MeshSpec::Kind::Box;
       const Node b = child(n, "box");
-      expect_object(b, {"lo", "hi", "cells"});
-      m.box = bounds(b, true);
-      if (has(b, "cells")) m.cells = cells(child(b, "cells"));
-    } else if (has(n, "file")) {
-      m.kind = MeshSpec::Kind::File;
-      m.file = existing_file(child(n, "file"));
-    } else if (has(n, "surface")) {
-      m.kind = MeshSpec::Kind::Surface;
-      m.file = existing_file(child(n, "surface"));
-      if (!has(n, "cell_size"))
-        fail(n.path, "a 'surface' mesh needs 'cell_size' (> 0, m): the target tet size");
+      read(b, mesh_box_keys(), m);
+      check_box(b, m.box.lo, m.box.hi, true);
     } else if (has(n, "sphere")) {
       m.kind = MeshSpec::Kind::Sphere;
-      const Node b = child(n, "sphere");
-      expect_object(b, {"center", "radius", "subdivisions"});
-      m.center = vec3(require(b, "center"));
-      m.radius = positive(b, "radius", "m");
-      m.subdivisions = bounded_integer(b, "subdivisions", m.subdivisions, 0, 6,
-                                       "icosphere levels: surface edges about radius / 2^s");
+      read(child(n, "sphere"), mesh_sphere_keys(), m);
     } else if (has(n, "shell")) {
       m.kind = MeshSpec::Kind::Shell;
       const Node b = child(n, "shell");
-      expect_object(b, {"center", "inner_radius", "outer_radius", "subdivisions", "layers"});
-      m.center = vec3(require(b, "center"));
-      m.inner_radius = positive(b, "inner_radius", "m");
-      m.outer_radius = positive(b, "outer_radius", "m");
-      if (m.inner_radius >= m.outer_radius) {
-        fail(b.path, fmt::format("need inner_radius < outer_radius, got {} and {}; for a solid "
-                                 "ball use 'sphere'",
-                                 m.inner_radius, m.outer_radius));
-      }
-      m.subdivisions = bounded_integer(b, "subdivisions", m.subdivisions, 0, 7,
-                                       "icosphere levels: surface edges about radius / 2^s");
-      m.layers = bounded_integer(b, "layers", m.layers, 1, 10000, "tets across the wall: 3 each");
+      read(b, mesh_shell_keys(), m);
+      inner_below_outer(b, m, false);
     } else if (has(n, "tube")) {
       m.kind = MeshSpec::Kind::Tube;
       const Node b = child(n, "tube");
-      expect_object(b, {"center", "axis", "inner_radius", "outer_radius", "length", "cells"});
-      m.center = vec3(require(b, "center"));
-      if (has(b, "axis")) {
-        const std::string a = choice(child(b, "axis"), {"x", "y", "z"}, "axis");
-        m.axis = a[0] - 'x';
-      }
-      m.inner_radius = positive(b, "inner_radius", "m");
-      m.outer_radius = positive(b, "outer_radius", "m");
-      if (m.inner_radius >= m.outer_radius) {
-        fail(child_path(b.path, "inner_radius"),
-             fmt::format("must be < outer_radius, got inner_radius {} and outer_radius {}",
-                         m.inner_radius, m.outer_radius));
-      }
-      m.length = positive(b, "length", "m, along the axis");
-      const Node c = require(b, "cells");
-      m.cells = cells(c);
+      read(b, mesh_tube_keys(), m);
+      inner_below_outer(b, m, true);
       if (m.cells[1] < 6) {
-        fail(index_path(c.path, 1),
+        fail(index_path(child_path(b.path, "cells"), 1),
              fmt::format("must be >= 6 (sectors around the axis), got {}", m.cells[1]));
       }
-    } else {
+    } else if (has(n, "hollow_box")) {
       m.kind = MeshSpec::Kind::HollowBox;
       const Node b = child(n, "hollow_box");
-      expect_object(b, {"lo", "hi", "thickness", "cells"});
-      m.box = bounds(b, true);
-      m.thickness = positive(b, "thickness", "m, the wall on each of the 6 sides");
+      read(b, mesh_hollow_box_keys(), m);
+      check_box(b, m.box.lo, m.box.hi, true);
       for (int a = 0; a < 3; ++a) {
         if (2 * m.thickness >= m.box.hi[a] - m.box.lo[a]) {
           fail(child_path(b.path, "thickness"),
@@ -407,140 +419,48 @@ class Parser {
                            m.thickness, "xyz"[a], m.box.hi[a] - m.box.lo[a]));
         }
       }
-      if (has(b, "cells")) m.cells = cells(child(b, "cells"));
     }
-    if (has(n, "cell_size")) {
-      const Node c = child(n, "cell_size");
-      if (m.kind != MeshSpec::Kind::Surface)
-        fail(c.path, "cell_size applies only to a 'surface' mesh");
-      m.cell_size = number(c);
-      if (m.cell_size <= 0) fail(c.path, fmt::format("must be > 0 (m), got {}", m.cell_size));
-    }
+    if (m.kind == MeshSpec::Kind::Surface && !has(n, "cell_size"))
+      fail(n.path, "a 'surface' mesh needs 'cell_size' (> 0, m): the target tet size");
+    if (m.kind != MeshSpec::Kind::Surface && has(n, "cell_size"))
+      fail(child_path(n.path, "cell_size"), "cell_size applies only to a 'surface' mesh");
     return m;
   }
 
-  TransformSpec transform(const Node& n) const {
-    expect_object(n, {"scale", "rotate_deg", "translate"});
-    TransformSpec t;
-    t.scale = number(n, "scale", t.scale);
-    if (t.scale <= 0)
-      fail(child_path(n.path, "scale"), fmt::format("must be > 0, got {}", t.scale));
-    t.rotate_deg = vec3(n, "rotate_deg", t.rotate_deg);
-    t.translate = vec3(n, "translate", t.translate);
-    return t;
-  }
-
-  solid::Material material(const Node& n) const {
-    expect_object(
-        n, {"density", "youngs_modulus", "poisson_ratio", "rayleigh_alpha", "rayleigh_beta"});
-    solid::Material m;
-    auto positive = [&](const char* key, double& v, const char* unit) {
-      v = number(n, key, v);
-      if (v <= 0) fail(child_path(n.path, key), fmt::format("must be > 0 ({}), got {}", unit, v));
-    };
-    positive("density", m.density, "kg/m^3");
-    positive("youngs_modulus", m.youngs_modulus, "Pa");
-    m.poisson_ratio = number(n, "poisson_ratio", m.poisson_ratio);
-    const std::string nu_path = child_path(n.path, "poisson_ratio");
-    if (m.poisson_ratio >= 0.5) {
-      fail(nu_path,
-           fmt::format("must be < 0.5, got {} (0.5 is incompressible and locks linear tets; "
-                       "use at most 0.49)",
-                       m.poisson_ratio));
-    }
-    if (m.poisson_ratio <= -1.0) {
-      fail(nu_path, fmt::format("must be > -1, got {} (-1 or less makes the material unstable)",
-                                m.poisson_ratio));
-    }
-    for (const char* key : {"rayleigh_alpha", "rayleigh_beta"}) {
-      double& v = std::string(key) == "rayleigh_alpha" ? m.rayleigh_alpha : m.rayleigh_beta;
-      v = number(n, key, v);
-      if (v < 0)
-        fail(child_path(n.path, key),
-             fmt::format("must be >= 0 (negative damping adds energy), got {}", v));
-    }
-    return m;
-  }
-
-  /// Either "box" or "nodes" (exactly one) from an object that may hold other keys too.
-  NodeSelection selection(const Node& n) const {
+  /// A pin's or a load's selection: exactly one of "box" / "nodes" (the nodes are read with
+  /// the rest of `n`'s section).
+  void selection(const Node& n, NodeSelection& s) const {
     const bool b = has(n, "box"), l = has(n, "nodes");
     if (b == l)
       fail(n.path,
            b ? "give either 'box' or 'nodes', not both" : "give 'box' or 'nodes' to select nodes");
-    NodeSelection s;
-    if (b) {
-      s.box = box(child(n, "box"), false);
-    } else {
-      const Node list = child(n, "nodes");
-      if (!list.j.is_array() || list.j.empty()) {
-        fail(list.path, "expected a non-empty array of node indices, got " + describe(list.j));
-      }
-      for (std::size_t i = 0; i < list.j.size(); ++i) {
-        const Node e{list.j[i], index_path(list.path, i)};
-        const int v = integer(e);
-        if (v < 0) fail(e.path, fmt::format("node indices are >= 0, got {}", v));
-        s.nodes.push_back(v);
-      }
-    }
-    return s;
-  }
-
-  PinSpec pin(const Node& n) const {
-    expect_object(n, {"box", "nodes", "axes"});
-    PinSpec p;
-    p.select = selection(n);
-    p.axes = string(n, "axes", p.axes);
-    bool ok = !p.axes.empty();
-    std::set<char> seen;
-    for (char c : p.axes) ok = ok && (c == 'x' || c == 'y' || c == 'z') && seen.insert(c).second;
-    if (!ok)
-      fail(child_path(n.path, "axes"),
-           fmt::format("must be a non-empty subset of \"xyz\" (e.g. \"xz\"), got \"{}\"", p.axes));
-    return p;
-  }
-
-  LoadSpec load(const Node& n) const {
-    expect_object(n, {"box", "nodes", "total_force"});
-    LoadSpec l;
-    l.select = selection(n);
-    l.total_force = vec3(require(n, "total_force"));
-    return l;
-  }
-
-  KinematicSpec kinematic(const Node& n) const {
-    expect_object(n, {"velocity", "angular_velocity_deg", "center"});
-    KinematicSpec k;
-    k.velocity = vec3(n, "velocity", k.velocity);
-    k.angular_velocity_deg = vec3(n, "angular_velocity_deg", k.angular_velocity_deg);
-    if (has(n, "center")) k.center = vec3(child(n, "center"));
-    return k;
+    if (b) s.box = box(child(n, "box"), selection_box_keys(), false);
   }
 
   BodySpec body(const Node& n) const {
-    expect_object(n, {"name", "mesh", "transform", "material", "pins", "loads", "initial_velocity",
-                      "kinematic"});
     BodySpec b;
-    b.name = string(require(n, "name"));
-    if (b.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
+    read(n, body_keys(), b);  // name, initial_velocity
     b.mesh = mesh(require(n, "mesh"));
-    if (has(n, "transform")) b.transform = transform(child(n, "transform"));
-    if (has(n, "material")) b.material = material(child(n, "material"));
-    for (const char* key : {"pins", "loads"}) {
-      if (!has(n, key)) continue;
-      const Node list = child(n, key);
-      if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
-      for (std::size_t i = 0; i < list.j.size(); ++i) {
-        const Node e{list.j[i], index_path(list.path, i)};
-        if (std::string(key) == "pins")
-          b.pins.push_back(pin(e));
-        else
-          b.loads.push_back(load(e));
-      }
+    if (has(n, "transform")) read(child(n, "transform"), transform_keys(), b.transform);
+    if (has(n, "material")) read(child(n, "material"), material_keys(), b.material);
+    if (has(n, "pins")) {
+      for_each(child(n, "pins"), "expected an array", [&](const Node& e, std::size_t) {
+        PinSpec p;
+        read(e, pin_keys(), p);
+        selection(e, p.select);
+        b.pins.push_back(std::move(p));
+      });
     }
-    b.initial_velocity = vec3(n, "initial_velocity", b.initial_velocity);
+    if (has(n, "loads")) {
+      for_each(child(n, "loads"), "expected an array", [&](const Node& e, std::size_t) {
+        LoadSpec l;
+        read(e, load_keys(), l);
+        selection(e, l.select);
+        b.loads.push_back(std::move(l));
+      });
+    }
     if (has(n, "kinematic")) {
-      b.kinematic = kinematic(child(n, "kinematic"));
+      read(child(n, "kinematic"), kinematic_keys(), b.kinematic.emplace());
       // Its motion is prescribed: anything that would act on it through the FEM is a mistake.
       const auto reject = [&](const char* key, const char* what) {
         fail(child_path(n.path, key),
@@ -558,48 +478,36 @@ class Parser {
 
   solid::Obstacle obstacle(const Node& n, std::size_t index) const {
     if (!n.j.is_object()) fail(n.path, "expected an object, got " + describe(n.j));
+    const std::string type =
+        choice(require(n, "type"), k_obstacle_type_names.names(), k_obstacle_type_names.what);
     solid::Obstacle o;
-    const std::string type = choice(require(n, "type"), {"plane", "box"}, "obstacle type");
+    o.name = fmt::format("{}{}", type, index);
     if (type == "plane") {
-      expect_object(n, {"type", "name", "point", "normal", "restitution", "friction"});
-      o.kind = solid::Obstacle::Kind::Plane;
-      o.point = vec3(n, "point", o.point);
-      o.normal = vec3(n, "normal", o.normal);
-      if (o.normal.norm() < 1e-12) fail(child_path(n.path, "normal"), "must not be zero");
+      read(n, plane_obstacle_keys(), o);
     } else {
-      expect_object(n, {"type", "name", "lo", "hi", "restitution", "friction"});
-      o.kind = solid::Obstacle::Kind::Box;
-      const BoxSpec b = bounds(n, true);
-      o.lo = b.lo;
-      o.hi = b.hi;
+      read(n, box_obstacle_keys(), o);
+      check_box(n, o.lo, o.hi, true);
     }
-    o.name = string(n, "name", fmt::format("{}{}", type, index));
-    o.restitution = number(n, "restitution", o.restitution);
-    if (o.restitution < 0 || o.restitution > 1) {
-      fail(child_path(n.path, "restitution"),
-           fmt::format("must be in [0, 1], got {}", o.restitution));
-    }
-    o.friction = number(n, "friction", o.friction);
-    if (o.friction < 0)
-      fail(child_path(n.path, "friction"), fmt::format("must be >= 0, got {}", o.friction));
     return o;
   }
 
   /// A patch of the fluid box and what happens on it; `box` is the domain, for the overlap
   /// check.
-  mesh::DomainPatch patch(const Node& n, std::size_t index, const BoxSpec& box,
-                          fluid::PatchConditions& conditions) const {
-    expect_object(
-        n, {"name", "kind", "side", "lo", "hi", "speed", "smoke", "temperature", "pressure"});
-    mesh::DomainPatch pa;
-    pa.name = string(n, "name", fmt::format("patch{}", index));
-    if (pa.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
-    pa.kind = boundary_kind(choice(require(n, "kind"), boundary_kind_names(), "boundary kind"));
-    const std::string side = choice(require(n, "side"), side_names(), "side");
-    pa.side = static_cast<int>(std::find(side_names().begin(), side_names().end(), side) -
-                               side_names().begin());
-    pa.lo = vec2(require(n, "lo"));
-    pa.hi = vec2(require(n, "hi"));
+  PatchKeys patch(const Node& n, std::size_t index, const mesh::FluidDomain& box) const {
+    PatchKeys p;
+    p.patch.name = fmt::format("patch{}", index);
+    read(n, patch_keys(), p);
+    mesh::DomainPatch& pa = p.patch;
+    // Conditions: each key belongs to one kind of patch.
+    const std::string kind = mesh::to_string(pa.kind);
+    const auto only_on = [&](const char* key, mesh::FaceKind k) {
+      if (has(n, key) && pa.kind != k)
+        fail(child_path(n.path, key),
+             fmt::format("applies only to an {} patch (this one is {})", mesh::to_string(k), kind));
+    };
+    for (const char* key : {"speed", "smoke", "temperature"}) only_on(key, mesh::FaceKind::Inflow);
+    only_on("pressure", mesh::FaceKind::Open);
+    const std::string side = k_side_names.name(pa.side);
     const auto [b, c] = side_axes(pa.side);
     const std::string axes = fmt::format("({}, {})", "xyz"[b], "xyz"[c]);
     for (int k = 0; k < 2; ++k) {
@@ -618,45 +526,20 @@ class Parser {
                                fmt_vec2(pa.lo), fmt_vec2(pa.hi), side, axes, fmt_vec2(face_lo),
                                fmt_vec2(face_hi)));
     }
-    // Conditions: each key belongs to one kind of patch.
-    fluid::PatchConditions& pc = conditions;
-    const std::string kind = mesh::to_string(pa.kind);
-    const auto only_on = [&](const char* key, mesh::FaceKind k) {
-      if (has(n, key) && pa.kind != k)
-        fail(child_path(n.path, key),
-             fmt::format("applies only to an {} patch (this one is {})", mesh::to_string(k), kind));
-    };
-    for (const char* key : {"speed", "smoke", "temperature"}) only_on(key, mesh::FaceKind::Inflow);
-    only_on("pressure", mesh::FaceKind::Open);
-    pc.inflow_speed = non_negative(n, "speed", pc.inflow_speed, " (m/s into the domain)");
-    pc.smoke_density = non_negative(n, "smoke", pc.smoke_density, " (kg/m^3)");
-    if (has(n, "temperature")) {
-      pc.temperature = number(child(n, "temperature"));
-      pc.emits_temperature = true;
-    }
-    pc.pressure = number(n, "pressure", pc.pressure);
     // The nominal area: the rectangle clipped to the box side. The fluid scales the inflow so
     // that the flux is speed × this area whatever faces the mesh puts on the patch.
-    pc.area = (pa.hi.cwiseMin(face_hi) - pa.lo.cwiseMax(face_lo)).prod();
-    return pa;
+    p.conditions.area = (pa.hi.cwiseMin(face_hi) - pa.lo.cwiseMax(face_lo)).prod();
+    return p;
   }
 
-  /// Number at `key` (or `fallback`) that must be >= 0; `unit` is " (m)" or "".
-  double non_negative(const Node& n, const std::string& key, double fallback,
-                      const std::string& unit) const {
-    const double v = number(n, key, fallback);
-    if (v < 0) fail(child_path(n.path, key), fmt::format("must be >= 0{}, got {}", unit, v));
-    return v;
-  }
-
-  /// A volume source of smoke and heat; `box` is the fluid domain, for the overlap check.
-  fluid::SmokeSource source(const Node& n, std::size_t index, const BoxSpec& domain) const {
-    expect_object(n, {"name", "box", "smoke", "temperature"});
+  /// A volume source of smoke and heat; `domain` is the fluid box, for the overlap check.
+  fluid::SmokeSource source(const Node& n, std::size_t index,
+                            const mesh::FluidDomain& domain) const {
     fluid::SmokeSource src;
-    src.name = string(n, "name", fmt::format("source{}", index));
-    if (src.name.empty()) fail(child_path(n.path, "name"), "must not be empty");
+    src.name = fmt::format("source{}", index);
+    read(n, source_keys(), src);
     const Node bn = require(n, "box");
-    const BoxSpec b = box(bn, true);
+    const BoxSpec b = box(bn, source_box_keys(), true);
     const bool overlaps =
         (b.lo.array() < domain.hi.array()).all() && (b.hi.array() > domain.lo.array()).all();
     if (!overlaps)
@@ -664,148 +547,68 @@ class Parser {
                                 fmt_vec(b.hi), fmt_vec(domain.lo), fmt_vec(domain.hi)));
     src.lo = b.lo;
     src.hi = b.hi;
-    src.smoke_density = non_negative(n, "smoke", src.smoke_density, " (kg/m^3)");
-    if (has(n, "temperature")) {
-      src.temperature = number(child(n, "temperature"));
-      src.emits_temperature = true;
-    }
     return src;
+  }
+
+  /// Names in a list must be unique: the error names both places.
+  template <class Item>
+  void unique_name(const std::vector<Item>& items, const std::string& name, const char* what,
+                   const Node& list, std::size_t i) const {
+    for (std::size_t k = 0; k < items.size(); ++k) {
+      if (items[k].name == name)
+        fail(index_path(list.path, i) + ".name",
+             fmt::format("duplicate {} name '{}' (also {}[{}])", what, name, list.path, k));
+    }
   }
 
   /// The fluid section; `gravity` is the scene's (for FluidParams::gravity and ::up).
   FluidSpec fluid(const Node& n, const Vec3& gravity) const {
-    expect_object(n, {"domain", "mesh", "density", "enclosed_density", "gravity", "buoyancy",
-                      "vorticity_confinement", "decay", "reconstruction", "min_dual_fraction",
-                      "solver", "sources", "refine"});
     FluidSpec f;
     fluid::FluidParams& fp = f.params;
+    read(n, fluid_keys(), f);
     const Node d = require(n, "domain");
-    expect_object(d, {"lo", "hi", "default", "patches"});
-    const BoxSpec box = bounds(d, true);
-    f.domain.lo = box.lo;
-    f.domain.hi = box.hi;
-    if (has(d, "default"))
-      f.domain.default_kind =
-          boundary_kind(choice(child(d, "default"), boundary_kind_names(), "boundary kind"));
+    read(d, domain_keys(), f.domain);
+    check_box(d, f.domain.lo, f.domain.hi, true);
     if (has(d, "patches")) {
       const Node list = child(d, "patches");
-      if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
-      for (std::size_t i = 0; i < list.j.size(); ++i) {
-        const std::string where = index_path(list.path, i);
-        fluid::PatchConditions pc;
-        mesh::DomainPatch pa = patch({list.j[i], where}, i, box, pc);
-        for (std::size_t k = 0; k < f.domain.patches.size(); ++k) {
-          if (f.domain.patches[k].name == pa.name)
-            fail(where + ".name",
-                 fmt::format("duplicate patch name '{}' (also {}[{}])", pa.name, list.path, k));
-        }
-        f.domain.patches.push_back(std::move(pa));
-        fp.patches.push_back(pc);
-      }
+      for_each(list, "expected an array", [&](const Node& e, std::size_t i) {
+        PatchKeys p = patch(e, i, f.domain);
+        unique_name(f.domain.patches, p.patch.name, "patch", list, i);
+        f.domain.patches.push_back(std::move(p.patch));
+        fp.patches.push_back(p.conditions);
+      });
     }
     if (has(n, "mesh")) {
       const Node m = child(n, "mesh");
-      expect_object(m, {"surface_size", "far_size", "grading", "max_cells"});
       mesh::Sizing& z = f.sizing;
-      auto positive = [&](const char* key, double& v, const char* unit) {
-        v = number(m, key, v);
-        if (v <= 0) fail(child_path(m.path, key), fmt::format("must be > 0{}, got {}", unit, v));
-      };
-      positive("surface_size", z.surface_size, " (m)");
-      positive("far_size", z.far_size, " (m)");
-      positive("grading", z.grading, " (m of cell size per m of distance)");
+      read(m, fluid_mesh_keys(), z);
       if (z.surface_size > z.far_size)
         fail(child_path(m.path, "surface_size"),
              fmt::format("must be <= far_size ({} m), got {} m", z.far_size, z.surface_size));
-      z.max_cells = integer(m, "max_cells", z.max_cells);
-      if (z.max_cells < 0)
-        fail(child_path(m.path, "max_cells"),
-             fmt::format("must be >= 0 (0: no budget), got {}", z.max_cells));
-    }
-
-    // Physics.
-    fp.density = number(n, "density", fp.density);
-    if (fp.density <= 0)
-      fail(child_path(n.path, "density"), fmt::format("must be > 0 (kg/m^3), got {}", fp.density));
-    fp.enclosed_density = non_negative(n, "enclosed_density", fp.enclosed_density,
-                                       " (kg/m^3; 0: the same as density)");
-    if (has(n, "gravity")) {
-      const Node g = child(n, "gravity");
-      if (!g.j.is_boolean())
-        fail(g.path,
-             "expected true (the fluid feels the scene's gravity) or false, got " + describe(g.j));
-      f.gravity = g.j.get<bool>();
     }
     fp.gravity = f.gravity ? gravity : Vec3::Zero();
     for (int a = 0; a < 3; ++a)  // the box corner highest against gravity
       fp.hydrostatic_origin[a] = fp.gravity[a] < 0 ? f.domain.hi[a] : f.domain.lo[a];
     const double g_norm = gravity.norm();
     fp.up = g_norm > 0 ? Vec3(-gravity / g_norm) : Vec3(Vec3::UnitZ());
-    if (has(n, "buoyancy")) {
-      const Node b = child(n, "buoyancy");
-      expect_object(b, {"alpha", "beta", "ambient_temperature"});
-      fp.buoyancy_alpha = non_negative(b, "alpha", fp.buoyancy_alpha, " (m^4/(kg s^2))");
-      fp.buoyancy_beta = non_negative(b, "beta", fp.buoyancy_beta, " (m/(s^2 K))");
-      fp.ambient_temperature = number(b, "ambient_temperature", fp.ambient_temperature);
-    }
-    fp.vorticity_confinement =
-        non_negative(n, "vorticity_confinement", fp.vorticity_confinement, "");
-    if (has(n, "decay")) {
-      const Node d2 = child(n, "decay");
-      expect_object(d2, {"smoke", "temperature"});
-      fp.smoke_decay = non_negative(d2, "smoke", fp.smoke_decay, " (1/s)");
-      fp.temperature_decay = non_negative(d2, "temperature", fp.temperature_decay, " (1/s)");
-    }
-    if (has(n, "reconstruction")) {
-      fp.reconstruction = fluid::parse_reconstruction(
-          choice(child(n, "reconstruction"), {"vertex_ls", "whitney"}, "velocity reconstruction"));
-    }
-    fp.min_dual_fraction = number(n, "min_dual_fraction", fp.min_dual_fraction);
-    if (fp.min_dual_fraction <= 0 || fp.min_dual_fraction > 0.1)
-      fail(child_path(n.path, "min_dual_fraction"),
-           fmt::format(
-               "must be in (0, 0.1] (a fraction of the face's mean edge; default 1e-6), got {}",
-               fp.min_dual_fraction));
-    if (has(n, "solver")) {
-      const Node o = child(n, "solver");
-      expect_object(o, {"linear", "rel_tol", "max_iterations"});
-      if (has(o, "linear"))
-        fp.solver = parse_solver_kind(choice(child(o, "linear"), solver_names(), "linear solver"));
-      fp.solver_rel_tol = number(o, "rel_tol", fp.solver_rel_tol);
-      if (fp.solver_rel_tol <= 0)
-        fail(child_path(o.path, "rel_tol"), fmt::format("must be > 0, got {}", fp.solver_rel_tol));
-      fp.solver_max_iterations = integer(o, "max_iterations", fp.solver_max_iterations);
-      if (fp.solver_max_iterations < 1)
-        fail(child_path(o.path, "max_iterations"),
-             fmt::format("must be >= 1, got {}", fp.solver_max_iterations));
-    }
+    if (has(n, "buoyancy")) read(child(n, "buoyancy"), buoyancy_keys(), fp);
+    if (has(n, "decay")) read(child(n, "decay"), decay_keys(), fp);
+    if (has(n, "solver")) read(child(n, "solver"), fluid_solver_keys(), fp);
     if (has(n, "sources")) {
       const Node list = child(n, "sources");
-      if (!list.j.is_array()) fail(list.path, "expected an array, got " + describe(list.j));
-      for (std::size_t i = 0; i < list.j.size(); ++i) {
-        const std::string where = index_path(list.path, i);
-        fluid::SmokeSource src = source({list.j[i], where}, i, box);
-        for (std::size_t k = 0; k < fp.sources.size(); ++k) {
-          if (fp.sources[k].name == src.name)
-            fail(where + ".name",
-                 fmt::format("duplicate source name '{}' (also {}[{}])", src.name, list.path, k));
-        }
+      for_each(list, "expected an array", [&](const Node& e, std::size_t i) {
+        fluid::SmokeSource src = source(e, i, f.domain);
+        unique_name(fp.sources, src.name, "source", list, i);
         fp.sources.push_back(std::move(src));
-      }
+      });
     }
     if (has(n, "refine")) {
       const Node r = child(n, "refine");
-      expect_object(r, {"size", "density_threshold", "vorticity_threshold"});
-      fluid::RefineParams& rp = fp.refine;
-      rp.size = non_negative(r, "size", rp.size, " (m; 0: off)");
-      if (rp.size > f.sizing.far_size)
+      read(r, refine_keys(), fp.refine);
+      if (fp.refine.size > f.sizing.far_size)
         fail(child_path(r.path, "size"),
              fmt::format("must be <= fluid.mesh.far_size ({} m), got {} m", f.sizing.far_size,
-                         rp.size));
-      rp.density_threshold =
-          non_negative(r, "density_threshold", rp.density_threshold, " (kg/m^3)");
-      rp.vorticity_threshold =
-          non_negative(r, "vorticity_threshold", rp.vorticity_threshold, " (1/s)");
+                         fp.refine.size));
     }
     return f;
   }
@@ -813,51 +616,14 @@ class Parser {
   /// The solid section: the integrator of bodies that step alone and the equilibrium
   /// iteration's options (scene.hpp).
   SolidSpec solid(const Node& n) const {
-    expect_object(n, {"integrator", "trapezoid", "rtol", "etol", "stol", "max_iterations",
-                      "max_updates", "line_search", "reform"});
     SolidSpec s;
-    if (has(n, "integrator")) {
-      s.integrator = solid::parse_integrator(
-          choice(child(n, "integrator"), {"linearized", "newton", "modified_newton", "bfgs"},
-                 "solid integrator"));
-    }
-    if (has(n, "trapezoid")) {
-      const Node t = child(n, "trapezoid");
-      if (s.integrator != solid::Integrator::Linearized) {
-        fail(t.path, fmt::format("applies only to solid.integrator 'linearized' (the '{}' "
-                                 "integrator iterates the full trapezoidal rule); remove it or "
-                                 "set solid.integrator to 'linearized'",
-                                 solid::to_string(s.integrator)));
-      }
-      s.trapezoid = choice(t, {"paper", "midpoint"}, "trapezoid variant");
-    }
-    EquilibriumOptions& e = s.equilibrium;
-    auto tolerance = [&](const char* key, double& v, const char* what) {
-      v = number(n, key, v);
-      if (v <= 0) fail(child_path(n.path, key), fmt::format("must be > 0 ({}), got {}", what, v));
-    };
-    tolerance("rtol", e.rtol, "out-of-balance force tolerance, [BatheSonnad80, Eq. (12)]");
-    tolerance("etol", e.etol, "energy tolerance, Eq. (13)");
-    e.stol = number(n, "stol", e.stol);
-    if (!(e.stol > 0 && e.stol < 1))
-      fail(child_path(n.path, "stol"),
-           fmt::format("must be in (0, 1) (line-search tolerance, Eq. (10)), got {}", e.stol));
-    auto count = [&](const char* key, int& v, const char* what) {
-      v = integer(n, key, v);
-      if (v < 1) fail(child_path(n.path, key), fmt::format("must be >= 1 ({}), got {}", what, v));
-    };
-    count("max_iterations", e.max_iterations, "equilibrium iterations per step");
-    count("max_updates", e.max_updates, "BFGS updates before the matrix is re-formed");
-    if (has(n, "line_search")) {
-      const Node v = child(n, "line_search");
-      if (!v.j.is_boolean())
-        fail(v.path, "expected true (a line search, Eq. (9)) or false (step length 1), got " +
-                         describe(v.j));
-      e.line_search = v.j.get<bool>();
-    }
-    if (has(n, "reform")) {
-      // modified Newton and BFGS: the starting matrix of every step, or the first one kept
-      e.keep_matrix = choice(child(n, "reform"), {"step", "run"}, "reform") == "run";
+    read(n, solid_keys(), s);
+    if (has(n, "trapezoid") && s.integrator != solid::Integrator::Linearized) {
+      fail(child_path(n.path, "trapezoid"),
+           fmt::format("applies only to solid.integrator 'linearized' (the '{}' integrator "
+                       "iterates the full trapezoidal rule); remove it or set solid.integrator "
+                       "to 'linearized'",
+                       solid::to_string(s.integrator)));
     }
     return s;
   }
@@ -867,34 +633,7 @@ class Parser {
   CouplingSpec coupling_spec(const Node* n, bool deformable, bool dynamic) const {
     CouplingSpec c;
     c.two_way = deformable && dynamic;  // the default, DESIGN.md §2: the simultaneous solve
-    if (!n) return c;
-    expect_object(*n, {"scheme", "solver", "rel_tol", "max_iterations", "conserve_volume"});
-    if (has(*n, "scheme")) {
-      const std::string s =
-          choice(child(*n, "scheme"),
-                 {"simultaneous", "splitting", "bfgs", "modified_newton", "newton", "none"},
-                 "coupling scheme");
-      c.two_way = s != "none";
-      if (c.two_way) c.params.scheme = coupling::parse_scheme(s);
-    }
-    coupling::CoupledOptions& o = c.params.solve;
-    if (has(*n, "solver"))
-      o.solver = coupling::parse_coupled_solver(
-          choice(child(*n, "solver"), coupling::coupled_solver_names(), "coupled solver"));
-    o.rel_tol = number(*n, "rel_tol", o.rel_tol);
-    if (o.rel_tol <= 0)
-      fail(child_path(n->path, "rel_tol"), fmt::format("must be > 0, got {}", o.rel_tol));
-    o.max_iterations = integer(*n, "max_iterations", o.max_iterations);
-    if (o.max_iterations < 1)
-      fail(child_path(n->path, "max_iterations"),
-           fmt::format("must be >= 1, got {}", o.max_iterations));
-    if (has(*n, "conserve_volume")) {
-      const Node v = child(*n, "conserve_volume");
-      if (!v.j.is_boolean())
-        fail(v.path,
-             "expected true (enclosed regions keep their volume) or false, got " + describe(v.j));
-      o.conserve_volume = v.j.get<bool>();
-    }
+    if (n) read(*n, coupling_keys(), c);
     return c;
   }
 
@@ -904,207 +643,97 @@ class Parser {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Scene → JSON with every default filled in.
+// Scene → JSON with every default filled in: each section's `write`, nested as in the file.
 
-json selection_json(const NodeSelection& s) {
-  json j = json::object();
-  if (s.box)
-    j["box"] = {{"lo", to_json(s.box->lo)}, {"hi", to_json(s.box->hi)}};
-  else
-    j["nodes"] = s.nodes;
+json mesh_json(const MeshSpec& m) {
+  json j = mesh_keys().write(m);  // file, surface + cell_size
+  switch (m.kind) {
+    case MeshSpec::Kind::Box:
+      j["box"] = mesh_box_keys().write(m);
+      break;
+    case MeshSpec::Kind::Sphere:
+      j["sphere"] = mesh_sphere_keys().write(m);
+      break;
+    case MeshSpec::Kind::Shell:
+      j["shell"] = mesh_shell_keys().write(m);
+      break;
+    case MeshSpec::Kind::HollowBox:
+      j["hollow_box"] = mesh_hollow_box_keys().write(m);
+      break;
+    case MeshSpec::Kind::Tube:
+      j["tube"] = mesh_tube_keys().write(m);
+      break;
+    case MeshSpec::Kind::File:
+    case MeshSpec::Kind::Surface:
+      break;
+  }
+  return j;
+}
+
+/// A pin's or a load's section, with its selection box if it has one.
+template <class T>
+json selection_json(const Section<T>& section, const T& t) {
+  json j = section.write(t);
+  if (t.select.box) j["box"] = selection_box_keys().write(*t.select.box);
+  return j;
+}
+
+json body_json(const BodySpec& b) {
+  json j = body_keys().write(b);  // name, initial_velocity
+  j["mesh"] = mesh_json(b.mesh);
+  j["transform"] = transform_keys().write(b.transform);
+  j["material"] = material_keys().write(b.material);
+  j["pins"] = json::array();
+  for (const PinSpec& p : b.pins) j["pins"].push_back(selection_json(pin_keys(), p));
+  j["loads"] = json::array();
+  for (const LoadSpec& l : b.loads) j["loads"].push_back(selection_json(load_keys(), l));
+  if (b.kinematic) j["kinematic"] = kinematic_keys().write(*b.kinematic);
+  return j;
+}
+
+json fluid_json(const FluidSpec& f) {
+  const fluid::FluidParams& fp = f.params;
+  json j = fluid_keys().write(f);
+  json domain = domain_keys().write(f.domain);
+  domain["patches"] = json::array();
+  for (std::size_t i = 0; i < f.domain.patches.size(); ++i)
+    domain["patches"].push_back(patch_keys().write({f.domain.patches[i], fp.patches.at(i)}));
+  j["domain"] = domain;
+  j["mesh"] = fluid_mesh_keys().write(f.sizing);
+  j["buoyancy"] = buoyancy_keys().write(fp);
+  j["decay"] = decay_keys().write(fp);
+  j["solver"] = fluid_solver_keys().write(fp);
+  j["sources"] = json::array();
+  for (const fluid::SmokeSource& src : fp.sources) {
+    json js = source_keys().write(src);
+    js["box"] = source_box_keys().write({src.lo, src.hi});
+    j["sources"].push_back(js);
+  }
+  j["refine"] = refine_keys().write(fp.refine);
   return j;
 }
 
 json resolve(const Scene& s) {
-  json j;
-  j["name"] = s.name;
-  if (!s.description.empty()) j["description"] = s.description;
-  j["mode"] = s.mode == Mode::Static ? "static" : "dynamic";
-  j["time"] = {{"dt", s.time.dt}};
-  if (s.time.steps)
-    j["time"]["steps"] = *s.time.steps;
-  else
-    j["time"]["end_time"] = s.time.end_time.value_or(1.0);
-  j["output"] = {{"every", s.output.every}, {"compression", s.output.compression}};
-  j["gravity"] = to_json(s.gravity);
-  j["solver"] = {{"linear", s.solver.linear},
-                 {"rel_tol", s.solver.rel_tol},
-                 {"max_iterations", s.solver.max_iterations}};
-  const EquilibriumOptions& e = s.solid.equilibrium;
-  j["solid"] = {{"integrator", solid::to_string(s.solid.integrator)},
-                {"rtol", e.rtol},
-                {"etol", e.etol},
-                {"stol", e.stol},
-                {"max_iterations", e.max_iterations},
-                {"max_updates", e.max_updates},
-                {"line_search", e.line_search},
-                {"reform", e.keep_matrix ? "run" : "step"}};
+  json j = top_level_keys().write(s);  // name, description, mode, gravity
+  j["time"] = time_keys().write(s.time);
+  j["output"] = output_keys().write(s.output);
+  j["solver"] = solver_keys().write(s.solver);
+  j["solid"] = solid_keys().write(s.solid);
   // only the linearized integrator has variants (and takes the key); the iterated coupled
   // schemes take the full trapezoidal rule
-  if (s.solid.integrator == solid::Integrator::Linearized &&
-      !(s.two_way() && coupling::is_iterated(s.coupling->params.scheme)))
-    j["solid"]["trapezoid"] = s.solid.trapezoid;
-  j["static"] = {{"load_steps", s.statics.load_steps},
-                 {"rel_tol", s.statics.rel_tol},
-                 {"max_iterations", s.statics.max_iterations}};
+  if (s.solid.integrator != solid::Integrator::Linearized ||
+      (s.two_way() && coupling::is_iterated(s.coupling->params.scheme)))
+    j["solid"].erase("trapezoid");
+  j["static"] = static_keys().write(s.statics);
   j["bodies"] = json::array();
-  for (const BodySpec& b : s.bodies) {
-    json jb;
-    jb["name"] = b.name;
-    switch (b.mesh.kind) {
-      case MeshSpec::Kind::Box:
-        jb["mesh"] = {{"box",
-                       {{"lo", to_json(b.mesh.box.lo)},
-                        {"hi", to_json(b.mesh.box.hi)},
-                        {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
-        break;
-      case MeshSpec::Kind::File:
-        jb["mesh"] = {{"file", b.mesh.file.string()}};
-        break;
-      case MeshSpec::Kind::Surface:
-        jb["mesh"] = {{"surface", b.mesh.file.string()}, {"cell_size", b.mesh.cell_size}};
-        break;
-      case MeshSpec::Kind::Sphere:
-        jb["mesh"] = {{"sphere",
-                       {{"center", to_json(b.mesh.center)},
-                        {"radius", b.mesh.radius},
-                        {"subdivisions", b.mesh.subdivisions}}}};
-        break;
-      case MeshSpec::Kind::Shell:
-        jb["mesh"] = {{"shell",
-                       {{"center", to_json(b.mesh.center)},
-                        {"inner_radius", b.mesh.inner_radius},
-                        {"outer_radius", b.mesh.outer_radius},
-                        {"subdivisions", b.mesh.subdivisions},
-                        {"layers", b.mesh.layers}}}};
-        break;
-      case MeshSpec::Kind::HollowBox:
-        jb["mesh"] = {{"hollow_box",
-                       {{"lo", to_json(b.mesh.box.lo)},
-                        {"hi", to_json(b.mesh.box.hi)},
-                        {"thickness", b.mesh.thickness},
-                        {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
-        break;
-      case MeshSpec::Kind::Tube:
-        jb["mesh"] = {{"tube",
-                       {{"center", to_json(b.mesh.center)},
-                        {"axis", std::string(1, "xyz"[b.mesh.axis])},
-                        {"inner_radius", b.mesh.inner_radius},
-                        {"outer_radius", b.mesh.outer_radius},
-                        {"length", b.mesh.length},
-                        {"cells", {b.mesh.cells.x(), b.mesh.cells.y(), b.mesh.cells.z()}}}}};
-        break;
-    }
-    jb["transform"] = {{"scale", b.transform.scale},
-                       {"rotate_deg", to_json(b.transform.rotate_deg)},
-                       {"translate", to_json(b.transform.translate)}};
-    jb["material"] = {{"density", b.material.density},
-                      {"youngs_modulus", b.material.youngs_modulus},
-                      {"poisson_ratio", b.material.poisson_ratio},
-                      {"rayleigh_alpha", b.material.rayleigh_alpha},
-                      {"rayleigh_beta", b.material.rayleigh_beta}};
-    jb["pins"] = json::array();
-    for (const PinSpec& p : b.pins) {
-      json jp = selection_json(p.select);
-      jp["axes"] = p.axes;
-      jb["pins"].push_back(jp);
-    }
-    jb["loads"] = json::array();
-    for (const LoadSpec& l : b.loads) {
-      json jl = selection_json(l.select);
-      jl["total_force"] = to_json(l.total_force);
-      jb["loads"].push_back(jl);
-    }
-    jb["initial_velocity"] = to_json(b.initial_velocity);
-    if (b.kinematic) {
-      jb["kinematic"] = {{"velocity", to_json(b.kinematic->velocity)},
-                         {"angular_velocity_deg", to_json(b.kinematic->angular_velocity_deg)}};
-      if (b.kinematic->center) jb["kinematic"]["center"] = to_json(*b.kinematic->center);
-    }
-    j["bodies"].push_back(jb);
-  }
+  for (const BodySpec& b : s.bodies) j["bodies"].push_back(body_json(b));
   j["obstacles"] = json::array();
   for (const solid::Obstacle& o : s.obstacles) {
-    json jo;
-    if (o.kind == solid::Obstacle::Kind::Plane) {
-      jo = {{"type", "plane"}, {"point", to_json(o.point)}, {"normal", to_json(o.normal)}};
-    } else {
-      jo = {{"type", "box"}, {"lo", to_json(o.lo)}, {"hi", to_json(o.hi)}};
-    }
-    jo["name"] = o.name;
-    jo["restitution"] = o.restitution;
-    jo["friction"] = o.friction;
-    j["obstacles"].push_back(jo);
+    const bool plane = o.kind == solid::Obstacle::Kind::Plane;
+    j["obstacles"].push_back((plane ? plane_obstacle_keys() : box_obstacle_keys()).write(o));
   }
-  if (s.fluid) {
-    const mesh::FluidDomain& d = s.fluid->domain;
-    const fluid::FluidParams& fp = s.fluid->params;
-    json patches = json::array();
-    for (std::size_t i = 0; i < d.patches.size(); ++i) {
-      const mesh::DomainPatch& pa = d.patches[i];
-      json jp = {{"name", pa.name},
-                 {"kind", mesh::to_string(pa.kind)},
-                 {"side", side_names().at(static_cast<std::size_t>(pa.side))},
-                 {"lo", to_json(pa.lo)},
-                 {"hi", to_json(pa.hi)}};
-      const fluid::PatchConditions& pc = fp.patches.at(i);
-      if (pa.kind == mesh::FaceKind::Inflow) {
-        jp["speed"] = pc.inflow_speed;
-        jp["smoke"] = pc.smoke_density;
-        if (pc.emits_temperature) jp["temperature"] = pc.temperature;
-      } else if (pa.kind == mesh::FaceKind::Open) {
-        jp["pressure"] = pc.pressure;
-      }
-      patches.push_back(jp);
-    }
-    json sources = json::array();
-    for (const fluid::SmokeSource& src : fp.sources) {
-      json js = {{"name", src.name},
-                 {"box", {{"lo", to_json(src.lo)}, {"hi", to_json(src.hi)}}},
-                 {"smoke", src.smoke_density}};
-      if (src.emits_temperature) js["temperature"] = src.temperature;
-      sources.push_back(js);
-    }
-    const mesh::Sizing& z = s.fluid->sizing;
-    j["fluid"] = {{"domain",
-                   {{"lo", to_json(d.lo)},
-                    {"hi", to_json(d.hi)},
-                    {"default", mesh::to_string(d.default_kind)},
-                    {"patches", patches}}},
-                  {"mesh",
-                   {{"surface_size", z.surface_size},
-                    {"far_size", z.far_size},
-                    {"grading", z.grading},
-                    {"max_cells", z.max_cells}}},
-                  {"density", fp.density},
-                  {"enclosed_density", fp.enclosed_density},
-                  {"gravity", s.fluid->gravity},
-                  {"buoyancy",
-                   {{"alpha", fp.buoyancy_alpha},
-                    {"beta", fp.buoyancy_beta},
-                    {"ambient_temperature", fp.ambient_temperature}}},
-                  {"vorticity_confinement", fp.vorticity_confinement},
-                  {"decay", {{"smoke", fp.smoke_decay}, {"temperature", fp.temperature_decay}}},
-                  {"reconstruction", fluid::to_string(fp.reconstruction)},
-                  {"min_dual_fraction", fp.min_dual_fraction},
-                  {"solver",
-                   {{"linear", to_string(fp.solver)},
-                    {"rel_tol", fp.solver_rel_tol},
-                    {"max_iterations", fp.solver_max_iterations}}},
-                  {"sources", sources},
-                  {"refine",
-                   {{"size", fp.refine.size},
-                    {"density_threshold", fp.refine.density_threshold},
-                    {"vorticity_threshold", fp.refine.vorticity_threshold}}}};
-  }
-  if (s.coupling) {
-    const coupling::CoupledOptions& o = s.coupling->params.solve;
-    j["coupling"] = {{"scheme", s.coupling->scheme_name()},
-                     {"solver", coupling::to_string(o.solver)},
-                     {"rel_tol", o.rel_tol},
-                     {"max_iterations", o.max_iterations},
-                     {"conserve_volume", o.conserve_volume}};
-  }
+  if (s.fluid) j["fluid"] = fluid_json(*s.fluid);
+  if (s.coupling) j["coupling"] = coupling_keys().write(*s.coupling);
   return j;
 }
 
@@ -1116,118 +745,43 @@ Scene parse_scene(const json& j, const fs::path& file) {
   const Parser p(file);
   using Node = Parser::Node;
   const Node root{j, ""};
-  p.expect_object(root, {"name", "description", "mode", "time", "output", "gravity", "solver",
-                         "solid", "static", "bodies", "obstacles", "fluid", "coupling"});
-
   Scene s;
   s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
-  s.name = p.string(root, "name", file.empty() ? std::string("scene") : file.stem().string());
-  if (s.name.empty()) p.fail("name", "must not be empty");
-  s.description = p.string(root, "description", "");
-  if (Parser::has(root, "mode")) {
-    s.mode = p.choice(Parser::child(root, "mode"), {"dynamic", "static"}, "mode") == "static"
-                 ? Mode::Static
-                 : Mode::Dynamic;
-  }
+  s.name = file.empty() ? std::string("scene") : file.stem().string();
+  p.read(root, top_level_keys(), s);  // name, description, mode, gravity
 
   if (Parser::has(root, "time")) {
     const Node t = Parser::child(root, "time");
-    p.expect_object(t, {"dt", "end_time", "steps"});
-    s.time.dt = p.number(t, "dt", s.time.dt);
-    if (s.time.dt <= 0) p.fail("time.dt", fmt::format("must be > 0 (s), got {}", s.time.dt));
-    if (Parser::has(t, "end_time") && Parser::has(t, "steps")) {
+    if (t.j.is_object() && Parser::has(t, "end_time") && Parser::has(t, "steps"))
       p.fail("time", "give either 'end_time' or 'steps', not both");
-    }
-    if (Parser::has(t, "end_time")) {
-      s.time.end_time = p.number(Parser::child(t, "end_time"));
-      if (*s.time.end_time <= 0)
-        p.fail("time.end_time", fmt::format("must be > 0 (s), got {}", *s.time.end_time));
-    }
-    if (Parser::has(t, "steps")) {
-      s.time.steps = p.integer(Parser::child(t, "steps"));
-      if (*s.time.steps < 1)
-        p.fail("time.steps", fmt::format("must be >= 1, got {}", *s.time.steps));
-    }
+    p.read(t, time_keys(), s.time);
   }
   if (!s.time.steps && !s.time.end_time) s.time.end_time = 1.0;
   if (!s.time.steps && *s.time.end_time / s.time.dt > 1e9) {
     p.fail("time", fmt::format("end_time / dt = {:.3g} steps is more than 1e9: check the units",
                                *s.time.end_time / s.time.dt));
   }
-
-  if (Parser::has(root, "output")) {
-    const Node o = Parser::child(root, "output");
-    p.expect_object(o, {"every", "compression"});
-    s.output.every = p.integer(o, "every", s.output.every);
-    if (s.output.every < 1)
-      p.fail("output.every", fmt::format("must be >= 1, got {}", s.output.every));
-    if (Parser::has(o, "compression")) {
-      s.output.compression =
-          p.choice(Parser::child(o, "compression"), {"lz4", "zlib", "none"}, "compression");
-    }
-  }
-
-  s.gravity = p.vec3(root, "gravity", s.gravity);
-
-  if (Parser::has(root, "solver")) {
-    const Node o = Parser::child(root, "solver");
-    p.expect_object(o, {"linear", "rel_tol", "max_iterations"});
-    if (Parser::has(o, "linear")) {
-      s.solver.linear = p.choice(Parser::child(o, "linear"), solver_names(), "linear solver");
-    }
-    s.solver.rel_tol = p.number(o, "rel_tol", s.solver.rel_tol);
-    if (s.solver.rel_tol <= 0)
-      p.fail("solver.rel_tol", fmt::format("must be > 0, got {}", s.solver.rel_tol));
-    s.solver.max_iterations = p.integer(o, "max_iterations", s.solver.max_iterations);
-    if (s.solver.max_iterations < 1) {
-      p.fail("solver.max_iterations", fmt::format("must be >= 1, got {}", s.solver.max_iterations));
-    }
-  }
-
+  if (Parser::has(root, "output")) p.read(Parser::child(root, "output"), output_keys(), s.output);
+  if (Parser::has(root, "solver")) p.read(Parser::child(root, "solver"), solver_keys(), s.solver);
   if (Parser::has(root, "solid")) s.solid = p.solid(Parser::child(root, "solid"));
-
-  if (Parser::has(root, "static")) {
-    const Node o = Parser::child(root, "static");
-    p.expect_object(o, {"load_steps", "rel_tol", "max_iterations"});
-    s.statics.load_steps = p.integer(o, "load_steps", s.statics.load_steps);
-    if (s.statics.load_steps < 1)
-      p.fail("static.load_steps", fmt::format("must be >= 1, got {}", s.statics.load_steps));
-    s.statics.rel_tol = p.number(o, "rel_tol", s.statics.rel_tol);
-    if (s.statics.rel_tol <= 0)
-      p.fail("static.rel_tol", fmt::format("must be > 0, got {}", s.statics.rel_tol));
-    s.statics.max_iterations = p.integer(o, "max_iterations", s.statics.max_iterations);
-    if (s.statics.max_iterations < 1) {
-      p.fail("static.max_iterations",
-             fmt::format("must be >= 1, got {}", s.statics.max_iterations));
-    }
-  }
+  if (Parser::has(root, "static")) p.read(Parser::child(root, "static"), static_keys(), s.statics);
 
   // A fluid-only scene (smoke in a box) needs no body; otherwise there is nothing to simulate.
   const bool has_fluid = Parser::has(root, "fluid");
   static const json no_bodies = json::array();
   const Node bodies = has_fluid && !Parser::has(root, "bodies") ? Node{no_bodies, "bodies"}
                                                                 : p.require(root, "bodies");
-  if (!bodies.j.is_array())
-    p.fail("bodies", "expected an array of bodies, got " + describe(bodies.j));
+  p.for_each(bodies, "expected an array of bodies", [&](const Node& e, std::size_t i) {
+    BodySpec b = p.body(e);
+    p.unique_name(s.bodies, b.name, "body", bodies, i);
+    s.bodies.push_back(std::move(b));
+  });
   if (bodies.j.empty() && !has_fluid)
     p.fail("bodies", "a scene needs at least one body (or a 'fluid' section)");
-  for (std::size_t i = 0; i < bodies.j.size(); ++i) {
-    BodySpec b = p.body({bodies.j[i], Parser::index_path("bodies", i)});
-    for (std::size_t k = 0; k < s.bodies.size(); ++k) {
-      if (s.bodies[k].name == b.name) {
-        p.fail(Parser::index_path("bodies", i) + ".name",
-               fmt::format("duplicate body name '{}' (also bodies[{}])", b.name, k));
-      }
-    }
-    s.bodies.push_back(std::move(b));
-  }
 
   if (Parser::has(root, "obstacles")) {
-    const Node obs = Parser::child(root, "obstacles");
-    if (!obs.j.is_array()) p.fail("obstacles", "expected an array, got " + describe(obs.j));
-    for (std::size_t i = 0; i < obs.j.size(); ++i) {
-      s.obstacles.push_back(p.obstacle({obs.j[i], Parser::index_path("obstacles", i)}, i));
-    }
+    p.for_each(Parser::child(root, "obstacles"), "expected an array",
+               [&](const Node& e, std::size_t i) { s.obstacles.push_back(p.obstacle(e, i)); });
   }
 
   if (has_fluid) s.fluid = p.fluid(Parser::child(root, "fluid"), s.gravity);
@@ -1491,8 +1045,7 @@ solid::SolidWorld build_world(const Scene& scene) {
   world.linear_solver = parse_solver_kind(scene.solver.linear);
   world.solver_options.rel_tol = scene.solver.rel_tol;
   world.solver_options.max_iterations = scene.solver.max_iterations;
-  world.trapezoid =
-      scene.solid.trapezoid == "midpoint" ? solid::Trapezoid::Midpoint : solid::Trapezoid::Paper;
+  world.trapezoid = solid::parse_trapezoid(scene.solid.trapezoid);
   world.integrator = scene.solid.integrator;
   world.equilibrium = scene.solid.equilibrium;  // its method: SolidWorld takes the integrator's
   world.bodies.reserve(scene.bodies.size());

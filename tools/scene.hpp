@@ -5,7 +5,9 @@
 /// error naming the path and the problem. Relative paths resolve against the scene file's
 /// folder. Physics never sees JSON: `build_world` turns a Scene into solid:: objects.
 ///
-/// Schema (every key optional unless marked; defaults in the structs below):
+/// Every key with its type, default, range, unit and meaning is declared once, in the tables
+/// of scene_keys.hpp (`tetfsi scene --keys`); the parser, the resolved scene and README.md's
+/// key tables come from them. Schema (every key optional unless marked):
 /// ```json
 /// {
 ///   "name": "sheet_sag",
@@ -110,7 +112,7 @@
 /// "splitting" and the iterated schemes "bfgs", "modified_newton", "newton" [BatheSonnad80]
 /// (with the solid.* tolerances) are two-way: the fluid pushes the bodies. "none" (the default
 /// otherwise) is one-way: the bodies step alone and the fluid follows them. solver one of
-/// coupling::coupled_solver_names(), rel_tol > 0, max_iterations >= 1, conserve_volume a
+/// coupling::k_coupled_solver_names.names(), rel_tol > 0, max_iterations >= 1, conserve_volume a
 /// boolean. A static scene ignores the coupling (the run warns if it is two-way).
 /// Solid (solid/nonlinear_trapezoid.hpp, core/equilibrium.hpp): "integrator" is how the bodies
 /// step when they step alone (a solid-only or one-way scene): "linearized" (the default,

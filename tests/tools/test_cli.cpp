@@ -31,6 +31,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/test_util.hpp"
+#include "tools/scene_keys.hpp"
 
 namespace fs = std::filesystem;
 
@@ -418,6 +419,20 @@ TEST_CASE("tetfsi run: Ctrl-C stops after the current step with a complete outpu
   // The collection ends at the last completed step, though it is not a multiple of 1000.
   CHECK(pvd.files.back() == fmt::format("block/block_{:06d}.vtu", steps));
   CHECK(pvd.times.back() == doctest::Approx(0.01 * static_cast<double>(steps)).epsilon(1e-12));
+}
+
+TEST_CASE("tetfsi scene --keys prints the key tables, --markdown README.md's") {
+  TempDir dir("keys");
+  const Result text = run_cli(dir.path, "scene --keys");
+  CHECK(text.code == 0);
+  CHECK(text.out == tetfsi::tools::scene_keys_text());
+  CHECK(text.out.find("time.dt") != std::string::npos);
+  const Result md = run_cli(dir.path, "scene --keys --markdown");
+  CHECK(md.code == 0);
+  CHECK(md.out == tetfsi::tools::scene_keys_markdown());
+  CHECK(run_cli(dir.path, "scene").code != 0);  // --keys is required
+  const Result help = run_cli(dir.path, "--help");
+  CHECK(help.out.find("scene") != std::string::npos);
 }
 
 TEST_CASE("tetfsi --help, --version and usage errors") {

@@ -1080,7 +1080,7 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   CHECK(c.resolved["fluid"]["enclosed_density"] == 1000.0);
   const Scene back = parse_scene(c.resolved, "scene.json");
   CHECK(back.resolved == c.resolved);
-  for (const std::string& name : coupling::coupled_solver_names()) {
+  for (const std::string& name : coupling::k_coupled_solver_names.names()) {
     j["coupling"]["solver"] = name;
     CHECK(coupling::to_string(parse_scene(j, "scene.json").coupling->params.solve.solver) == name);
   }
