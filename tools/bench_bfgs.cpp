@@ -379,7 +379,7 @@ int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& 
         continue;
       }
       any_across = true;
-      std::string probe;
+      const char* probe = "A";
       const double diff = max_difference(*r, *s, probe);
       const double scale =
           std::max(largest_displacement(r->history), largest_displacement(s->history));
