@@ -1,0 +1,418 @@
+#include "fluid/grid.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include <Eigen/Geometry>
+
+#include "core/error.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::FaceKind;
+
+// ---- GridSpec ----------------------------------------------------------------------------
+
+GridSpec GridSpec::from_cells(const Vec3& lo, const Vec3& hi, const std::array<Index, 3>& n) {
+  GridSpec g;
+  g.lo = lo;
+  g.n = n;
+  for (int a = 0; a < 3; ++a) {
+    TETFSI_REQUIRE(InputError, n[a] >= 1, "fluid.grid.cells: {} cells along {}: use at least 1",
+                   n[a], "xyz"[a]);
+    TETFSI_REQUIRE(InputError, hi[a] > lo[a], "fluid.domain: the box is empty along {}", "xyz"[a]);
+    g.h[a] = (hi[a] - lo[a]) / static_cast<double>(n[a]);
+  }
+  return g;
+}
+
+GridSpec GridSpec::from_cell_size(const Vec3& lo, const Vec3& hi, double cell_size) {
+  TETFSI_REQUIRE(InputError, std::isfinite(cell_size) && cell_size > 0,
+                 "fluid.grid.cell_size = {}: use a length > 0 (m)", cell_size);
+  std::array<Index, 3> n{};
+  for (int a = 0; a < 3; ++a) n[a] = std::max<Index>(1, std::llround((hi[a] - lo[a]) / cell_size));
+  return from_cells(lo, hi, n);
+}
+
+Index GridSpec::num_faces(int a) const {
+  Index c = 1;
+  for (int b = 0; b < 3; ++b) c *= n[b] + (b == a ? 1 : 0);
+  return c;
+}
+
+Index GridSpec::face_offset(int a) const {
+  Index o = 0;
+  for (int b = 0; b < a; ++b) o += num_faces(b);
+  return o;
+}
+
+std::array<Index, 3> GridSpec::cell_ijk(Index c) const {
+  return {c % n[0], (c / n[0]) % n[1], c / (n[0] * n[1])};
+}
+
+Vec3 GridSpec::cell_centre(Index c) const {
+  const auto ijk = cell_ijk(c);
+  Vec3 x;
+  for (int a = 0; a < 3; ++a) x[a] = lo[a] + (static_cast<double>(ijk[a]) + 0.5) * h[a];
+  return x;
+}
+
+Index GridSpec::face(int a, Index i, Index j, Index k) const {
+  const Index d0 = n[0] + (a == 0), d1 = n[1] + (a == 1);
+  return face_offset(a) + i + d0 * (j + d1 * k);
+}
+
+int GridSpec::face_axis(Index f) const {
+  return f < face_offset(1) ? 0 : (f < face_offset(2) ? 1 : 2);
+}
+
+std::array<Index, 3> GridSpec::face_ijk(Index f) const {
+  const int a = face_axis(f);
+  const Index l = f - face_offset(a);
+  const Index d0 = n[0] + (a == 0), d1 = n[1] + (a == 1);
+  return {l % d0, (l / d0) % d1, l / (d0 * d1)};
+}
+
+Vec3 GridSpec::face_centre(Index f) const {
+  const int a = face_axis(f);
+  const auto ijk = face_ijk(f);
+  Vec3 x;
+  for (int b = 0; b < 3; ++b)
+    x[b] = lo[b] + (static_cast<double>(ijk[b]) + (b == a ? 0.0 : 0.5)) * h[b];
+  return x;
+}
+
+std::array<Index, 2> GridSpec::face_cells(Index f) const {
+  const int a = face_axis(f);
+  auto ijk = face_ijk(f);
+  const Index i = ijk[a];
+  std::array<Index, 2> c{-1, -1};
+  if (i > 0) {
+    ijk[a] = i - 1;
+    c[0] = cell(ijk[0], ijk[1], ijk[2]);
+  }
+  if (i < n[a]) {
+    ijk[a] = i;
+    c[1] = cell(ijk[0], ijk[1], ijk[2]);
+  }
+  return c;
+}
+
+int GridSpec::face_side(Index f) const {
+  const int a = face_axis(f);
+  const Index i = face_ijk(f)[a];
+  return i == 0 ? 2 * a : (i == n[a] ? 2 * a + 1 : -1);
+}
+
+Index GridSpec::cell_at(const Vec3& x) const {
+  std::array<Index, 3> ijk{};
+  for (int a = 0; a < 3; ++a)
+    ijk[a] = std::clamp<Index>(static_cast<Index>(std::floor((x[a] - lo[a]) / h[a])), 0, n[a] - 1);
+  return cell(ijk[0], ijk[1], ijk[2]);
+}
+
+// ---- triangles ---------------------------------------------------------------------------
+
+namespace {
+
+struct Tri {
+  Vec3 p[3];
+};
+
+Tri triangle(const mesh::SolidSurface& s, Index t) {
+  Tri r;
+  for (int k = 0; k < 3; ++k) r.p[k] = s.vertices.row(s.triangles(t, k)).transpose();
+  return r;
+}
+
+/// Segment a + s (b − a), s ∈ [0, 1], against a triangle (Möller–Trumbore, closed: a hit on an
+/// edge counts, so queries err towards "blocked").
+bool segment_triangle(const Vec3& a, const Vec3& b, const Tri& T, double& s, Vec3& bary) {
+  const Vec3 d = b - a, e1 = T.p[1] - T.p[0], e2 = T.p[2] - T.p[0];
+  const Vec3 q = d.cross(e2);
+  const double det = e1.dot(q);
+  const double scale = e1.norm() * e2.norm() * d.norm();
+  if (std::abs(det) <= 1e-14 * scale) return false;  // parallel
+  const Vec3 r = a - T.p[0];
+  const double u = r.dot(q) / det;
+  if (u < 0.0 || u > 1.0) return false;
+  const Vec3 w = r.cross(e1);
+  const double v = d.dot(w) / det;
+  if (v < 0.0 || u + v > 1.0) return false;
+  s = e2.dot(w) / det;
+  if (s < 0.0 || s > 1.0) return false;
+  bary = Vec3(1.0 - u - v, u, v);
+  return true;
+}
+
+/// Edge function of p against the 2D edge (e0 → e1), computed from the lexicographically
+/// smaller endpoint so that the two triangles sharing an edge get exactly opposite values.
+double edge_function(const Vec2& e0, const Vec2& e1, const Vec2& p) {
+  const bool swap = e1[0] < e0[0] || (e1[0] == e0[0] && e1[1] < e0[1]);
+  const Vec2& a = swap ? e1 : e0;
+  const Vec2& b = swap ? e0 : e1;
+  const double v = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+  return swap ? -v : v;
+}
+
+/// Top-left rule for a counter-clockwise triangle: a point on edge (e0 → e1) counts when the
+/// edge is a left edge (going down) or a top edge (horizontal, going left), so a line through
+/// a shared edge or vertex of a closed surface meets exactly one of the triangles there.
+bool owns_edge(const Vec2& e0, const Vec2& e1) {
+  const double dy = e1[1] - e0[1], dx = e1[0] - e0[0];
+  return dy < 0.0 || (dy == 0.0 && dx < 0.0);
+}
+
+/// Whether the 2D point p is in the projected triangle q (any orientation), ties by the
+/// top-left rule; fills the barycentric weights.
+bool in_projected(const Vec2 q[3], const Vec2& p, Vec3& w) {
+  const double area = edge_function(q[0], q[1], q[2]);
+  if (area == 0.0) return false;
+  int order[3] = {0, 1, 2};
+  if (area < 0.0) std::swap(order[1], order[2]);
+  double e[3];
+  for (int k = 0; k < 3; ++k) {
+    const Vec2& a = q[order[k]];
+    const Vec2& b = q[order[(k + 1) % 3]];
+    e[k] = edge_function(a, b, p);
+    if (e[k] < 0.0 || (e[k] == 0.0 && !owns_edge(a, b))) return false;
+  }
+  const double A = std::abs(area);
+  // e[k] is the weight of the vertex opposite edge k, i.e. order[(k + 2) % 3].
+  for (int k = 0; k < 3; ++k) w[order[(k + 2) % 3]] = e[k] / A;
+  return true;
+}
+
+/// Every grid line along axis a through cell-centre coordinates that crosses triangle T:
+/// visit(j, k, coordinate along a, barycentric weights), (j, k) the line's cell indices on
+/// the other two axes (in increasing axis order).
+template <class Visit>
+void rasterize_axis(const GridSpec& g, int a, const Tri& T, Visit&& visit) {
+  const int b = (a + 1) % 3 < (a + 2) % 3 ? (a + 1) % 3 : (a + 2) % 3;
+  const int c = 3 - a - b;
+  Vec2 q[3];
+  for (int k = 0; k < 3; ++k) q[k] = Vec2(T.p[k][b], T.p[k][c]);
+  const auto range = [&](int ax, double lo, double hi, Index& i0, Index& i1) {
+    i0 = std::max<Index>(0, static_cast<Index>(std::ceil((lo - g.lo[ax]) / g.h[ax] - 0.5)));
+    i1 = std::min<Index>(g.n[ax] - 1,
+                         static_cast<Index>(std::floor((hi - g.lo[ax]) / g.h[ax] - 0.5)));
+  };
+  Index j0, j1, k0, k1;
+  range(b, std::min({q[0][0], q[1][0], q[2][0]}), std::max({q[0][0], q[1][0], q[2][0]}), j0, j1);
+  range(c, std::min({q[0][1], q[1][1], q[2][1]}), std::max({q[0][1], q[1][1], q[2][1]}), k0, k1);
+  for (Index k = k0; k <= k1; ++k)
+    for (Index j = j0; j <= j1; ++j) {
+      const Vec2 p(g.lo[b] + (static_cast<double>(j) + 0.5) * g.h[b],
+                   g.lo[c] + (static_cast<double>(k) + 0.5) * g.h[c]);
+      Vec3 w;
+      if (!in_projected(q, p, w)) continue;
+      visit(j, k, w[0] * T.p[0][a] + w[1] * T.p[1][a] + w[2] * T.p[2][a], w);
+    }
+}
+
+/// Cell (i, j, k) from the index along axis a and the two line indices (increasing axes).
+Index cell_of_line(const GridSpec& g, int a, Index i, Index j, Index k) {
+  std::array<Index, 3> ijk{};
+  const int b = (a + 1) % 3 < (a + 2) % 3 ? (a + 1) % 3 : (a + 2) % 3;
+  ijk[a] = i;
+  ijk[b] = j;
+  ijk[3 - a - b] = k;
+  return g.cell(ijk[0], ijk[1], ijk[2]);
+}
+
+Index face_of_line(const GridSpec& g, int a, Index i, Index j, Index k) {
+  std::array<Index, 3> ijk{};
+  const int b = (a + 1) % 3 < (a + 2) % 3 ? (a + 1) % 3 : (a + 2) % 3;
+  ijk[a] = i;
+  ijk[b] = j;
+  ijk[3 - a - b] = k;
+  return g.face(a, ijk[0], ijk[1], ijk[2]);
+}
+
+}  // namespace
+
+// ---- GridSolids --------------------------------------------------------------------------
+
+GridSolids::GridSolids(const GridSpec& g, std::vector<mesh::SolidSurface> surfaces)
+    : m_grid(g), m_surfaces(std::move(surfaces)) {
+  const Index nc = g.num_cells();
+  m_bucket.assign(nc, {});
+  m_near.assign(nc, 0);
+  for (size_t b = 0; b < m_surfaces.size(); ++b) {
+    const mesh::SolidSurface& s = m_surfaces[b];
+    for (Index t = 0; t < s.triangles.rows(); ++t) {
+      const Tri T = triangle(s, t);
+      Vec3 lo = T.p[0].cwiseMin(T.p[1]).cwiseMin(T.p[2]);
+      Vec3 hi = T.p[0].cwiseMax(T.p[1]).cwiseMax(T.p[2]);
+      std::array<Index, 3> i0{}, i1{};
+      for (int a = 0; a < 3; ++a) {
+        const double eps = 1e-9 * g.h[a];
+        i0[a] = std::clamp<Index>(static_cast<Index>(std::floor((lo[a] - eps - g.lo[a]) / g.h[a])),
+                                  0, g.n[a] - 1);
+        i1[a] = std::clamp<Index>(static_cast<Index>(std::floor((hi[a] + eps - g.lo[a]) / g.h[a])),
+                                  0, g.n[a] - 1);
+      }
+      for (Index k = i0[2]; k <= i1[2]; ++k)
+        for (Index j = i0[1]; j <= i1[1]; ++j)
+          for (Index i = i0[0]; i <= i1[0]; ++i)
+            m_bucket[g.cell(i, j, k)].emplace_back(static_cast<Index>(b), t);
+    }
+  }
+  for (Index c = 0; c < nc; ++c) {
+    if (m_bucket[c].empty()) continue;
+    const auto ijk = g.cell_ijk(c);
+    for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
+      for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
+        for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1); ++i)
+          m_near[g.cell(i, j, k)] = 1;
+  }
+}
+
+bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
+                                double* t_out) const {
+  if (m_bucket.empty()) return false;
+  const GridSpec& g = m_grid;
+  std::array<Index, 3> i0{}, i1{};
+  for (int ax = 0; ax < 3; ++ax) {
+    const double lo = std::min(a[ax], b[ax]), hi = std::max(a[ax], b[ax]);
+    i0[ax] = std::clamp<Index>(static_cast<Index>(std::floor((lo - g.lo[ax]) / g.h[ax])), 0,
+                               g.n[ax] - 1);
+    i1[ax] = std::clamp<Index>(static_cast<Index>(std::floor((hi - g.lo[ax]) / g.h[ax])), 0,
+                               g.n[ax] - 1);
+  }
+  double best = std::numeric_limits<double>::infinity();
+  for (Index k = i0[2]; k <= i1[2]; ++k)
+    for (Index j = i0[1]; j <= i1[1]; ++j)
+      for (Index i = i0[0]; i <= i1[0]; ++i)
+        for (const auto& [body, tri] : m_bucket[g.cell(i, j, k)]) {
+          double s = 0;
+          Vec3 w;
+          if (!segment_triangle(a, b, triangle(m_surfaces[body], tri), s, w) || s >= best) continue;
+          best = s;
+          if (hit) *hit = SurfacePoint{body, tri, w};
+          if (!hit && !t_out) return true;
+        }
+  if (t_out) *t_out = best;
+  return std::isfinite(best);
+}
+
+// ---- classification ----------------------------------------------------------------------
+
+namespace {
+
+void classify_box_faces(const GridSpec& g, const mesh::FluidDomain& domain, GridCells& gc) {
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const int side = g.face_side(f);
+    if (side < 0) continue;
+    gc.face_kind[f] = domain.default_kind;
+    const Vec3 x = g.face_centre(f);
+    const int a = side / 2, b = a == 0 ? 1 : 0, c = a == 2 ? 1 : 2;
+    for (size_t p = 0; p < domain.patches.size(); ++p) {
+      const mesh::DomainPatch& dp = domain.patches[p];
+      if (dp.side != side) continue;
+      if (x[b] < dp.lo[0] - 1e-9 || x[b] > dp.hi[0] + 1e-9 || x[c] < dp.lo[1] - 1e-9 ||
+          x[c] > dp.hi[1] + 1e-9)
+        continue;
+      gc.face_kind[f] = dp.kind;
+      gc.face_patch[f] = static_cast<Index>(p);
+    }
+  }
+}
+
+void check_body(const GridSpec& g, const mesh::SolidSurface& s) {
+  if (s.vertices.rows() == 0) return;
+  const Vec3 lo = s.vertices.colwise().minCoeff().transpose();
+  const Vec3 hi = s.vertices.colwise().maxCoeff().transpose();
+  int small = 0;
+  for (int a = 0; a < 3; ++a) {
+    TETFSI_REQUIRE(InputError, lo[a] >= g.lo[a] - 1e-9 && hi[a] <= g.hi()[a] + 1e-9,
+                   "body {}: it leaves the fluid box along {} ({}..{} vs {}..{}); move it inside "
+                   "fluid.domain",
+                   s.body, "xyz"[a], lo[a], hi[a], g.lo[a], g.hi()[a]);
+    if (hi[a] - lo[a] < g.h[a]) ++small;
+  }
+  TETFSI_REQUIRE(InputError, small < 2,
+                 "body {}: smaller than a grid cell ({} × {} × {} m) on {} axes; the grid cannot "
+                 "resolve it: lower fluid.grid.cell_size or raise fluid.grid.cells",
+                 s.body, g.h[0], g.h[1], g.h[2], small);
+}
+
+/// Cells whose centre is inside a closed surface: parity of the crossings below it along z.
+void mark_inside(const GridSpec& g, const mesh::SolidSurface& s, VecXi& cell_body) {
+  std::map<std::pair<Index, Index>, std::vector<double>> column;
+  for (Index t = 0; t < s.triangles.rows(); ++t)
+    rasterize_axis(g, 2, triangle(s, t), [&](Index j, Index k, double z, const Vec3&) {
+      column[{j, k}].push_back(z);
+    });
+  for (auto& [ij, zs] : column) {
+    std::sort(zs.begin(), zs.end());
+    for (Index k = 0; k < g.n[2]; ++k) {
+      const double zc = g.lo[2] + (static_cast<double>(k) + 0.5) * g.h[2];
+      const auto below = std::lower_bound(zs.begin(), zs.end(), zc) - zs.begin();
+      if (below % 2 == 1) cell_body[cell_of_line(g, 2, ij.first, ij.second, k)] = s.body;
+    }
+  }
+}
+
+/// Faces whose centre-to-centre segment crosses a triangle of s: Solid, keeping the crossing
+/// nearest the face centre (both sides fluid) or the fluid cell (one side solid).
+void mark_crossed(const GridSpec& g, const mesh::SolidSurface& s, GridCells& gc,
+                  std::vector<double>& dist) {
+  for (Index t = 0; t < s.triangles.rows(); ++t)
+    for (int a = 0; a < 3; ++a)
+      rasterize_axis(g, a, triangle(s, t), [&](Index j, Index k, double x, const Vec3& w) {
+        if (x < g.lo[a] || x > g.hi()[a]) return;
+        const Index i = std::clamp<Index>(
+            static_cast<Index>(std::floor((x - g.lo[a]) / g.h[a] + 0.5)), 0, g.n[a]);
+        const Index f = face_of_line(g, a, i, j, k);
+        gc.face_kind[f] = FaceKind::Solid;
+        const auto cells = g.face_cells(f);
+        double ref = g.face_centre(f)[a];
+        if (cells[0] >= 0 && cells[1] >= 0 && gc.fluid(cells[0]) != gc.fluid(cells[1]))
+          ref = g.cell_centre(gc.fluid(cells[0]) ? cells[0] : cells[1])[a];
+        const double d = std::abs(x - ref);
+        if (d < dist[f]) {
+          dist[f] = d;
+          gc.face_solid[f] = SurfacePoint{s.body, t, w};
+        }
+      });
+}
+
+}  // namespace
+
+GridCells classify_grid(const GridSpec& g, const mesh::FluidDomain& domain,
+                        std::vector<mesh::SolidSurface> surfaces) {
+  GridCells gc;
+  gc.grid = g;
+  const Index nc = g.num_cells(), nf = g.num_faces();
+  gc.cell_body = VecXi::Constant(nc, -1);
+  gc.face_kind.assign(nf, FaceKind::Interior);
+  gc.face_patch = VecXi::Constant(nf, -1);
+  gc.face_solid.assign(nf, SurfacePoint{});
+  classify_box_faces(g, domain, gc);
+  for (const mesh::SolidSurface& s : surfaces) {
+    check_body(g, s);
+    mark_inside(g, s, gc.cell_body);
+  }
+  std::vector<double> dist(nf, std::numeric_limits<double>::infinity());
+  for (const mesh::SolidSurface& s : surfaces) mark_crossed(g, s, gc, dist);
+  gc.solids = GridSolids(g, std::move(surfaces));
+  // Faces with no fluid cell carry nothing; a face next to a solid cell is always Solid.
+  for (Index f = 0; f < nf; ++f) {
+    const auto c = g.face_cells(f);
+    const bool f0 = gc.fluid(c[0]), f1 = gc.fluid(c[1]);
+    if (!f0 && !f1) {
+      gc.face_kind[f] = FaceKind::Wall;
+      gc.face_solid[f] = SurfacePoint{};
+    } else if ((c[0] >= 0 && !f0) || (c[1] >= 0 && !f1)) {
+      gc.face_kind[f] = FaceKind::Solid;
+      if (gc.face_solid[f].body < 0)  // parity and crossing disagreed (a degenerate hit)
+        gc.solids.first_crossing(g.cell_centre(c[0]), g.cell_centre(c[1]), &gc.face_solid[f]);
+    }
+  }
+  return gc;
+}
+
+}  // namespace tetfsi::fluid

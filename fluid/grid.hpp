@@ -1,0 +1,120 @@
+#pragma once
+/// @file grid.hpp
+/// The regular-grid (MAC) discretisation of the fluid [Harlow & Welch 1965], [Fedkiw01]: a
+/// staggered grid over the fluid box, pressure at cell centres, the normal velocity u_f along
+/// +e_a on every face of axis a; and the solids on it [Chentanez06, §3.4, last paragraph]:
+///
+///  - a cell whose centre lies inside a closed body surface is a solid cell (no fluid);
+///  - a face whose centre-to-centre segment (from the cell centre to the face, for a face on
+///    the box) crosses a body triangle is a Solid face: its velocity is prescribed as the
+///    body's velocity at the crossing, e_a · Σ_k w_k v_k, w the barycentric weights of the
+///    crossing on the triangle [GSLF05]. A face next to a solid cell is always crossed.
+///    A sheet thinner than a cell still cuts every segment through it, so no fluid, smoke or
+///    pressure passes it;
+///  - every geometric query that reads a cell value at a point (advection, the pressure
+///    samples of J) reads only cells whose centre the point sees without crossing a body
+///    triangle (GridSolids::visible): a thin sheet separates its two sides.
+///
+/// Faces are numbered axis by axis: axis a has (n_a + 1) × n_b × n_c faces; face (i, j, k) of
+/// axis 0 lies at x = lo_x + i h_x between cells (i − 1, j, k) and (i, j, k), and so on.
+#include <array>
+#include <vector>
+
+#include "core/types.hpp"
+#include "mesh/remesh.hpp"
+#include "mesh/tet_mesh.hpp"
+
+namespace tetfsi::fluid {
+
+/// The grid: a box split into n[0] × n[1] × n[2] cells of size h[a] along axis a.
+struct GridSpec {
+  Vec3 lo = Vec3::Zero();
+  std::array<Index, 3> n = {1, 1, 1};
+  Vec3 h = Vec3::Ones();
+
+  /// n cells per axis over [lo, hi]. @throws InputError if a count is < 1 or the box empty.
+  static GridSpec from_cells(const Vec3& lo, const Vec3& hi, const std::array<Index, 3>& n);
+  /// Cells of about `cell_size` (m): n_a = max(1, round(L_a / cell_size)), h_a = L_a / n_a.
+  /// @throws InputError if cell_size ≤ 0 or not finite.
+  static GridSpec from_cell_size(const Vec3& lo, const Vec3& hi, double cell_size);
+
+  Index num_cells() const { return n[0] * n[1] * n[2]; }
+  /// Faces of axis a, and the first global face index of axis a (face_offset(3) = #F).
+  Index num_faces(int a) const;
+  Index face_offset(int a) const;
+  Index num_faces() const { return face_offset(3); }
+  double cell_volume() const { return h[0] * h[1] * h[2]; }
+  double face_area(int a) const { return cell_volume() / h[a]; }
+  Vec3 hi() const { return lo + Vec3(n[0] * h[0], n[1] * h[1], n[2] * h[2]); }
+
+  Index cell(Index i, Index j, Index k) const { return i + n[0] * (j + n[1] * k); }
+  std::array<Index, 3> cell_ijk(Index c) const;
+  Vec3 cell_centre(Index c) const;
+  /// Face (i, j, k) of axis a: (i, j, k) are x, y, z indices, the a-th in [0, n_a].
+  Index face(int a, Index i, Index j, Index k) const;
+  /// Axis and (i, j, k) of a global face.
+  int face_axis(Index f) const;
+  std::array<Index, 3> face_ijk(Index f) const;
+  Vec3 face_centre(Index f) const;
+  /// The cells on the two sides of face f: (below along the axis, above); −1 outside the box.
+  std::array<Index, 2> face_cells(Index f) const;
+  /// The box side (0..5 = −x, +x, −y, +y, −z, +z) of a face on the box, −1 for inner faces.
+  int face_side(Index f) const;
+  /// The cell containing x (clamped to the box).
+  Index cell_at(const Vec3& x) const;
+};
+
+/// A triangle crossing: body, triangle of its surface, barycentric weights of the point.
+struct SurfacePoint {
+  Index body = -1;
+  Index triangle = -1;
+  Vec3 bary = Vec3::Zero();
+};
+
+/// The bodies' surfaces on the grid: their triangles bucketed by cell for segment queries.
+class GridSolids {
+ public:
+  GridSolids() = default;
+  /// @param surfaces closed, outward-oriented body surfaces (mesh::SolidSurface::body is the
+  ///   body index used by SurfacePoint)
+  GridSolids(const GridSpec& g, std::vector<mesh::SolidSurface> surfaces);
+
+  const std::vector<mesh::SolidSurface>& surfaces() const { return m_surfaces; }
+  /// The first triangle the segment a → b crosses (nearest to a), if any; `t` its fraction.
+  bool first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit = nullptr,
+                      double* t = nullptr) const;
+  /// No triangle between a and b.
+  bool visible(const Vec3& a, const Vec3& b) const { return !first_crossing(a, b); }
+  /// Whether a triangle's bucket is within one cell of cell c (else every query near c is
+  /// trivially free).
+  bool near(Index c) const { return !m_near.empty() && m_near[c] != 0; }
+
+ private:
+  GridSpec m_grid;
+  std::vector<mesh::SolidSurface> m_surfaces;
+  std::vector<std::vector<std::pair<Index, Index>>> m_bucket;  ///< per cell: (body, triangle)
+  std::vector<std::uint8_t> m_near;
+};
+
+/// The classification of the grid's cells and faces against the box patches and the solids.
+struct GridCells {
+  GridSpec grid;
+  VecXi cell_body;  ///< #C: the body whose inside holds the cell centre, −1 for fluid cells
+  std::vector<mesh::FaceKind> face_kind;  ///< #F: Interior, Wall, Inflow, Open or Solid
+  VecXi face_patch;                       ///< #F: domain patch of a box face, −1 otherwise
+  std::vector<SurfacePoint> face_solid;   ///< #F: the crossing of a Solid face (body −1: none)
+  GridSolids solids;
+
+  bool fluid(Index c) const { return c >= 0 && cell_body[c] < 0; }
+  /// An open (pressure-coupled) face between two fluid cells, or a box Open face.
+  bool interior(Index f) const { return face_kind[f] == mesh::FaceKind::Interior; }
+};
+
+/// Classify: box faces by the domain's patches (later patches win), then the solids: cells
+/// inside a body, faces crossed by a triangle or next to a solid cell → Solid.
+/// @throws InputError naming the body if a body lies outside the box, or is smaller than a
+///   cell on two axes (a grain or a rod the grid cannot resolve; a sheet is thin on one).
+GridCells classify_grid(const GridSpec& g, const mesh::FluidDomain& domain,
+                        std::vector<mesh::SolidSurface> surfaces);
+
+}  // namespace tetfsi::fluid
