@@ -351,7 +351,7 @@ void mark_inside(const GridSpec& g, const mesh::SolidSurface& s, VecXi& cell_bod
     for (Index k = 0; k < g.n[2]; ++k) {
       const double zc = g.lo[2] + (static_cast<double>(k) + 0.5) * g.h[2];
       const auto below = std::lower_bound(zs.begin(), zs.end(), zc) - zs.begin();
-      if (below % 2 == 1) cell_body[cell_of_line(g, 2, ij.first, ij.second, k)] = s.body;
+      if (below % 2 == 1) cell_body[cell_of_line(g, 2, k, ij.first, ij.second)] = s.body;
     }
   }
 }

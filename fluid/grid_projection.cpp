@@ -1,0 +1,203 @@
+#include "fluid/grid_projection.hpp"
+
+#include <cmath>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/timer.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::FaceKind;
+
+namespace {
+
+/// Distance from a cell centre to the centre across face f (Interior) or to f (Open).
+double face_dual(const GridCells& gc, Index f) {
+  const double h = gc.grid.h[gc.grid.face_axis(f)];
+  return gc.face_kind[f] == FaceKind::Open ? 0.5 * h : h;
+}
+
+/// The fluid cell next to a box face (−1 if none).
+Index inner_cell(const GridCells& gc, Index f) {
+  const auto c = gc.grid.face_cells(f);
+  const Index in = c[0] >= 0 ? c[0] : c[1];
+  return gc.fluid(in) ? in : -1;
+}
+
+struct Numbering {
+  VecXi unknown;  ///< #C → unknown, −1 for solid cells
+  std::vector<Index> cell;
+};
+
+Numbering number_fluid_cells(const GridCells& gc) {
+  Numbering n;
+  n.unknown = VecXi::Constant(gc.grid.num_cells(), -1);
+  for (Index c = 0; c < gc.grid.num_cells(); ++c)
+    if (gc.fluid(c)) {
+      n.unknown[c] = static_cast<Index>(n.cell.size());
+      n.cell.push_back(c);
+    }
+  return n;
+}
+
+/// M = −V D G between fluid cells (SPD with the pins): M_cc = Σ A/d, M_cn = −A/d.
+SparseMatrix grid_pressure_matrix(const GridCells& gc, const Numbering& n, const Regions& r) {
+  const GridSpec& g = gc.grid;
+  std::vector<Triplet> trip;
+  trip.reserve(7 * n.cell.size());
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const FaceKind k = gc.face_kind[f];
+    if (k != FaceKind::Interior && k != FaceKind::Open) continue;
+    const double w = g.face_area(g.face_axis(f)) / face_dual(gc, f);
+    const auto c = g.face_cells(f);
+    if (k == FaceKind::Open) {
+      const Index in = inner_cell(gc, f);
+      if (in >= 0) trip.emplace_back(n.unknown[in], n.unknown[in], w);
+      continue;
+    }
+    const Index a = n.unknown[c[0]], b = n.unknown[c[1]];
+    trip.emplace_back(a, a, w);
+    trip.emplace_back(b, b, w);
+    trip.emplace_back(a, b, -w);
+    trip.emplace_back(b, a, -w);
+  }
+  const Index nu = static_cast<Index>(n.cell.size());
+  SparseMatrix M(nu, nu);
+  M.setFromTriplets(trip.begin(), trip.end());
+  // One pin per region without an Open face: double the diagonal of its first cell.
+  for (Index reg = 0; reg < r.count(); ++reg)
+    if (!r.has_open[reg])
+      M.coeffRef(n.unknown[r.first_cell[reg]], n.unknown[r.first_cell[reg]]) *= 2.0;
+  return M;
+}
+
+}  // namespace
+
+VecX grid_net_flux(const GridCells& gc, const VecX& u) {
+  const GridSpec& g = gc.grid;
+  VecX flux = VecX::Zero(g.num_cells());
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const double q = g.face_area(g.face_axis(f)) * u[f];
+    const auto c = g.face_cells(f);
+    if (gc.fluid(c[0])) flux[c[0]] += q;  // f is c[0]'s upper face
+    if (gc.fluid(c[1])) flux[c[1]] -= q;
+  }
+  return flux;
+}
+
+Regions grid_regions(const GridCells& gc) {
+  const GridSpec& g = gc.grid;
+  Regions r;
+  r.cell_region = VecXi::Constant(g.num_cells(), -1);
+  std::vector<std::vector<Index>> next(static_cast<size_t>(g.num_cells()));
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    if (!gc.interior(f)) continue;
+    const auto c = g.face_cells(f);
+    next[c[0]].push_back(c[1]);
+    next[c[1]].push_back(c[0]);
+  }
+  std::vector<Index> stack;
+  for (Index c0 = 0; c0 < g.num_cells(); ++c0) {
+    if (!gc.fluid(c0) || r.cell_region[c0] >= 0) continue;
+    const Index id = r.count();
+    r.has_open.push_back(false);
+    r.first_cell.push_back(c0);
+    r.cell_region[c0] = id;
+    stack.assign(1, c0);
+    while (!stack.empty()) {
+      const Index c = stack.back();
+      stack.pop_back();
+      for (Index d : next[c])
+        if (r.cell_region[d] < 0) {
+          r.cell_region[d] = id;
+          stack.push_back(d);
+        }
+    }
+  }
+  for (Index f = 0; f < g.num_faces(); ++f)
+    if (gc.face_kind[f] == FaceKind::Open) {
+      const Index in = inner_cell(gc, f);
+      if (in >= 0) r.has_open[r.cell_region[in]] = true;
+    }
+  return r;
+}
+
+ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, VecX& q,
+                              LinearSolver& solver) {
+  const GridSpec& g = gc.grid;
+  const Index nc = g.num_cells(), nf = g.num_faces();
+  TETFSI_CHECK(u.size() == nf, "u has {} entries for {} faces", u.size(), nf);
+  ProjectionReport rep;
+  double t0 = now_seconds();
+  const Numbering n = number_fluid_cells(gc);
+  const Index nu = static_cast<Index>(n.cell.size());
+  const Regions regions = grid_regions(gc);
+  const SparseMatrix M = grid_pressure_matrix(gc, n, regions);
+  rep.groups = nu;
+  // D u = 0 [Chentanez06, Eq. (2)] for u = u* − G q: M q = −V D u* + Σ_open (A/d) q_open.
+  const VecX flux = grid_net_flux(gc, u);
+  rep.divergence_before = flux.cwiseAbs().maxCoeff() / g.cell_volume();
+  VecX b(nu);
+  for (Index i = 0; i < nu; ++i) b[i] = -flux[n.cell[i]];
+  if (q_open.size() == nf)
+    for (Index f = 0; f < nf; ++f)
+      if (gc.face_kind[f] == FaceKind::Open && inner_cell(gc, f) >= 0)
+        b[n.unknown[inner_cell(gc, f)]] +=
+            g.face_area(g.face_axis(f)) / face_dual(gc, f) * q_open[f];
+  // A closed region's net boundary flux cannot be absorbed: remove it evenly (equal cells).
+  std::vector<double> sum(regions.count(), 0.0), abs_sum(regions.count(), 0.0);
+  std::vector<Index> cells(regions.count(), 0);
+  for (Index i = 0; i < nu; ++i) {
+    const Index r = regions.cell_region[n.cell[i]];
+    sum[r] += b[i];
+    abs_sum[r] += std::abs(b[i]);
+    ++cells[r];
+  }
+  for (Index r = 0; r < regions.count(); ++r) {
+    if (regions.has_open[r]) continue;
+    ++rep.pinned_regions;
+    if (abs_sum[r] > 0)
+      rep.incompatibility = std::max(rep.incompatibility, std::abs(sum[r]) / abs_sum[r]);
+  }
+  for (Index i = 0; i < nu; ++i) {
+    const Index r = regions.cell_region[n.cell[i]];
+    if (!regions.has_open[r]) b[i] -= sum[r] / static_cast<double>(cells[r]);
+  }
+  rep.assembly_s = now_seconds() - t0;
+
+  t0 = now_seconds();
+  solver.setup(M);
+  rep.setup_s = now_seconds() - t0;
+  VecX x = VecX::Zero(nu);
+  if (q.size() == nc)
+    for (Index i = 0; i < nu; ++i) x[i] = q[n.cell[i]];
+  const SolveReport sr = solver.solve(b, x);
+  rep.solve_s = sr.solve_s;
+  rep.converged = sr.converged;
+  rep.iterations = sr.iterations;
+  rep.residual = sr.residual;
+  TETFSI_REQUIRE(SolverError, x.allFinite(),
+                 "grid pressure solve ({}) returned a non-finite pressure after {} iterations",
+                 sr.backend, sr.iterations);
+  q = VecX::Zero(nc);
+  for (Index i = 0; i < nu; ++i) q[n.cell[i]] = x[i];
+  // [Chentanez06, Eq. (2)] u = u* − (h/ρ) G p on the pressure-coupled faces.
+  for (Index f = 0; f < nf; ++f) {
+    const FaceKind k = gc.face_kind[f];
+    if (k == FaceKind::Interior) {
+      const auto c = g.face_cells(f);
+      u[f] -= (q[c[1]] - q[c[0]]) / face_dual(gc, f);
+    } else if (k == FaceKind::Open) {
+      const Index in = inner_cell(gc, f);
+      if (in < 0) continue;
+      const double qo = q_open.size() == nf ? q_open[f] : 0.0;
+      const bool upper = g.face_cells(f)[1] < 0;  // the box's upper side: +e_a points out
+      u[f] -= (upper ? qo - q[in] : q[in] - qo) / face_dual(gc, f);
+    }
+  }
+  rep.divergence_after = grid_net_flux(gc, u).cwiseAbs().maxCoeff() / g.cell_volume();
+  return rep;
+}
+
+}  // namespace tetfsi::fluid

@@ -1,0 +1,34 @@
+#pragma once
+/// @file grid_projection.hpp
+/// The pressure projection on the MAC grid [Chentanez06, Eq. (2)], [Fedkiw01, §3]: one
+/// pressure unknown per fluid cell, the 7-point Laplacian between fluid cells joined by an
+/// Interior face, Dirichlet on Open box faces (the face half a cell from the centre), and
+/// Neumann (prescribed velocity) on Wall, Inflow and Solid faces.
+///
+///  - net outward flux of cell c: Σ_f s_cf A_f u_f (s_cf = +1 on its upper face along the
+///    axis, −1 on its lower one)
+///  - u_f ← u_f − (q_c2 − q_c1) / h_a on Interior faces, u_f ← u_f ∓ (q_open − q_c) / (h_a/2)
+///    on Open faces, q = (h/ρ) p
+///  - regions (fluid cells connected through Interior faces) without an Open face get one
+///    pin and their net boundary flux removed first, as on the tet mesh (operators.hpp).
+#include "core/linear_solver.hpp"
+#include "core/types.hpp"
+#include "fluid/grid.hpp"
+#include "fluid/operators.hpp"
+
+namespace tetfsi::fluid {
+
+/// Net outward flux per cell (#C, m³/s; 0 for solid cells) of face velocities u (#F).
+VecX grid_net_flux(const GridCells& gc, const VecX& u);
+
+/// Fluid regions of the grid: region per cell (−1 for solid cells), has_open, first cell.
+Regions grid_regions(const GridCells& gc);
+
+/// The projection: solve for q (#C, on exit; 0 in solid cells) so that every fluid cell's net
+/// outward flux is 0, then correct u (#F) on Interior and Open faces. On entry u holds u*
+/// with every prescribed face set. q_open: #F values of q on Open faces (empty: 0).
+/// @throws SolverError if the solve's setup fails or the result is not finite.
+ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, VecX& q,
+                              LinearSolver& solver);
+
+}  // namespace tetfsi::fluid
