@@ -1,6 +1,6 @@
 #pragma once
 /// @file grid.hpp
-/// The regular-grid (MAC) discretisation of the fluid [Harlow & Welch 1965], [Fedkiw01]: a
+/// The regular-grid (MAC) discretisation of the fluid [HarlowWelch65], [Fedkiw01]: a
 /// staggered grid over the fluid box, pressure at cell centres, the normal velocity u_f along
 /// +e_a on every face of axis a; and the solids on it [Chentanez06, §3.4, last paragraph]:
 ///

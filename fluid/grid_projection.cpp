@@ -135,7 +135,8 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
   const Regions regions = grid_regions(gc);
   const SparseMatrix M = grid_pressure_matrix(gc, n, regions);
   rep.groups = nu;
-  // D u = 0 [Chentanez06, Eq. (2)] for u = u* − G q: M q = −V D u* + Σ_open (A/d) q_open.
+  // D u = 0 (see [Chentanez06, Eq. (2)]; its grid discretisation) for u = u* − G q: M q = −V D u* +
+  // Σ_open (A/d) q_open.
   const VecX flux = grid_net_flux(gc, u);
   rep.divergence_before = flux.cwiseAbs().maxCoeff() / g.cell_volume();
   VecX b(nu);
@@ -182,7 +183,7 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
                  sr.backend, sr.iterations);
   q = VecX::Zero(nc);
   for (Index i = 0; i < nu; ++i) q[n.cell[i]] = x[i];
-  // [Chentanez06, Eq. (2)] u = u* − (h/ρ) G p on the pressure-coupled faces.
+  // see [Chentanez06, Eq. (2)]: u = u* − (h/ρ) G p on the pressure-coupled faces.
   for (Index f = 0; f < nf; ++f) {
     const FaceKind k = gc.face_kind[f];
     if (k == FaceKind::Interior) {

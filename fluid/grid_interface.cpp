@@ -1,0 +1,148 @@
+#include "fluid/grid_interface.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "core/error.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::FaceKind;
+
+GridInterface::GridInterface(const GridCells& gc, std::vector<BodyInterface> bodies)
+    : m_gc(&gc), m_bodies(std::move(bodies)) {
+  m_offsets.assign(m_bodies.size() + 1, 0);
+  for (size_t b = 0; b < m_bodies.size(); ++b)
+    m_offsets[b + 1] = m_offsets[b] + m_bodies[b].num_nodes;
+  const GridSpec& g = gc.grid;
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    if (gc.face_kind[f] != FaceKind::Solid) continue;
+    const SurfacePoint& sp = gc.face_solid[f];
+    if (sp.body < 0) continue;  // no crossing found: the face keeps velocity 0
+    TETFSI_REQUIRE(MeshError, sp.body < static_cast<Index>(m_bodies.size()),
+                   "grid Solid face {} refers to body {} of {}", f, sp.body, m_bodies.size());
+    const BodyInterface& bi = m_bodies[sp.body];
+    TETFSI_REQUIRE(MeshError, sp.triangle >= 0 && sp.triangle < bi.triangles.rows(),
+                   "grid Solid face {} refers to triangle {} of body {} ({} triangles)", f,
+                   sp.triangle, sp.body, bi.triangles.rows());
+    GridInterfaceFace i;
+    i.face = f;
+    i.axis = g.face_axis(f);
+    i.body = sp.body;
+    for (int k = 0; k < 3; ++k) {
+      i.node[k] = bi.surface_node[bi.triangles(sp.triangle, k)];
+      i.dof[k] = 3 * (m_offsets[sp.body] + i.node[k]);
+      i.weight[k] = sp.bary[k];
+    }
+    m_faces.push_back(i);
+  }
+}
+
+void GridInterface::apply_H(const std::vector<VecX>& u, VecX& u_face) const {
+  for (const GridInterfaceFace& i : m_faces) {
+    if (u[i.body].size() == 0) continue;
+    double v = 0;  // [Chentanez06, §3.4] the flux at the crossing [GSLF05]
+    for (int k = 0; k < 3; ++k) v += i.weight[k] * u[i.body][3 * i.node[k] + i.axis];
+    u_face[i.face] = v;
+  }
+}
+
+SparseMatrix GridInterface::H() const {
+  Triplets t;
+  for (const GridInterfaceFace& i : m_faces)
+    for (int k = 0; k < 3; ++k) t.emplace_back(i.face, i.dof[k] + i.axis, i.weight[k]);
+  SparseMatrix H(m_gc->grid.num_faces(), num_dofs());
+  H.setFromTriplets(t.begin(), t.end());
+  return H;
+}
+
+SparseMatrix GridInterface::D1() const {
+  const GridSpec& g = m_gc->grid;
+  Triplets t;
+  for (const GridInterfaceFace& i : m_faces) {
+    const auto c = g.face_cells(i.face);
+    const double a = g.face_area(i.axis) / g.cell_volume();
+    if (m_gc->fluid(c[0])) t.emplace_back(c[0], i.face, a);  // c[0]'s upper face
+    if (m_gc->fluid(c[1])) t.emplace_back(c[1], i.face, -a);
+  }
+  SparseMatrix D(g.num_cells(), g.num_faces());
+  D.setFromTriplets(t.begin(), t.end());
+  return D;
+}
+
+SparseMatrix GridInterface::J_consistent() const {
+  // J = (V D1 H)ᵀ [DESIGN.md §3, on the grid]
+  const SparseMatrix VD1H = (m_gc->grid.cell_volume() * D1()) * H();
+  return SparseMatrix(VD1H.transpose());
+}
+
+std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
+  const GridSpec& g = gc.grid;
+  std::array<Index, 3> base{};
+  Vec3 frac;
+  for (int a = 0; a < 3; ++a) {
+    const double s = (x[a] - g.lo[a]) / g.h[a] - 0.5;
+    base[a] = static_cast<Index>(std::floor(s));
+    frac[a] = s - static_cast<double>(base[a]);
+  }
+  const bool near = gc.solids.near(g.cell_at(x));
+  std::vector<std::pair<Index, double>> st;
+  double sum = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    std::array<Index, 3> ijk{};
+    double w = 1;
+    for (int a = 0; a < 3; ++a) {
+      const int up = (corner >> a) & 1;
+      ijk[a] = std::clamp<Index>(base[a] + up, 0, g.n[a] - 1);
+      w *= up ? frac[a] : 1.0 - frac[a];
+    }
+    const Index c = g.cell(ijk[0], ijk[1], ijk[2]);
+    if (w <= 0 || !gc.fluid(c) || (near && !gc.solids.visible(x, g.cell_centre(c)))) continue;
+    st.emplace_back(c, w);
+    sum += w;
+  }
+  for (auto& [c, w] : st) w /= sum;
+  return st;
+}
+
+SparseMatrix GridInterface::J_paper(int per_cell) const {
+  const GridSpec& g = m_gc->grid;
+  const double hmin = g.h.minCoeff();
+  Triplets t;
+  for (const mesh::SolidSurface& s : m_gc->solids.surfaces()) {
+    const BodyInterface& bi = m_bodies[s.body];
+    for (Index tri = 0; tri < s.triangles.rows(); ++tri) {
+      Vec3 p[3];
+      for (int k = 0; k < 3; ++k) p[k] = s.vertices.row(s.triangles(tri, k)).transpose();
+      const Vec3 cr = (p[1] - p[0]).cross(p[2] - p[0]);
+      const double area = 0.5 * cr.norm();
+      if (!(area > 0)) continue;
+      const Vec3 n = cr.normalized();  // outward: from the solid into the fluid
+      const double edge =
+          std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
+      const int m = std::max(1, static_cast<int>(std::ceil(per_cell * edge / hmin)));
+      const double aq = area / (m * m);
+      // The m² sub-triangles' centroids: barycentric ((i + 1/3 or 2/3), (j + …)) / m.
+      for (int i = 0; i < m; ++i)
+        for (int j = 0; i + j < m; ++j)
+          for (int up = 0; up < 2 && (up == 0 || i + j + 1 < m); ++up) {
+            const double o = up ? 2.0 / 3.0 : 1.0 / 3.0;
+            const Vec3 w((i + o) / m, (j + o) / m, 1.0 - (i + j + 2 * o) / m);
+            const Vec3 xq = w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
+            // [Chentanez06, §3.4] ∫ p n over the solid face, the pressure read on its own side
+            for (const auto& [c, wc] : grid_cell_stencil(*m_gc, xq + 1e-6 * hmin * n))
+              for (int k = 0; k < 3; ++k) {
+                const Index dof = 3 * (m_offsets[s.body] + bi.surface_node[s.triangles(tri, k)]);
+                for (int d = 0; d < 3; ++d) t.emplace_back(dof + d, c, -w[k] * aq * wc * n[d]);
+              }
+          }
+    }
+  }
+  SparseMatrix J(num_dofs(), g.num_cells());
+  J.setFromTriplets(t.begin(), t.end());
+  return J;
+}
+
+}  // namespace tetfsi::fluid
