@@ -1,0 +1,113 @@
+#include "fluid/grid_advect.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "fluid/grid_interface.hpp"
+
+namespace tetfsi::fluid {
+
+namespace {
+
+/// Side-aware trilinear interpolation of the faces of axis a at x.
+double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x) {
+  const GridSpec& g = gc.grid;
+  std::array<Index, 3> base{};
+  Vec3 frac;
+  for (int b = 0; b < 3; ++b) {
+    const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
+    base[b] = static_cast<Index>(std::floor(s));
+    frac[b] = s - static_cast<double>(base[b]);
+  }
+  const bool near = gc.solids.near(g.cell_at(x));
+  double sum = 0, value = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    std::array<Index, 3> ijk{};
+    double w = 1;
+    for (int b = 0; b < 3; ++b) {
+      const int up = (corner >> b) & 1;
+      ijk[b] = std::clamp<Index>(base[b] + up, 0, g.n[b] - (b == a ? 0 : 1));
+      w *= up ? frac[b] : 1.0 - frac[b];
+    }
+    const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
+    const auto c = g.face_cells(f);
+    if (w <= 0 || (!gc.fluid(c[0]) && !gc.fluid(c[1]))) continue;
+    if (near && !gc.solids.visible(x, g.face_centre(f))) continue;
+    value += w * u[f];
+    sum += w;
+  }
+  return sum > 0 ? value / sum : 0.0;
+}
+
+/// b moved back inside the box and to just before the first body triangle on a → b.
+Vec3 stop(const GridCells& gc, const Vec3& a, Vec3 b, bool& clamped) {
+  const GridSpec& g = gc.grid;
+  const double hmin = g.h.minCoeff(), margin = 1e-6 * hmin;
+  const Vec3 lo = g.lo.array() + margin, hi = g.hi().array() - margin;
+  const Vec3 inside = b.cwiseMax(lo).cwiseMin(hi);
+  if (inside != b) clamped = true;
+  b = inside;
+  double s = 0;
+  if (gc.solids.first_crossing(a, b, nullptr, &s)) {
+    const double len = (b - a).norm();
+    b = a + std::max(0.0, s - 1e-3 * hmin / len) * (b - a);
+    clamped = true;
+  }
+  return b;
+}
+
+}  // namespace
+
+Vec3 grid_velocity_at(const GridCells& gc, const VecX& u, const Vec3& x) {
+  return Vec3(face_component_at(gc, u, 0, x), face_component_at(gc, u, 1, x),
+              face_component_at(gc, u, 2, x));
+}
+
+Vec3 grid_trace_back(const GridCells& gc, const VecX& u, const Vec3& x, double h, bool& clamped) {
+  // [Stam99] RK2 (midpoint) back-trace
+  const Vec3 xm = stop(gc, x, x - 0.5 * h * grid_velocity_at(gc, u, x), clamped);
+  return stop(gc, x, x - h * grid_velocity_at(gc, u, xm), clamped);
+}
+
+GridAdvected grid_advect(const GridCells& old, const GridCells& now, const VecX& u,
+                         const Eigen::MatrixXd& scalars, double h, const Eigen::VectorXd& fill) {
+  const GridSpec& g = now.grid;
+  TETFSI_CHECK(
+      u.size() == g.num_faces() && scalars.rows() == g.num_cells() && fill.size() == scalars.cols(),
+      "grid_advect: sizes u {}, scalars {} × {}, fill {}", u.size(), scalars.rows(), scalars.cols(),
+      fill.size());
+  GridAdvected out;
+  out.u = VecX::Zero(g.num_faces());
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const mesh::FaceKind k = now.face_kind[f];
+    if (k != mesh::FaceKind::Interior && k != mesh::FaceKind::Open) continue;
+    bool clamped = false;
+    const Vec3 x = grid_trace_back(old, u, g.face_centre(f), h, clamped);
+    out.traces_clamped += clamped;
+    out.u[f] = face_component_at(old, u, g.face_axis(f), x);
+  }
+  out.scalars.resize(g.num_cells(), scalars.cols());
+  for (Index c = 0; c < g.num_cells(); ++c) {
+    if (!now.fluid(c)) {
+      out.scalars.row(c) = fill.transpose();
+      continue;
+    }
+    bool clamped = false;
+    const Vec3 x = grid_trace_back(old, u, g.cell_centre(c), h, clamped);
+    out.traces_clamped += clamped;
+    const auto st = grid_cell_stencil(old, x);
+    if (st.empty()) {
+      if (old.fluid(c))
+        out.scalars.row(c) = scalars.row(c);
+      else
+        out.scalars.row(c) = fill.transpose();
+      continue;
+    }
+    out.scalars.row(c).setZero();
+    for (const auto& [d, w] : st) out.scalars.row(c) += w * scalars.row(d);
+  }
+  return out;
+}
+
+}  // namespace tetfsi::fluid
