@@ -1,0 +1,272 @@
+#include "fluid/grid_simulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "fluid/forces.hpp"
+#include "fluid/grid_advect.hpp"
+#include "fluid/grid_interface.hpp"
+#include "fluid/grid_projection.hpp"
+
+namespace tetfsi::fluid {
+
+using mesh::FaceKind;
+
+namespace {
+
+void check_grid_params(const FluidParams& p) {
+  TETFSI_REQUIRE(InputError, std::isfinite(p.density) && p.density > 0,
+                 "fluid.density must be positive, got {}", p.density);
+  TETFSI_REQUIRE(InputError, p.gravity.allFinite(), "fluid.gravity must be finite");
+  TETFSI_REQUIRE(InputError, p.vorticity_confinement == 0,
+                 "fluid.vorticity_confinement is not available on the grid yet: set it to 0");
+  TETFSI_REQUIRE(InputError, p.enclosed_density == 0 || p.enclosed_density == p.density,
+                 "fluid.enclosed_density is not available on the grid yet: remove it");
+  for (double v : {p.buoyancy_alpha, p.buoyancy_beta, p.smoke_decay, p.temperature_decay})
+    TETFSI_REQUIRE(InputError, std::isfinite(v) && v >= 0,
+                   "fluid: buoyancy and decay rates must be finite and >= 0, got {}", v);
+}
+
+/// +1 if +e_a points out of the box at a box face (its upper side), −1 at its lower side.
+double outward_sign(const GridSpec& g, Index f) {
+  return g.face_cells(f)[1] < 0 ? 1.0 : -1.0;
+}
+
+const PatchConditions* patch_of(const GridCells& gc, const FluidParams& p, Index f) {
+  const Index pi = gc.face_patch[f];
+  return pi >= 0 && pi < static_cast<Index>(p.patches.size()) ? &p.patches[pi] : nullptr;
+}
+
+/// Walls 0, Inflow faces the patch's speed into the box, Solid faces (H v)_f.
+void set_boundary_velocity(const GridCells& gc, const FluidParams& p,
+                           const std::vector<SolidSurfaceMotion>& motions, VecX& u) {
+  const GridSpec& g = gc.grid;
+  std::vector<double> area(p.patches.size(), 0.0);
+  for (Index f = 0; f < g.num_faces(); ++f)
+    if (gc.face_kind[f] == FaceKind::Inflow && patch_of(gc, p, f))
+      area[gc.face_patch[f]] += g.face_area(g.face_axis(f));
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const FaceKind k = gc.face_kind[f];
+    if (k == FaceKind::Interior || k == FaceKind::Open) continue;
+    u[f] = 0.0;
+    const PatchConditions* pc = patch_of(gc, p, f);
+    if (k != FaceKind::Inflow || !pc) continue;
+    double speed = pc->inflow_speed;
+    if (pc->area > 0 && area[gc.face_patch[f]] > 0) speed *= pc->area / area[gc.face_patch[f]];
+    u[f] = -outward_sign(g, f) * speed;
+  }
+  if (motions.empty()) return;
+  std::vector<BodyInterface> bodies(motions.size());
+  std::vector<VecX> v(motions.size());
+  for (size_t b = 0; b < motions.size(); ++b) {
+    const Index n = motions[b].velocity.rows();
+    bodies[b] = BodyInterface{motions[b].triangles, VecXi::LinSpaced(n, 0, n - 1), n};
+    v[b] = flat(motions[b].velocity);
+  }
+  GridInterface(gc, std::move(bodies)).apply_H(v, u);  // see [Chentanez06, §3.4]
+}
+
+/// Volume sources, and the cells next to an Inflow face take the patch's smoke.
+void apply_sources(const GridCells& gc, const FluidParams& p, VecX& density, VecX& temperature) {
+  const GridSpec& g = gc.grid;
+  for (Index c = 0; c < g.num_cells(); ++c) {
+    if (!gc.fluid(c)) continue;
+    const Vec3 x = g.cell_centre(c);
+    for (const SmokeSource& s : p.sources) {
+      if ((x.array() < s.lo.array()).any() || (x.array() > s.hi.array()).any()) continue;
+      density[c] = std::max(density[c], s.smoke_density);
+      if (s.emits_temperature) temperature[c] = s.temperature;
+    }
+  }
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    if (gc.face_kind[f] != FaceKind::Inflow) continue;
+    const PatchConditions* pc = patch_of(gc, p, f);
+    const auto cells = g.face_cells(f);
+    const Index c = cells[0] >= 0 ? cells[0] : cells[1];
+    if (!pc || !gc.fluid(c)) continue;
+    density[c] = pc->smoke_density;
+    temperature[c] = pc->emits_temperature ? pc->temperature : p.ambient_temperature;
+  }
+}
+
+/// u_f += h e_a · (mean of its fluid cells' buoyancy) on Interior and Open faces.
+void add_buoyancy(const GridCells& gc, const FluidParams& p, const VecX& density,
+                  const VecX& temperature, double h, VecX& u) {
+  if (p.buoyancy_alpha == 0 && p.buoyancy_beta == 0) return;
+  const GridSpec& g = gc.grid;
+  const MatX3 a = buoyancy(p, density, temperature);
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const FaceKind k = gc.face_kind[f];
+    if (k != FaceKind::Interior && k != FaceKind::Open) continue;
+    const int ax = g.face_axis(f);
+    double s = 0;
+    int n = 0;
+    for (Index c : g.face_cells(f))
+      if (gc.fluid(c)) {
+        s += a(c, ax);
+        ++n;
+      }
+    if (n > 0) u[f] += h * s / n;
+  }
+}
+
+}  // namespace
+
+GridFluid::GridFluid(FluidParams params, GridSpec grid, mesh::FluidDomain domain)
+    : m_params(std::move(params)), m_grid(grid), m_domain(std::move(domain)) {
+  check_grid_params(m_params);
+}
+
+void GridFluid::initialize(std::vector<mesh::SolidSurface> surfaces) {
+  m_cells = classify_grid(m_grid, m_domain, std::move(surfaces));
+  const Index nc = m_grid.num_cells();
+  m_state.u = VecX::Zero(m_grid.num_faces());
+  m_state.density = VecX::Zero(nc);
+  m_state.temperature = VecX::Constant(nc, m_params.ambient_temperature);
+  m_state.p = VecX::Zero(nc);
+  apply_sources(m_cells, m_params, m_state.density, m_state.temperature);
+  for (Index c = 0; c < nc; ++c)
+    if (m_cells.fluid(c))
+      m_state.p[c] = hydrostatic_pressure(m_params.density, m_params.gravity,
+                                          m_params.hydrostatic_origin, m_grid.cell_centre(c));
+  m_time = 0.0;
+  m_initialized = true;
+}
+
+GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
+                                  const std::vector<SolidSurfaceMotion>& motions, double h,
+                                  PhaseTimes& phases) const {
+  TETFSI_CHECK(m_initialized, "GridFluid::predict before initialize");
+  TETFSI_REQUIRE(InputError, std::isfinite(h) && h > 0, "fluid step: dt must be positive, got {}",
+                 h);
+  GridPrediction pred;
+  pred.h = h;
+  {  // [Chentanez06, Eq. (1)] without the pressure: advection, then the forces
+    ScopedTimer timer(phases, "transfer");
+    pred.cells = classify_grid(m_grid, m_domain, std::move(surfaces));
+    Eigen::MatrixXd s(m_grid.num_cells(), 2);
+    s.col(0) = m_state.density;
+    s.col(1) = m_state.temperature;
+    const GridAdvected a = grid_advect(m_cells, pred.cells, m_state.u, s, h,
+                                       Eigen::Vector2d(0.0, m_params.ambient_temperature));
+    pred.u_star = a.u;
+    pred.density = a.scalars.col(0);
+    pred.temperature = a.scalars.col(1);
+    pred.traces_clamped = a.traces_clamped;
+  }
+  ScopedTimer timer(phases, "forces");
+  const double T0 = m_params.ambient_temperature;
+  if (m_params.smoke_decay > 0) pred.density *= std::exp(-m_params.smoke_decay * h);
+  if (m_params.temperature_decay > 0)
+    pred.temperature =
+        ((pred.temperature.array() - T0) * std::exp(-m_params.temperature_decay * h) + T0).matrix();
+  apply_sources(pred.cells, m_params, pred.density, pred.temperature);
+  add_buoyancy(pred.cells, m_params, pred.density, pred.temperature, h, pred.u_star);
+  set_boundary_velocity(pred.cells, m_params, motions, pred.u_star);
+  pred.p_open = VecX::Zero(m_grid.num_faces());
+  for (Index f = 0; f < m_grid.num_faces(); ++f)
+    if (pred.cells.face_kind[f] == FaceKind::Open)
+      if (const PatchConditions* pc = patch_of(pred.cells, m_params, f))
+        pred.p_open[f] = pc->pressure;
+  return pred;
+}
+
+std::pair<VecX, VecX> GridFluid::project(const GridPrediction& pred, FluidStepReport& rep,
+                                         PhaseTimes& phases) {
+  if (!m_solver)
+    m_solver = make_linear_solver(m_params.solver,
+                                  SolverOptions{.rel_tol = m_params.solver_rel_tol,
+                                                .max_iterations = m_params.solver_max_iterations});
+  const double s = pred.h / m_params.density;  // q = (h/ρ) p
+  VecX u = pred.u_star, q;                     // zero initial guess
+  const ProjectionReport pr = grid_project(pred.cells, s * pred.p_open, u, q, *m_solver);
+  phases.add("assembly", pr.assembly_s);
+  phases.add("solve", pr.setup_s + pr.solve_s);
+  rep.converged = pr.converged;
+  rep.iterations = pr.iterations;
+  rep.residual = pr.residual;
+  rep.divergence_before = pr.divergence_before;
+  rep.divergence_after = pr.divergence_after;
+  TETFSI_REQUIRE(SolverError, pr.converged,
+                 "grid pressure solve did not converge ({} iterations, residual {:.3g}): lower "
+                 "the time step or raise fluid.solver_max_iterations",
+                 pr.iterations, pr.residual);
+  return {std::move(u), q / s};
+}
+
+FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, FluidStepReport rep) {
+  TETFSI_REQUIRE(SolverError, u.allFinite() && p_dyn.allFinite(),
+                 "the grid fluid's velocity or pressure became non-finite at t = {}: lower the "
+                 "time step",
+                 m_time + pred.h);
+  const GridSpec& g = m_grid;
+  const GridCells& gc = pred.cells;
+  for (Index c = 0; c < g.num_cells(); ++c)
+    p_dyn[c] = gc.fluid(c)
+                   ? p_dyn[c] + hydrostatic_pressure(m_params.density, m_params.gravity,
+                                                     m_params.hydrostatic_origin, g.cell_centre(c))
+                   : 0.0;
+  m_state = GridState{std::move(u), std::move(p_dyn), std::move(pred.density),
+                      std::move(pred.temperature)};
+  m_cells = std::move(pred.cells);
+  m_time += pred.h;
+  rep.traces_clamped = pred.traces_clamped;
+  const MatX3 uc = cell_velocities();
+  rep.kinetic_energy = rep.smoke_mass = rep.max_speed = rep.cfl = 0.0;
+  for (Index c = 0; c < g.num_cells(); ++c) {
+    if (!m_cells.fluid(c)) continue;
+    rep.kinetic_energy += 0.5 * m_params.density * g.cell_volume() * uc.row(c).squaredNorm();
+    rep.smoke_mass += g.cell_volume() * m_state.density[c];
+    rep.cfl = std::max(rep.cfl, pred.h * uc.row(c).norm() / g.h.minCoeff());
+  }
+  rep.inflow_flux = rep.outflow_flux = rep.solid_flux = 0.0;
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const double q = g.face_area(g.face_axis(f)) * m_state.u[f];
+    rep.max_speed = std::max(rep.max_speed, std::abs(m_state.u[f]));
+    if (m_cells.face_kind[f] == FaceKind::Inflow) rep.inflow_flux -= outward_sign(g, f) * q;
+    if (m_cells.face_kind[f] == FaceKind::Open) rep.outflow_flux += outward_sign(g, f) * q;
+    if (m_cells.face_kind[f] == FaceKind::Solid) {
+      const auto c = g.face_cells(f);  // out of each fluid cell next to it
+      rep.solid_flux += (m_cells.fluid(c[0]) ? q : 0.0) - (m_cells.fluid(c[1]) ? q : 0.0);
+    }
+  }
+  return rep;
+}
+
+FluidStepReport GridFluid::step(std::vector<mesh::SolidSurface> surfaces,
+                                const std::vector<SolidSurfaceMotion>& motions, double h,
+                                PhaseTimes& phases) {
+  GridPrediction pred = predict(std::move(surfaces), motions, h, phases);
+  FluidStepReport rep;
+  auto [u, p] = project(pred, rep, phases);
+  return commit(std::move(pred), std::move(u), std::move(p), rep);
+}
+
+void GridFluid::set_state(GridState s) {
+  const Index nc = m_grid.num_cells(), nf = m_grid.num_faces();
+  TETFSI_REQUIRE(
+      InputError,
+      s.u.size() == nf && s.p.size() == nc && s.density.size() == nc && s.temperature.size() == nc,
+      "grid state sizes u {}, p {}, density {}, temperature {} for {} faces, {} cells", s.u.size(),
+      s.p.size(), s.density.size(), s.temperature.size(), nf, nc);
+  TETFSI_REQUIRE(InputError, s.u.allFinite() && s.p.allFinite(), "grid state is not finite");
+  m_state = std::move(s);
+}
+
+MatX3 GridFluid::cell_velocities() const {
+  const GridSpec& g = m_grid;
+  MatX3 uc = MatX3::Zero(g.num_cells(), 3);
+  for (Index c = 0; c < g.num_cells(); ++c) {
+    const auto ijk = g.cell_ijk(c);
+    for (int a = 0; a < 3; ++a) {
+      std::array<Index, 3> up = ijk;
+      ++up[a];
+      uc(c, a) = 0.5 * (m_state.u[g.face(a, ijk[0], ijk[1], ijk[2])] +
+                        m_state.u[g.face(a, up[0], up[1], up[2])]);
+    }
+  }
+  return uc;
+}
+
+}  // namespace tetfsi::fluid

@@ -1,0 +1,85 @@
+#pragma once
+/// @file grid_simulation.hpp
+/// The fluid on the MAC grid, one step at a time, with the same seam as the tet fluid
+/// (simulation.hpp): predict (advection, forces, sources, boundary values → v*), a projection
+/// (its own, or a coupled solve), commit. Solids are given by their surfaces at t + h and
+/// their surface velocities (one-way here).
+///
+/// Physics as on the tet mesh (FluidParams): smoke density and temperature, Boussinesq
+/// buoyancy [Fedkiw01, Eq. (8)] averaged from the cells to each face, decay, volume sources,
+/// Inflow patches (speed, and the cells next to them take the patch's smoke and
+/// temperature), Open patches' pressures, and liquids' hydrostatic split p = p_dyn + ρ g·x.
+/// Not yet on the grid: vorticity confinement and enclosed densities (InputError if set).
+#include <memory>
+#include <vector>
+
+#include "core/linear_solver.hpp"
+#include "core/timer.hpp"
+#include "fluid/grid.hpp"
+#include "fluid/params.hpp"
+#include "fluid/simulation.hpp"
+
+namespace tetfsi::fluid {
+
+struct GridState {
+  VecX u;            ///< #F face velocities along +e_a (m/s)
+  VecX p;            ///< #C total pressure at cell centres (Pa; 0 in solid cells)
+  VecX density;      ///< #C smoke density (kg/m³)
+  VecX temperature;  ///< #C (K)
+};
+
+/// The grid's part of a step up to its pressure: v* with every prescribed face set.
+struct GridPrediction {
+  GridCells cells;
+  double h = 0.0;
+  VecX u_star;
+  VecX density, temperature;
+  VecX p_open;  ///< #F dynamic pressure on Open faces (Pa)
+  Index traces_clamped = 0;
+};
+
+class GridFluid {
+ public:
+  /// @throws InputError for an invalid parameter (naming it) or an option the grid lacks.
+  GridFluid(FluidParams params, GridSpec grid, mesh::FluidDomain domain);
+
+  /// Start at rest around the bodies' surfaces (sources applied, hydrostatic pressure).
+  void initialize(std::vector<mesh::SolidSurface> surfaces);
+  /// Advect onto the grid classified around `surfaces` (at t + h), add forces and sources,
+  /// set Wall 0, Inflow ±speed, Solid faces from `motions` (one per surface, its vertex
+  /// velocities; empty: 0). Phases "transfer", "forces".
+  GridPrediction predict(std::vector<mesh::SolidSurface> surfaces,
+                         const std::vector<SolidSurfaceMotion>& motions, double h,
+                         PhaseTimes& phases) const;
+  /// Project pred.u_star (phases "assembly", "solve"): the face velocities and p_dyn (#C).
+  std::pair<VecX, VecX> project(const GridPrediction& pred, FluidStepReport& rep,
+                                PhaseTimes& phases);
+  /// End the step: state, time += h; fills the report's diagnostics.
+  /// @throws SolverError if u or p_dyn is not finite (the fluid is then unchanged).
+  FluidStepReport commit(GridPrediction pred, VecX u, VecX p_dyn, FluidStepReport rep = {});
+  /// predict, project, commit.
+  FluidStepReport step(std::vector<mesh::SolidSurface> surfaces,
+                       const std::vector<SolidSurfaceMotion>& motions, double h,
+                       PhaseTimes& phases);
+
+  /// Replace the state (tests: an initial velocity). @throws InputError on a size mismatch.
+  void set_state(GridState s);
+  const GridState& state() const { return m_state; }
+  const GridCells& cells() const { return m_cells; }
+  const FluidParams& params() const { return m_params; }
+  double time() const { return m_time; }
+  /// Velocity at the cell centres (#C × 3, the mean of each axis' two faces).
+  MatX3 cell_velocities() const;
+
+ private:
+  FluidParams m_params;
+  GridSpec m_grid;
+  mesh::FluidDomain m_domain;
+  GridCells m_cells;
+  GridState m_state;
+  std::unique_ptr<LinearSolver> m_solver;
+  double m_time = 0.0;
+  bool m_initialized = false;
+};
+
+}  // namespace tetfsi::fluid
