@@ -142,7 +142,7 @@ GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
                  h);
   GridPrediction pred;
   pred.h = h;
-  {  // [Chentanez06, Eq. (1)] without the pressure: advection, then the forces
+  {  // see [Chentanez06, Eq. (1)] without the pressure: advection, then the forces
     ScopedTimer timer(phases, "transfer");
     pred.cells = classify_grid(m_grid, m_domain, std::move(surfaces));
     Eigen::MatrixXd s(m_grid.num_cells(), 2);
