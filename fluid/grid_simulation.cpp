@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 #include "core/error.hpp"
 #include "fluid/forces.hpp"
 #include "fluid/grid_advect.hpp"
@@ -19,8 +21,8 @@ void check_grid_params(const FluidParams& p) {
   TETFSI_REQUIRE(InputError, std::isfinite(p.density) && p.density > 0,
                  "fluid.density must be positive, got {}", p.density);
   TETFSI_REQUIRE(InputError, p.gravity.allFinite(), "fluid.gravity must be finite");
-  TETFSI_REQUIRE(InputError, p.vorticity_confinement == 0,
-                 "fluid.vorticity_confinement is not available on the grid yet: set it to 0");
+  TETFSI_REQUIRE(InputError, std::isfinite(p.vorticity_confinement) && p.vorticity_confinement >= 0,
+                 "fluid.vorticity_confinement must be >= 0, got {}", p.vorticity_confinement);
   TETFSI_REQUIRE(InputError, p.enclosed_density == 0 || p.enclosed_density == p.density,
                  "fluid.enclosed_density is not available on the grid yet: remove it");
   for (double v : {p.buoyancy_alpha, p.buoyancy_beta, p.smoke_decay, p.temperature_decay})
@@ -90,12 +92,52 @@ void apply_sources(const GridCells& gc, const FluidParams& p, VecX& density, Vec
   }
 }
 
-/// u_f += h e_a · (mean of its fluid cells' buoyancy) on Interior and Open faces.
-void add_buoyancy(const GridCells& gc, const FluidParams& p, const VecX& density,
-                  const VecX& temperature, double h, VecX& u) {
-  if (p.buoyancy_alpha == 0 && p.buoyancy_beta == 0) return;
+/// Central difference along axis a of a cell field at c, one-sided next to non-fluid cells
+/// and the box (0 if both neighbours are missing).
+double cell_derivative(const GridCells& gc, const Eigen::Ref<const VecX>& v, Index c, int a) {
   const GridSpec& g = gc.grid;
-  const MatX3 a = buoyancy(p, density, temperature);
+  const auto ijk = g.cell_ijk(c);
+  Index nb[2] = {-1, -1};
+  for (int s = 0; s < 2; ++s) {
+    auto q = ijk;
+    q[a] += s ? 1 : -1;
+    if (q[a] >= 0 && q[a] < g.n[a] && gc.fluid(g.cell(q[0], q[1], q[2])))
+      nb[s] = g.cell(q[0], q[1], q[2]);
+  }
+  if (nb[0] >= 0 && nb[1] >= 0) return (v[nb[1]] - v[nb[0]]) / (2 * g.h[a]);
+  if (nb[1] >= 0) return (v[nb[1]] - v[c]) / g.h[a];
+  if (nb[0] >= 0) return (v[c] - v[nb[0]]) / g.h[a];
+  return 0.0;
+}
+
+/// Per-cell vorticity confinement ε h (N × ω), N = ∇|ω| / |∇|ω|| [Fedkiw01, Eq. (11)] on the
+/// grid's cell-centred velocity (see forces.hpp for the tet mesh's).
+MatX3 grid_confinement(const GridCells& gc, const MatX3& uc, double epsilon) {
+  const GridSpec& g = gc.grid;
+  const Index nc = g.num_cells();
+  MatX3 w = MatX3::Zero(nc, 3), a = MatX3::Zero(nc, 3);
+  for (Index c = 0; c < nc; ++c) {
+    if (!gc.fluid(c)) continue;
+    const auto d = [&](int comp, int ax) { return cell_derivative(gc, uc.col(comp), c, ax); };
+    w.row(c) << d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1);
+  }
+  const VecX wn = w.rowwise().norm();
+  const double hc = g.h.mean();
+  for (Index c = 0; c < nc; ++c) {
+    if (!gc.fluid(c)) continue;
+    const Vec3 grad(cell_derivative(gc, wn, c, 0), cell_derivative(gc, wn, c, 1),
+                    cell_derivative(gc, wn, c, 2));
+    const double gn = grad.norm();
+    if (gn < 1e-12 * (wn[c] / hc + 1e-300)) continue;
+    // see [Fedkiw01, Eq. (11)]: f_conf = ε h (N × ω)
+    a.row(c) = epsilon * hc * (grad / gn).cross(w.row(c).transpose()).transpose();
+  }
+  return a;
+}
+
+/// u_f += h e_a · (mean of its fluid cells' acceleration) on Interior and Open faces.
+void add_cell_acceleration(const GridCells& gc, const MatX3& a, double h, VecX& u) {
+  const GridSpec& g = gc.grid;
   for (Index f = 0; f < g.num_faces(); ++f) {
     const FaceKind k = gc.face_kind[f];
     if (k != FaceKind::Interior && k != FaceKind::Open) continue;
@@ -109,6 +151,15 @@ void add_buoyancy(const GridCells& gc, const FluidParams& p, const VecX& density
       }
     if (n > 0) u[f] += h * s / n;
   }
+}
+
+/// Buoyancy [Fedkiw01, Eq. (8)] and vorticity confinement, averaged from the cells to faces.
+void add_forces(const GridCells& gc, const FluidParams& p, const VecX& density,
+                const VecX& temperature, const MatX3& uc, double h, VecX& u) {
+  if (p.buoyancy_alpha != 0 || p.buoyancy_beta != 0)
+    add_cell_acceleration(gc, buoyancy(p, density, temperature), h, u);
+  if (p.vorticity_confinement > 0)
+    add_cell_acceleration(gc, grid_confinement(gc, uc, p.vorticity_confinement), h, u);
 }
 
 }  // namespace
@@ -162,7 +213,8 @@ GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
     pred.temperature =
         ((pred.temperature.array() - T0) * std::exp(-m_params.temperature_decay * h) + T0).matrix();
   apply_sources(pred.cells, m_params, pred.density, pred.temperature);
-  add_buoyancy(pred.cells, m_params, pred.density, pred.temperature, h, pred.u_star);
+  add_forces(pred.cells, m_params, pred.density, pred.temperature,
+             fluid::cell_velocities(pred.cells, pred.u_star), h, pred.u_star);
   set_boundary_velocity(pred.cells, m_params, motions, pred.u_star);
   pred.p_open = VecX::Zero(m_grid.num_faces());
   for (Index f = 0; f < m_grid.num_faces(); ++f)
@@ -255,15 +307,18 @@ void GridFluid::set_state(GridState s) {
 }
 
 MatX3 GridFluid::cell_velocities() const {
-  const GridSpec& g = m_grid;
+  return fluid::cell_velocities(m_cells, m_state.u);
+}
+
+MatX3 cell_velocities(const GridCells& gc, const VecX& u) {
+  const GridSpec& g = gc.grid;
   MatX3 uc = MatX3::Zero(g.num_cells(), 3);
   for (Index c = 0; c < g.num_cells(); ++c) {
     const auto ijk = g.cell_ijk(c);
     for (int a = 0; a < 3; ++a) {
       std::array<Index, 3> up = ijk;
       ++up[a];
-      uc(c, a) = 0.5 * (m_state.u[g.face(a, ijk[0], ijk[1], ijk[2])] +
-                        m_state.u[g.face(a, up[0], up[1], up[2])]);
+      uc(c, a) = 0.5 * (u[g.face(a, ijk[0], ijk[1], ijk[2])] + u[g.face(a, up[0], up[1], up[2])]);
     }
   }
   return uc;

@@ -9,7 +9,9 @@
 /// buoyancy [Fedkiw01, Eq. (8)] averaged from the cells to each face, decay, volume sources,
 /// Inflow patches (speed, and the cells next to them take the patch's smoke and
 /// temperature), Open patches' pressures, and liquids' hydrostatic split p = p_dyn + ρ g·x.
-/// Not yet on the grid: vorticity confinement and enclosed densities (InputError if set).
+/// Vorticity confinement [Fedkiw01, Eq. (11)] on the cell-centred velocity (central
+/// differences, one-sided next to solids). Not yet on the grid: enclosed densities
+/// (InputError if set).
 #include <memory>
 #include <vector>
 
@@ -37,6 +39,9 @@ struct GridPrediction {
   VecX p_open;  ///< #F dynamic pressure on Open faces (Pa)
   Index traces_clamped = 0;
 };
+
+/// Velocity at the cell centres (#C × 3): the mean of each axis' two faces.
+MatX3 cell_velocities(const GridCells& gc, const VecX& u);
 
 class GridFluid {
  public:
