@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include "core/error.hpp"
 
@@ -107,6 +108,50 @@ std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, con
   return st;
 }
 
+std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x) {
+  std::vector<std::pair<Index, double>> st = grid_cell_stencil(gc, x);
+  const GridSpec& g = gc.grid;
+  std::array<Index, 3> base{};
+  bool interior = true;
+  for (int a = 0; a < 3; ++a) {
+    base[a] = static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a] - 0.5));
+    interior = interior && base[a] >= 0 && base[a] + 1 < g.n[a];
+  }
+  if (!interior) return st;
+  bool all_usable = true;
+  for (int corner = 0; corner < 8 && all_usable; ++corner) {
+    const Index c = g.cell(base[0] + (corner & 1), base[1] + ((corner >> 1) & 1),
+                           base[2] + ((corner >> 2) & 1));
+    all_usable =
+        gc.fluid(c) && (!gc.solids.near(g.cell_at(x)) || gc.solids.visible(x, g.cell_centre(c)));
+  }
+  if (all_usable) return st;
+  // Least squares over the usable cells of the 4 × 4 × 4 block: rows [1, (c − x)/h].
+  std::vector<Index> cells;
+  std::vector<Eigen::Vector4d> rows;
+  std::vector<double> wts;
+  for (Index k = base[2] - 1; k <= base[2] + 2; ++k)
+    for (Index j = base[1] - 1; j <= base[1] + 2; ++j)
+      for (Index i = base[0] - 1; i <= base[0] + 2; ++i) {
+        if (i < 0 || j < 0 || k < 0 || i >= g.n[0] || j >= g.n[1] || k >= g.n[2]) continue;
+        const Index c = g.cell(i, j, k);
+        if (!gc.fluid(c) || !gc.solids.visible(x, g.cell_centre(c))) continue;
+        const Vec3 d = (g.cell_centre(c) - x).cwiseQuotient(g.h);
+        cells.push_back(c);
+        rows.emplace_back(1.0, d[0], d[1], d[2]);
+        wts.push_back(1.0 / (1.0 + d.squaredNorm()));
+      }
+  if (cells.size() < 4) return st;
+  Eigen::Matrix4d N = Eigen::Matrix4d::Zero();
+  for (size_t r = 0; r < rows.size(); ++r) N += wts[r] * rows[r] * rows[r].transpose();
+  const Eigen::FullPivLU<Eigen::Matrix4d> lu(N);
+  if (lu.rank() < 4 || lu.rcond() < 1e-8) return st;
+  const Eigen::Vector4d e0 = lu.solve(Eigen::Vector4d::UnitX());  // a = e0ᵀ N⁻¹ Aᵀ W p
+  std::vector<std::pair<Index, double>> fit;
+  for (size_t r = 0; r < rows.size(); ++r) fit.emplace_back(cells[r], wts[r] * e0.dot(rows[r]));
+  return fit;
+}
+
 SparseMatrix GridInterface::J_paper(int per_cell) const {
   const GridSpec& g = m_gc->grid;
   const double hmin = g.h.minCoeff();
@@ -132,7 +177,7 @@ SparseMatrix GridInterface::J_paper(int per_cell) const {
             const Vec3 w((i + o) / m, (j + o) / m, 1.0 - (i + j + 2 * o) / m);
             const Vec3 xq = w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
             // [Chentanez06, §3.4] ∫ p n over the solid face, the pressure read on its own side
-            for (const auto& [c, wc] : grid_cell_stencil(*m_gc, xq + 1e-6 * hmin * n))
+            for (const auto& [c, wc] : grid_cell_stencil_linear(*m_gc, xq + 1e-6 * hmin * n))
               for (int k = 0; k < 3; ++k) {
                 const Index dof = 3 * (m_offsets[s.body] + bi.surface_node[s.triangles(tri, k)]);
                 for (int d = 0; d < 3; ++d) t.emplace_back(dof + d, c, -w[k] * aq * wc * n[d]);

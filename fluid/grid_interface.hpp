@@ -10,10 +10,11 @@
 ///  - D1 (#C × #F): (D1 u)_c = (1/V) Σ_{Solid f of c} s_cf A_f u_f (s_cf = +1 on c's upper
 ///    face along the axis);
 ///  - J, two forms:
-///     - paper (J_paper): the pressure interpolated (trilinear, side-aware: only fluid cells the
-///       sample point sees, weights renormalised) at quadrature points of every body triangle
-///       and integrated, node k of the triangle getting −w_k(x_q) A_q p(x_q) n_out; J stores
-///       the interpolation stencils. Exact for a linear pressure away from solid cells;
+///     - paper (J_paper): the pressure interpolated (side-aware: only fluid cells the sample
+///       point sees; trilinear, or a linear least-squares fit where a trilinear corner is
+///       missing, grid_cell_stencil_linear) at quadrature points of every body triangle and
+///       integrated, node k of the triangle getting −w_k(x_q) A_q p(x_q) n_out; J stores the
+///       interpolation stencils. Exact for a linear pressure;
 ///     - energy-consistent (J_consistent) = (V D1 H)ᵀ: the pressure of cell c pushes each of its
 ///       Solid faces with s_cf A_f p_c e_a, spread by the crossing's weights. Then the power
 ///       the fluid does on the solid equals the power the solid does on the fluid, exactly.
@@ -70,5 +71,12 @@ class GridInterface {
 /// pairs over the fluid cells of the 2 × 2 × 2 block around x that x sees (GridSolids),
 /// weights summing to 1; empty if none.
 std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x);
+
+/// The same where all 8 cells are usable; otherwise a least-squares linear fit
+/// p ≈ a + b·(c − x) over the usable cells of the 4 × 4 × 4 block around x (weighted by
+/// 1/(1 + |c − x|²/h²)), returning a's stencil — exact for a linear field, which the
+/// renormalised stencil is not next to a solid. Falls back to grid_cell_stencil when fewer
+/// than 4 usable cells span a volume.
+std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x);
 
 }  // namespace tetfsi::fluid
