@@ -185,13 +185,17 @@ bool in_projected(const Vec2 q[3], const Vec2& p, Vec3& w) {
   return true;
 }
 
+/// The two axes other than a, in increasing order.
+std::array<int, 2> other_axes(int a) {
+  return a == 0 ? std::array{1, 2} : std::array{0, 3 - a};
+}
+
 /// Every grid line along axis a through cell-centre coordinates that crosses triangle T:
 /// visit(j, k, coordinate along a, barycentric weights), (j, k) the line's cell indices on
 /// the other two axes (in increasing axis order).
 template <class Visit>
 void rasterize_axis(const GridSpec& g, int a, const Tri& T, Visit&& visit) {
-  const int b = (a + 1) % 3 < (a + 2) % 3 ? (a + 1) % 3 : (a + 2) % 3;
-  const int c = 3 - a - b;
+  const auto [b, c] = other_axes(a);
   Vec2 q[3];
   for (int k = 0; k < 3; ++k) q[k] = Vec2(T.p[k][b], T.p[k][c]);
   const auto range = [&](int ax, double lo, double hi, Index& i0, Index& i1) {
@@ -212,23 +216,14 @@ void rasterize_axis(const GridSpec& g, int a, const Tri& T, Visit&& visit) {
     }
 }
 
-/// Cell (i, j, k) from the index along axis a and the two line indices (increasing axes).
-Index cell_of_line(const GridSpec& g, int a, Index i, Index j, Index k) {
+/// (i, j, k) of the point at index i along axis a on the grid line (j, k) (other_axes order).
+std::array<Index, 3> line_ijk(int a, Index i, Index j, Index k) {
+  const auto [b, c] = other_axes(a);
   std::array<Index, 3> ijk{};
-  const int b = (a + 1) % 3 < (a + 2) % 3 ? (a + 1) % 3 : (a + 2) % 3;
   ijk[a] = i;
   ijk[b] = j;
-  ijk[3 - a - b] = k;
-  return g.cell(ijk[0], ijk[1], ijk[2]);
-}
-
-Index face_of_line(const GridSpec& g, int a, Index i, Index j, Index k) {
-  std::array<Index, 3> ijk{};
-  const int b = (a + 1) % 3 < (a + 2) % 3 ? (a + 1) % 3 : (a + 2) % 3;
-  ijk[a] = i;
-  ijk[b] = j;
-  ijk[3 - a - b] = k;
-  return g.face(a, ijk[0], ijk[1], ijk[2]);
+  ijk[c] = k;
+  return ijk;
 }
 
 }  // namespace
@@ -351,7 +346,8 @@ void mark_inside(const GridSpec& g, const mesh::SolidSurface& s, VecXi& cell_bod
     for (Index k = 0; k < g.n[2]; ++k) {
       const double zc = g.lo[2] + (static_cast<double>(k) + 0.5) * g.h[2];
       const auto below = std::lower_bound(zs.begin(), zs.end(), zc) - zs.begin();
-      if (below % 2 == 1) cell_body[cell_of_line(g, 2, k, ij.first, ij.second)] = s.body;
+      const auto ijk = line_ijk(2, k, ij.first, ij.second);
+      if (below % 2 == 1) cell_body[g.cell(ijk[0], ijk[1], ijk[2])] = s.body;
     }
   }
 }
@@ -366,7 +362,8 @@ void mark_crossed(const GridSpec& g, const mesh::SolidSurface& s, GridCells& gc,
         if (x < g.lo[a] || x > g.hi()[a]) return;
         const Index i = std::clamp<Index>(
             static_cast<Index>(std::floor((x - g.lo[a]) / g.h[a] + 0.5)), 0, g.n[a]);
-        const Index f = face_of_line(g, a, i, j, k);
+        const auto ijk = line_ijk(a, i, j, k);
+        const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
         gc.face_kind[f] = FaceKind::Solid;
         const auto cells = g.face_cells(f);
         double ref = g.face_centre(f)[a];

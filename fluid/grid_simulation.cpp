@@ -154,12 +154,16 @@ void add_cell_acceleration(const GridCells& gc, const MatX3& a, double h, VecX& 
 }
 
 /// Buoyancy [Fedkiw01, Eq. (8)] and vorticity confinement, averaged from the cells to faces.
+/// Confinement reads the advected velocity before buoyancy is added.
 void add_forces(const GridCells& gc, const FluidParams& p, const VecX& density,
-                const VecX& temperature, const MatX3& uc, double h, VecX& u) {
+                const VecX& temperature, double h, VecX& u) {
+  const MatX3 confinement =
+      p.vorticity_confinement > 0
+          ? grid_confinement(gc, cell_velocities(gc, u), p.vorticity_confinement)
+          : MatX3();
   if (p.buoyancy_alpha != 0 || p.buoyancy_beta != 0)
     add_cell_acceleration(gc, buoyancy(p, density, temperature), h, u);
-  if (p.vorticity_confinement > 0)
-    add_cell_acceleration(gc, grid_confinement(gc, uc, p.vorticity_confinement), h, u);
+  if (p.vorticity_confinement > 0) add_cell_acceleration(gc, confinement, h, u);
 }
 
 }  // namespace
@@ -213,8 +217,7 @@ GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
     pred.temperature =
         ((pred.temperature.array() - T0) * std::exp(-m_params.temperature_decay * h) + T0).matrix();
   apply_sources(pred.cells, m_params, pred.density, pred.temperature);
-  add_forces(pred.cells, m_params, pred.density, pred.temperature,
-             fluid::cell_velocities(pred.cells, pred.u_star), h, pred.u_star);
+  add_forces(pred.cells, m_params, pred.density, pred.temperature, h, pred.u_star);
   set_boundary_velocity(pred.cells, m_params, motions, pred.u_star);
   pred.p_open = VecX::Zero(m_grid.num_faces());
   for (Index f = 0; f < m_grid.num_faces(); ++f)

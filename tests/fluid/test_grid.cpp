@@ -456,6 +456,24 @@ TEST_CASE("grid fluid: a liquid at rest around a body stays at rest, hydrostatic
             doctest::Approx(1000 * 9.81 * (1.0 - g.cell_centre(c)[2])).epsilon(1e-12));
 }
 
+namespace {
+
+/// u = sin x cos y, v = −cos x sin y on the faces: Taylor–Green in [0, π]², steady for Euler.
+void set_taylor_green(GridFluid& fluid) {
+  const GridSpec& g = fluid.cells().grid;
+  GridState s = fluid.state();
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const Vec3 x = g.face_centre(f);
+    const int a = g.face_axis(f);
+    s.u[f] = a == 0   ? std::sin(x[0]) * std::cos(x[1])
+             : a == 1 ? -std::cos(x[0]) * std::sin(x[1])
+                      : 0.0;
+  }
+  fluid.set_state(s);
+}
+
+}  // namespace
+
 TEST_CASE("grid fluid: Taylor-Green vortex loses less energy on a finer grid") {
   // u = sin x cos y, v = −cos x sin y in [0, π]² × [0, 1], walls: an exact steady Euler flow.
   double loss[2] = {0, 0};
@@ -467,15 +485,7 @@ TEST_CASE("grid fluid: Taylor-Green vortex loses less energy on a finer grid") {
     p.solver_rel_tol = 1e-10;
     GridFluid fluid(p, g, mesh::FluidDomain{});
     fluid.initialize({});
-    GridState s = fluid.state();
-    for (Index f = 0; f < g.num_faces(); ++f) {
-      const Vec3 x = g.face_centre(f);
-      const int a = g.face_axis(f);
-      s.u[f] = a == 0   ? std::sin(x[0]) * std::cos(x[1])
-               : a == 1 ? -std::cos(x[0]) * std::sin(x[1])
-                        : 0.0;
-    }
-    fluid.set_state(s);
+    set_taylor_green(fluid);
     PhaseTimes phases;
     double e0 = 0, e1 = 0;
     const double h = 0.05;
@@ -502,15 +512,7 @@ TEST_CASE("grid fluid: vorticity confinement puts energy back into a decaying vo
     p.vorticity_confinement = eps[r];
     GridFluid fluid(p, g, mesh::FluidDomain{});
     fluid.initialize({});
-    GridState s = fluid.state();
-    for (Index f = 0; f < g.num_faces(); ++f) {
-      const Vec3 x = g.face_centre(f);
-      const int a = g.face_axis(f);
-      s.u[f] = a == 0   ? std::sin(x[0]) * std::cos(x[1])
-               : a == 1 ? -std::cos(x[0]) * std::sin(x[1])
-                        : 0.0;
-    }
-    fluid.set_state(s);
+    set_taylor_green(fluid);
     PhaseTimes phases;
     double e0 = 0, e1 = 0;
     for (int step = 0; step < 20; ++step) {
