@@ -188,6 +188,9 @@ CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt
   const double t0 = now_seconds();
   CoupledSystem sys;
   sys.in = &in;
+  sys.bodies = in.bodies;
+  sys.interfaces = &in.interface->bodies();
+  sys.h = in.h;
   stack_free_dofs(in, sys);
   rep.solid_unknowns = sys.ns;
   group_cells(in, opt, sys);

@@ -29,7 +29,7 @@ void merge(const SolveReport& s, CoupledReport& rep) {
 /// form [Chentanez06, Eq. (7)]; 1: the symmetric form).
 SparseMatrix assemble_K(const CoupledSystem& sys, const VecX& rowscale) {
   const Index ns = sys.ns, ng = sys.ng;
-  const std::vector<CoupledBody>& bodies = *sys.in->bodies;
+  const std::vector<CoupledBody>& bodies = *sys.bodies;
   Triplets kt;
   for (Index b = 0; b < sys.nb; ++b) {
     if (!bodies[b].free) continue;
@@ -41,8 +41,12 @@ SparseMatrix assemble_K(const CoupledSystem& sys, const VecX& rowscale) {
   for (Index c = 0; c < sys.J.outerSize(); ++c)
     for (SparseMatrix::InnerIterator it(sys.J, c); it; ++it) {
       kt.emplace_back(it.row(), ns + it.col(), -it.value());
-      kt.emplace_back(ns + it.col(), it.row(), -it.value() * rowscale[it.col()]);
+      if (sys.symmetric) kt.emplace_back(ns + it.col(), it.row(), -it.value() * rowscale[it.col()]);
     }
+  if (!sys.symmetric)
+    for (Index c = 0; c < sys.Jt.outerSize(); ++c)
+      for (SparseMatrix::InnerIterator it(sys.Jt, c); it; ++it)
+        kt.emplace_back(ns + it.row(), it.col(), -it.value() * rowscale[it.row()]);
   for (Index c = 0; c < sys.C.outerSize(); ++c)
     for (SparseMatrix::InnerIterator it(sys.C, c); it; ++it)
       kt.emplace_back(ns + it.row(), ns + it.col(), -it.value() * rowscale[it.row()]);
@@ -55,7 +59,7 @@ SparseMatrix assemble_K(const CoupledSystem& sys, const VecX& rowscale) {
 class BodySolve {
  public:
   explicit BodySolve(const CoupledSystem& sys) : m_sys(sys), m_fac(sys.nb) {
-    const std::vector<CoupledBody>& bodies = *sys.in->bodies;
+    const std::vector<CoupledBody>& bodies = *sys.bodies;
     for (Index b = 0; b < sys.nb; ++b)
       if (bodies[b].free) m_fac[b] = factor_symmetric(bodies[b].A);
   }
@@ -80,7 +84,7 @@ class BodySolve {
 /// 55 with h M⁻¹ (the rigid-body response) instead.
 AmgPreconditioner* amg_for(const CoupledSystem& sys, const CoupledOptions& opt,
                            std::unique_ptr<AmgPreconditioner>& own) {
-  const std::vector<CoupledBody>& bodies = *sys.in->bodies;
+  const std::vector<CoupledBody>& bodies = *sys.bodies;
   if (opt.reuse && opt.reuse->amg && opt.reuse->size == sys.ng) {
     ++opt.reuse->reused;
     return opt.reuse->amg.get();

@@ -31,8 +31,8 @@ CoupledStepper::CoupledStepper(CouplingParams params, const solid::SolidWorld& w
   for (const solid::SolidBody& b : world.bodies) m_surfaces.push_back(body_surface(b));
 }
 
-CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSimulation& fluid,
-                                       const MeshBuilder& build, double h, PhaseTimes& phases) {
+CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, CoupledFluid& fluid, double h,
+                                       PhaseTimes& phases) {
   TETFSI_REQUIRE(InputError, std::isfinite(h) && h > 0, "coupled step: dt must be > 0, got {}", h);
   TETFSI_CHECK(m_surfaces.size() == world.bodies.size(),
                "coupled step: the world has {} bodies, the stepper was made for {}",
@@ -41,12 +41,12 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, fluid::FluidSim
   const double t1 = world.time + h;
   CoupledStepReport rep;
   rep.scheme = m_params.scheme;
-  StepContext ctx{world, fluid, build, m_surfaces, h, phases};
+  StepContext ctx{world, fluid, m_surfaces, h, phases};
   try {
-    fluid::FluidPrediction pred;
+    std::unique_ptr<PredictedFluid> pred;
     CoupledSolution sol = m_scheme->advance(ctx, pred, rep);
     rep.solve = sol.report;
-    rep.fluid = fluid.commit(std::move(pred), std::move(sol.u_face), std::move(sol.p));
+    rep.fluid = fluid.commit(std::move(pred), sol);
   } catch (...) {
     snap.restore(world);
     throw;

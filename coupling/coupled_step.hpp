@@ -8,7 +8,6 @@
 
 #include "core/timer.hpp"
 #include "coupling/scheme.hpp"
-#include "fluid/simulation.hpp"
 #include "solid/world.hpp"
 
 namespace tetfsi::coupling {
@@ -17,14 +16,14 @@ class CoupledStepper {
  public:
   CoupledStepper(CouplingParams params, const solid::SolidWorld& world);
 
-  /// Advance the world and the fluid by h together. The fluid must be initialised on a mesh
-  /// of the bodies at tⁿ (of their surfaces, body_surface numbering). Phases: remesh (the
-  /// builder's), transfer, forces, coupled_assembly, coupled_solve, solid (splitting and the
-  /// iterated schemes: the bodies' own work), update.
+  /// Advance the world and the fluid by h together. The fluid must be around the bodies at
+  /// tⁿ (their surfaces, body_surface numbering). Phases: remesh (the tet fluid's), transfer,
+  /// forces, coupled_assembly, coupled_solve, solid (splitting and the iterated schemes: the
+  /// bodies' own work), update.
   /// @throws SolverError if a solve fails or the state becomes non-finite; MeshError from
-  ///   the builder. The world and the fluid are then left at tⁿ.
-  CoupledStepReport step(solid::SolidWorld& world, fluid::FluidSimulation& fluid,
-                         const MeshBuilder& build, double h, PhaseTimes& phases);
+  ///   the fluid's predict. The world and the fluid are then left at tⁿ.
+  CoupledStepReport step(solid::SolidWorld& world, CoupledFluid& fluid, double h,
+                         PhaseTimes& phases);
 
   const CouplingParams& params() const { return m_params; }
   const std::vector<BodySurface>& surfaces() const { return m_surfaces; }

@@ -76,14 +76,8 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
   return sol;
 }
 
-void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX& c,
-                    CoupledSolution& sol) {
-  const double t0 = now_seconds();
-  const CoupledInput& in = *sys.in;
-  const TetMesh& m = *in.mesh;
-  const std::vector<CoupledBody>& bodies = *in.bodies;
-  const Index nt = m.num_tets(), nf = m.num_faces(), ne = c.size();
-  CoupledReport& rep = sol.report;
+std::pair<VecX, VecX> combine_solves(const CoupledSolves& x, const VecX& c) {
+  const Index ne = c.size();
   VecX u = x.U[0], pg = x.P[0];
   VecX pa = x.Pa[0];
   for (Index k = 0; k < ne; ++k) {
@@ -92,17 +86,33 @@ void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX
     if (pa.size()) pa += c[k] * x.Pa[1 + k];
   }
   if (pa.size()) pg += x.Z * pa;
+  return {std::move(u), std::move(pg)};
+}
 
-  sol.p.resize(nt);
-  for (Index t = 0; t < nt; ++t) sol.p[t] = pg[sys.groups.cell_group[t]];
-  sol.u.assign(sys.nb, VecX());
+std::vector<VecX> body_velocities(const CoupledSystem& sys, const VecX& u) {
+  const std::vector<CoupledBody>& bodies = *sys.bodies;
+  std::vector<VecX> ub_all(sys.nb);
   for (Index b = 0; b < sys.nb; ++b) {
     if (!bodies[b].free) continue;
     VecX ub = u.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]);
     for (Index l = 0; l < ub.size(); ++l)
       if (bodies[b].fixed[l]) ub[l] = bodies[b].prescribed.size() ? bodies[b].prescribed[l] : 0.0;
-    sol.u[b] = ub;
+    ub_all[b] = std::move(ub);
   }
+  return ub_all;
+}
+
+void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX& c,
+                    CoupledSolution& sol) {
+  const double t0 = now_seconds();
+  const CoupledInput& in = *sys.in;
+  const TetMesh& m = *in.mesh;
+  const Index nt = m.num_tets(), nf = m.num_faces(), ne = c.size();
+  CoupledReport& rep = sol.report;
+  const auto [u, pg] = combine_solves(x, c);
+  sol.p.resize(nt);
+  for (Index t = 0; t < nt; ++t) sol.p[t] = pg[sys.groups.cell_group[t]];
+  sol.u = body_velocities(sys, u);
   rep.interface_power = sys.ns > 0 ? (sys.J * pg).dot(u) : 0.0;
   // see [Chentanez06, Eq. (8)]: v* − (h/ρ) G p on interior and Open faces, (H u)_f on the
   // faces of free bodies.

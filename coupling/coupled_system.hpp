@@ -157,6 +157,10 @@ struct CoupledReport {
   Index solid_unknowns = 0, pressure_unknowns = 0;
   /// pᵀ Jᵀ uⁿ⁺¹ = pᵀ V D1 H uⁿ⁺¹: the power of the dynamic pressure on the free bodies (W).
   double interface_power = 0.0;
+  /// pᵀ Jᵀ uⁿ⁺¹ − pᵀ V D1 H uⁿ⁺¹: the power the interface creates, the dynamic pressure's
+  /// power on the bodies minus the bodies' on the fluid (W). 0 when J = (V D1 H)ᵀ (the tet
+  /// fluid, the grid's consistent form) but for round-off; the grid's paper J is built apart.
+  double interface_imbalance = 0.0;
   double divergence_before = 0.0;  ///< max_t |(D v*)_t| (1/s)
   double divergence_after = 0.0;   ///< max_t |(D v)_t − s_t/V_t| after Eq. (8) (1/s)
   Index pinned_regions = 0;
@@ -201,7 +205,13 @@ struct Cavity {
 /// for the right-hand-side columns k = 0 (the step's) and 1 + e (unit net flux out of
 /// enclosed region e; bs = 0 for those).
 struct CoupledSystem {
-  const CoupledInput* in = nullptr;
+  const CoupledInput* in = nullptr;                  ///< the tet fluid's input (null on the grid)
+  const std::vector<CoupledBody>* bodies = nullptr;  ///< every body, by index
+  const std::vector<BodyInterface>* interfaces = nullptr;  ///< their surfaces, by index
+  double h = 0.0;
+  /// Jt = Jᵀ. false: the grid's paper form, J (the first block row's pressure forces) built
+  /// apart from the second row's V D1 H = Jt; only the general solvers accept it.
+  bool symmetric = true;
   Index nb = 0, ns = 0, ng = 0, nr = 0;
   std::vector<Index> dof0;  ///< first free DOF of each body (#bodies + 1)
   VecX d_eff;               ///< #F effective dual lengths
@@ -212,7 +222,7 @@ struct CoupledSystem {
   VecX rvol;                     ///< per region: volume (m³)
   std::vector<bool> lifted;      ///< per region: a free body's J touches it
   fluid::Regions pin_regions;    ///< regions' has_open: true where the level is fixed
-  SparseMatrix J, Jt;            ///< ns × ng (free DOFs × groups) and its transpose
+  SparseMatrix J, Jt;            ///< ns × ng (free DOFs × groups); ng × ns (V D1 H)
   SparseMatrix C;                ///< ng × ng: diag(h/ρ_g) L, pinned where nothing fixes it
   VecX gs;                       ///< per group h/ρ
   VecX bs;                       ///< ns: the bodies' b plus the hydrostatic forces
@@ -255,7 +265,14 @@ VecX solve_enclosed_volumes(const CoupledSystem& sys, const CoupledSolves& x,
 std::vector<MatX3> positions_after_step(const CoupledSystem& sys, const VecX& u);
 
 /// The signed volume the cavity's triangles enclose at node positions x (per body).
-double cavity_volume(const Cavity& cav, const InterfaceOperators& ops, const std::vector<MatX3>& x);
+double cavity_volume(const Cavity& cav, const std::vector<BodyInterface>& bodies,
+                     const std::vector<MatX3>& x);
+
+/// The step's solution of the solves with the fluxes c: u (ns) and p per group.
+std::pair<VecX, VecX> combine_solves(const CoupledSolves& x, const VecX& c);
+/// uⁿ⁺¹ per body (3n) from the stacked u, fixed DOFs at their prescribed values; empty for
+/// bodies that are not free.
+std::vector<VecX> body_velocities(const CoupledSystem& sys, const VecX& u);
 
 /// Combine the solves with the fluxes c and finish: p per cell, u per body, the interface
 /// power, Eq. (8) for the face velocities, the divergence after, the fluid's forces.

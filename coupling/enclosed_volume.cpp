@@ -11,12 +11,11 @@
 
 namespace tetfsi::coupling {
 
-double cavity_volume(const Cavity& cav, const InterfaceOperators& ops,
+double cavity_volume(const Cavity& cav, const std::vector<BodyInterface>& bodies,
                      const std::vector<MatX3>& x) {
   // V = −(1/6) Σ (x0 − c)·((x1 − c) × (x2 − c)) over triangles oriented out of the cavity's
   // solid, i.e. into the cavity
   if (cav.triangles.empty()) return 0.0;
-  const std::vector<BodyInterface>& bodies = ops.bodies();
   const auto& [b0, t0] = cav.triangles.front();
   const BodyInterface& i0 = bodies[b0];
   const Vec3 c = x[b0].row(i0.surface_node[i0.triangles(t0, 0)]).transpose();
@@ -32,7 +31,7 @@ double cavity_volume(const Cavity& cav, const InterfaceOperators& ops,
 }
 
 std::vector<MatX3> positions_after_step(const CoupledSystem& sys, const VecX& u) {
-  const std::vector<CoupledBody>& bodies = *sys.in->bodies;
+  const std::vector<CoupledBody>& bodies = *sys.bodies;
   std::vector<MatX3> x(sys.nb);
   for (Index b = 0; b < sys.nb; ++b) {
     const CoupledBody& cb = bodies[b];
@@ -41,7 +40,7 @@ std::vector<MatX3> positions_after_step(const CoupledSystem& sys, const VecX& u)
     for (Index l = 0; l < un1.size(); ++l)
       if (cb.fixed[l]) un1[l] = cb.prescribed.size() ? cb.prescribed[l] : 0.0;
     x[b] = cb.x;
-    solid::trapezoidal_displace(flat(x[b]), cb.u, un1, sys.in->h);
+    solid::trapezoidal_displace(flat(x[b]), cb.u, un1, sys.h);
   }
   return x;
 }
@@ -50,8 +49,8 @@ VecX solve_enclosed_volumes(const CoupledSystem& sys, const CoupledSolves& s,
                             VolumeTargets& targets, CoupledReport& rep) {
   const double t0 = now_seconds();
   const Index ne = static_cast<Index>(sys.enclosed.size());
-  const InterfaceOperators& ops = *sys.in->interface;
-  const double h = sys.in->h;
+  const std::vector<BodyInterface>& ops = *sys.interfaces;
+  const double h = sys.h;
   VecX c = VecX::Zero(ne);
   if (ne == 0) return c;
   auto positions = [&](const VecX& cc) {  // node positions after Eq. (5) for the fluxes c
@@ -61,7 +60,7 @@ VecX solve_enclosed_volumes(const CoupledSystem& sys, const CoupledSolves& s,
   };
   std::vector<MatX3> xn(sys.nb);
   for (Index b = 0; b < sys.nb; ++b)
-    if ((*sys.in->bodies)[b].free) xn[b] = (*sys.in->bodies)[b].x;
+    if ((*sys.bodies)[b].free) xn[b] = (*sys.bodies)[b].x;
   std::vector<double> target(ne);
   for (Index k = 0; k < ne; ++k) {
     EnclosedRegion er;
@@ -70,7 +69,7 @@ VecX solve_enclosed_volumes(const CoupledSystem& sys, const CoupledSolves& s,
     er.volume = cavity_volume(sys.cavities[k], ops, xn);
     auto [it, inserted] = targets.emplace(er.key, er.volume);
     er.target = it->second;
-    for (Index t = 0; t < sys.in->mesh->num_tets(); ++t)
+    for (Index t = 0; t < sys.regions.cell_region.size(); ++t)
       if (sys.regions.cell_region[t] == sys.enclosed[k]) ++er.cells;
     target[k] = er.target;
     rep.enclosed.push_back(er);

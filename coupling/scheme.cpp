@@ -56,6 +56,55 @@ BodySurface body_surface(const solid::SolidBody& b) {
   return bd;
 }
 
+namespace {
+
+std::string fmt_point(const Vec3& v) {
+  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
+}
+
+/// @param x the body's compact surface vertices (BodySurface::nodes order)
+void check_inside(const mesh::FluidDomain& domain, const BodySurface& surface,
+                  const std::string& name, size_t index, const MatX3& x) {
+  const Vec3& lo = domain.lo;
+  const Vec3& hi = domain.hi;
+  for (Index k = 0; k < x.rows(); ++k) {
+    const Vec3 p = x.row(k).transpose();
+    if ((p.array() > lo.array()).all() && (p.array() < hi.array()).all()) continue;
+    const Vec3 blo = x.colwise().minCoeff().transpose();
+    const Vec3 bhi = x.colwise().maxCoeff().transpose();
+    throw MeshError(fmt::format(
+        "body '{}' (bodies[{}]) is not strictly inside the fluid box {}..{}: node {} is at {} "
+        "and the body spans {}..{}; enlarge fluid.domain or keep the body inside",
+        name, index, fmt_point(lo), fmt_point(hi), surface.nodes[k], fmt_point(p), fmt_point(blo),
+        fmt_point(bhi)));
+  }
+}
+
+}  // namespace
+
+std::vector<mesh::SolidSurface> place_surfaces(const mesh::FluidDomain& domain,
+                                               const std::vector<BodySurface>& surfaces,
+                                               const std::vector<std::string>& names,
+                                               const std::vector<MatX3>& positions) {
+  TETFSI_CHECK(positions.size() == surfaces.size() && names.size() == surfaces.size(),
+               "fluid surfaces: {} position sets and {} names for {} bodies", positions.size(),
+               names.size(), surfaces.size());
+  std::vector<mesh::SolidSurface> solids(surfaces.size());
+  for (size_t i = 0; i < surfaces.size(); ++i) {
+    const BodySurface& bd = surfaces[i];
+    mesh::SolidSurface& s = solids[i];
+    s.body = static_cast<int>(i);
+    s.triangles = bd.triangles;
+    TETFSI_CHECK(bd.nodes.size() == 0 || positions[i].rows() > bd.nodes.maxCoeff(),
+                 "fluid surfaces: {} positions for body '{}', its surface uses node {}",
+                 positions[i].rows(), names[i], bd.nodes.maxCoeff());
+    s.vertices.resize(bd.nodes.size(), 3);
+    for (Index k = 0; k < bd.nodes.size(); ++k) s.vertices.row(k) = positions[i].row(bd.nodes[k]);
+    check_inside(domain, bd, names[i], i, s.vertices);
+  }
+  return solids;
+}
+
 std::vector<MatX3> node_positions(const solid::SolidWorld& world,
                                   const std::function<MatX3(Index)>& disp) {
   const Index nb = static_cast<Index>(world.bodies.size());
@@ -87,23 +136,31 @@ std::vector<BodyInterface> body_interfaces(const solid::SolidWorld& world,
   return ifaces;
 }
 
-mesh::TetMesh build_predicted(StepContext& ctx, CoupledStepReport& rep) {
+std::unique_ptr<PredictedFluid> predict_around_predicted(StepContext& ctx, CoupledStepReport& rep) {
   const solid::SolidWorld& world = ctx.world;
+  const std::vector<fluid::SolidSurfaceMotion> motion = surface_motion(world, ctx.surfaces);
+  std::vector<MatX3> x = node_positions(world, [&](Index b) -> MatX3 {
+    const auto& body = world.bodies[b];
+    return body.is_kinematic() ? body.displacement
+                               : MatX3(body.displacement + ctx.h * body.velocity);
+  });
   try {
-    return ctx.build(node_positions(world, [&](Index b) -> MatX3 {
-      const auto& body = world.bodies[b];
-      return body.is_kinematic() ? body.displacement
-                                 : MatX3(body.displacement + ctx.h * body.velocity);
-    }));
+    return ctx.fluid.predict(x, motion, ctx.h, ctx.phases);
   } catch (const MeshError& e) {
     logger().debug(
         "coupled step: remesh around the predicted surfaces failed ({}); "
         "building around the surfaces at t = {:.6g} s",
         e.what(), world.time);
     rep.predicted_mesh = false;
-    return ctx.build(
-        node_positions(world, [&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
+    return predict_around_current(ctx);
   }
+}
+
+std::unique_ptr<PredictedFluid> predict_around_current(StepContext& ctx) {
+  const solid::SolidWorld& world = ctx.world;
+  return ctx.fluid.predict(
+      node_positions(world, [&](Index b) -> MatX3 { return world.bodies[b].displacement; }),
+      surface_motion(world, ctx.surfaces), ctx.h, ctx.phases);
 }
 
 void add_solve_phases(PhaseTimes& phases, const CoupledReport& r) {

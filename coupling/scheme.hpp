@@ -20,9 +20,8 @@
 ///    in its out-of-balance force, iterated to equilibrium (core/equilibrium.hpp); see that
 ///    file.
 ///
-/// The fluid is seen through its predict / commit seam (fluid::FluidSimulation) and the
-/// interface operators of its mesh (fluid::InterfaceOperators); a second fluid
-/// discretisation provides the same two and fills the same CoupledSystem (coupled_system.hpp).
+/// The fluid is seen through its seam (fluid_seam.hpp): predict around given body positions,
+/// the step's coupled solve and H, commit — the tet fluid and the grid fluid alike.
 /// Kinematic bodies follow their motion in every scheme and are prescribed in the solve.
 #include <functional>
 #include <memory>
@@ -33,7 +32,9 @@
 #include "core/equilibrium.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
+#include "coupling/fluid_seam.hpp"
 #include "fluid/simulation.hpp"
+#include "mesh/remesh.hpp"
 #include "solid/world.hpp"
 
 namespace tetfsi::coupling {
@@ -65,9 +66,14 @@ struct BodySurface {
 };
 BodySurface body_surface(const solid::SolidBody& body);
 
-/// Builds the fluid mesh around the bodies' surfaces at the given node positions (one
-/// #n × 3 matrix per body, every node of the body). @throws MeshError.
-using MeshBuilder = std::function<mesh::TetMesh(const std::vector<MatX3>& positions)>;
+/// The bodies' surfaces at `positions` (one #n × 3 per body, every node) as the fluid sees
+/// them: compact vertices, mesh::SolidSurface::body = the body's index.
+/// @throws MeshError naming the body (names[b]) and the node if a body is not strictly inside
+///   the fluid box.
+std::vector<mesh::SolidSurface> place_surfaces(const mesh::FluidDomain& domain,
+                                               const std::vector<BodySurface>& surfaces,
+                                               const std::vector<std::string>& names,
+                                               const std::vector<MatX3>& positions);
 
 struct CoupledStepReport {
   Scheme scheme = Scheme::Simultaneous;
@@ -86,12 +92,11 @@ struct CoupledStepReport {
   }
 };
 
-/// What a scheme steps. The fluid must be on a mesh of the bodies at tⁿ (of their surfaces,
+/// What a scheme steps. The fluid must be around the bodies at tⁿ (their surfaces,
 /// body_surface numbering).
 struct StepContext {
   solid::SolidWorld& world;
-  fluid::FluidSimulation& fluid;
-  const MeshBuilder& build;
+  CoupledFluid& fluid;
   const std::vector<BodySurface>& surfaces;  ///< per body
   double h = 0.0;
   PhaseTimes& phases;
@@ -101,12 +106,12 @@ class CouplingScheme {
  public:
   virtual ~CouplingScheme() = default;
   virtual Scheme kind() const = 0;
-  /// Advance the bodies to tⁿ⁺¹ and predict the fluid (pred, on the step's mesh); return the
-  /// fluid's solution (face velocities, dynamic pressure) for fluid::FluidSimulation::commit.
-  /// Fills rep's scheme-specific figures. The caller (CoupledStepper) restores the world on
-  /// an exception and commits the fluid.
+  /// Advance the bodies to tⁿ⁺¹ and predict the fluid (pred); return the fluid's solution
+  /// (face velocities, dynamic pressure) for CoupledFluid::commit. Fills rep's
+  /// scheme-specific figures. The caller (CoupledStepper) restores the world on an exception
+  /// and commits the fluid.
   /// @throws SolverError, MeshError.
-  virtual CoupledSolution advance(StepContext& ctx, fluid::FluidPrediction& pred,
+  virtual CoupledSolution advance(StepContext& ctx, std::unique_ptr<PredictedFluid>& pred,
                                   CoupledStepReport& rep) = 0;
 };
 
@@ -124,9 +129,12 @@ std::vector<fluid::SolidSurfaceMotion> surface_motion(const solid::SolidWorld& w
 /// How the mesh's Solid faces refer to each body (fluid::InterfaceOperators' input).
 std::vector<BodyInterface> body_interfaces(const solid::SolidWorld& world,
                                            const std::vector<BodySurface>& surfaces);
-/// The mesh around x* = X + dⁿ + h uⁿ (kinematic bodies at tⁿ⁺¹: call after moving them), or
-/// around xⁿ if that fails (a body predicted out of the box; rep.predicted_mesh = false).
-mesh::TetMesh build_predicted(StepContext& ctx, CoupledStepReport& rep);
+/// The fluid predicted around x* = X + dⁿ + h uⁿ (kinematic bodies at tⁿ⁺¹: call after
+/// moving them), or around xⁿ if that fails (a body predicted out of the box;
+/// rep.predicted_mesh = false); the Solid faces at the bodies' velocities at tⁿ.
+std::unique_ptr<PredictedFluid> predict_around_predicted(StepContext& ctx, CoupledStepReport& rep);
+/// The fluid predicted around the bodies as they are (time splitting, after the bodies' step).
+std::unique_ptr<PredictedFluid> predict_around_current(StepContext& ctx);
 /// The solve's assembly and solve seconds into the phases coupled_assembly, coupled_solve.
 void add_solve_phases(PhaseTimes& phases, const CoupledReport& r);
 /// @throws SolverError naming the body if its state is not finite.

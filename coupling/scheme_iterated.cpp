@@ -23,7 +23,6 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "coupling/scheme.hpp"
-#include "fluid/operators.hpp"
 #include "solid/integrator.hpp"
 #include "solid/nonlinear_trapezoid.hpp"
 #include "solid/obstacles.hpp"
@@ -72,36 +71,12 @@ struct AffineFluidCache {
   }
 };
 
-/// A region with no Open face bounded by a deformable body: the fluid-only projection of a
-/// residual evaluation would have to remove the body's net flux (fluid::project), so the
-/// iteration could not see the region's incompressibility. @throws InputError naming it.
-void refuse_sealed_regions(const mesh::TetMesh& m, const solid::SolidWorld& world,
-                           const char* scheme) {
-  const fluid::Regions regions = fluid::fluid_regions(m);
-  std::vector<Index> cells(regions.count(), 0);
-  for (Index t = 0; t < m.num_tets(); ++t) ++cells[regions.cell_region[t]];
-  for (Index f = 0; f < m.num_faces(); ++f) {
-    if (!m.is_boundary(f) || m.face_kind[f] != mesh::FaceKind::Solid) continue;
-    const Index r = regions.cell_region[m.face_tets(f, 0)];
-    const solid::SolidBody& body = world.bodies[m.face_body[f]];
-    TETFSI_REQUIRE(InputError, regions.has_open[r] || body.is_kinematic(),
-                   "coupling.scheme {}: a fluid region of {} cells has no open face and is "
-                   "bounded by body '{}': a fluid-only projection cannot keep its volume; use "
-                   "coupling.scheme simultaneous, or give the region an open patch",
-                   scheme, cells[r], body.name());
-  }
-}
-
 /// One iterated step: the unknowns x = uⁿ⁺¹ of every deformable body, stacked.
 class IteratedStep {
  public:
-  IteratedStep(StepContext& ctx, fluid::FluidPrediction& pred, const CouplingParams& params,
+  IteratedStep(StepContext& ctx, const PredictedFluid& pred, const CouplingParams& params,
                CoupledStepReport& rep)
-      : m_ctx(ctx),
-        m_pred(pred),
-        m_params(params),
-        m_rep(rep),
-        m_ops(pred.mesh, body_interfaces(ctx.world, ctx.surfaces)) {
+      : m_ctx(ctx), m_pred(pred), m_params(params), m_rep(rep) {
     const solid::SolidWorld& world = ctx.world;
     m_nb = static_cast<Index>(world.bodies.size());
     m_off.assign(m_nb + 1, 0);
@@ -185,16 +160,16 @@ class IteratedStep {
   CoupledSolution fluid_at(const VecX& x) {
     CoupledSolution s;
     if (m_cache.combine(x, s)) return s;
-    VecX ustar = m_pred.u_star;
-    m_ops.apply_H(per_body(x), ustar);
-    CoupledInput in = make_input(m_pred, m_ctx.fluid.params(), m_ops, m_held);
-    in.u_star = &ustar;
+    VecX ustar = m_pred.u_star();
+    m_pred.apply_H(per_body(x), ustar);
+    SolveVariant variant;
+    variant.u_star = &ustar;
     // The forces need not be more accurate than RTOL resolves: the fluid solve stops at
     // 1e-2 RTOL relative (at most 1e-8; the scene's coupling.rel_tol if that is looser).
     CoupledOptions o = m_params.solve;
     o.rel_tol = std::max(o.rel_tol, std::min(1e-8, 1e-2 * m_ctx.world.equilibrium.rtol));
     o.reuse = &m_amg;  // every fluid-only solve of this step has the same P = C
-    s = solve_coupled(in, o);
+    s = m_pred.solve(m_held, o, variant);
     add_phases(s);
     TETFSI_REQUIRE(SolverError, s.report.converged,
                    "coupling.scheme {}: a fluid solve did not converge ({} iterations, residual "
@@ -242,17 +217,14 @@ class IteratedStep {
     return [this, bodies](const VecX& r) -> VecX {
       for (Index b = 0; b < m_nb; ++b)
         if (m_eq[b]) (*bodies)[b].b = part(r, b);
-      const VecX zero_f = VecX::Zero(m_pred.mesh.num_faces());
-      CoupledInput in = make_input(m_pred, m_ctx.fluid.params(), m_ops, *bodies);
-      in.u_star = &zero_f;
-      in.p_open = &zero_f;
-      in.gravity = Vec3::Zero();
+      SolveVariant variant;
+      variant.homogeneous = true;
       CoupledOptions o = m_params.solve;
       o.conserve_volume = false;
       // An increment only has to be a good direction: at 1e-10 the CG stalled just above
       // the tolerance on the small right-hand sides of late iterations (measured 1-4e-10).
       o.rel_tol = std::max(o.rel_tol, 1e-8);
-      const CoupledSolution s = solve_coupled(in, o);
+      const CoupledSolution s = m_pred.solve(*bodies, o, variant);
       add_phases(s);
       VecX dx(m_off[m_nb]);
       for (Index b = 0; b < m_nb; ++b)
@@ -279,10 +251,9 @@ class IteratedStep {
   }
 
   StepContext& m_ctx;
-  fluid::FluidPrediction& m_pred;
+  const PredictedFluid& m_pred;
   const CouplingParams& m_params;
   CoupledStepReport& m_rep;
-  const InterfaceOperators m_ops;
   Index m_nb = 0;
   std::vector<Index> m_off;  ///< first unknown of each body
   std::vector<std::unique_ptr<solid::TrapezoidalEquilibrium>> m_eq;
@@ -298,14 +269,13 @@ class IteratedScheme final : public CouplingScheme {
   explicit IteratedScheme(CouplingParams p) : m_params(std::move(p)) {}
   Scheme kind() const override { return m_params.scheme; }
 
-  CoupledSolution advance(StepContext& ctx, fluid::FluidPrediction& pred,
+  CoupledSolution advance(StepContext& ctx, std::unique_ptr<PredictedFluid>& pred,
                           CoupledStepReport& rep) override {
     for (solid::SolidBody& body : ctx.world.bodies)
       if (body.is_kinematic()) body.set_kinematic_state(ctx.world.time + ctx.h);
-    pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h,
-                             surface_motion(ctx.world, ctx.surfaces), ctx.phases);
-    refuse_sealed_regions(pred.mesh, ctx.world, to_string(m_params.scheme));
-    IteratedStep step(ctx, pred, m_params, rep);
+    pred = predict_around_predicted(ctx, rep);
+    pred->refuse_sealed_regions(ctx.world, to_string(m_params.scheme));
+    IteratedStep step(ctx, *pred, m_params, rep);
     const VecX x = step.solve(m_history);
     return step.finish(x);
   }

@@ -17,7 +17,7 @@ class SimultaneousScheme final : public CouplingScheme {
   explicit SimultaneousScheme(CouplingParams p) : m_params(std::move(p)) {}
   Scheme kind() const override { return Scheme::Simultaneous; }
 
-  CoupledSolution advance(StepContext& ctx, fluid::FluidPrediction& pred,
+  CoupledSolution advance(StepContext& ctx, std::unique_ptr<PredictedFluid>& pred,
                           CoupledStepReport& rep) override {
     solid::SolidWorld& world = ctx.world;
     const Index nb = static_cast<Index>(world.bodies.size());
@@ -28,12 +28,11 @@ class SimultaneousScheme final : public CouplingScheme {
       for (Index b = 0; b < nb; ++b) contacts[b] = assemble_body(world, b, ctx.h, cb[b]);
     }
     // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
-    pred = ctx.fluid.predict(build_predicted(ctx, rep), ctx.h, surface_motion(world, ctx.surfaces),
-                             ctx.phases);
+    pred = predict_around_predicted(ctx, rep);
     // 4. the coupled solve, see [Chentanez06, Eq. (7)]
-    const InterfaceOperators ops(pred.mesh, body_interfaces(world, ctx.surfaces));
-    CoupledSolution sol =
-        solve_coupled(make_input(pred, ctx.fluid.params(), ops, cb, &m_targets), m_params.solve);
+    SolveVariant variant;
+    variant.targets = &m_targets;
+    CoupledSolution sol = pred->solve(cb, m_params.solve, variant);
     add_solve_phases(ctx.phases, sol.report);
     // 5. Eq. (5), collisions
     ScopedTimer timer(ctx.phases, "update");

@@ -3,7 +3,6 @@
 /// with the fluid's last nodal forces held, then the fluid with the bodies' velocities held.
 #include "core/linear_solver.hpp"
 #include "coupling/scheme.hpp"
-#include "fluid/operators.hpp"
 #include "solid/integrator.hpp"
 #include "solid/obstacles.hpp"
 
@@ -16,23 +15,22 @@ class SplittingScheme final : public CouplingScheme {
   explicit SplittingScheme(CouplingParams p) : m_params(std::move(p)) {}
   Scheme kind() const override { return Scheme::Splitting; }
 
-  CoupledSolution advance(StepContext& ctx, fluid::FluidPrediction& pred,
+  CoupledSolution advance(StepContext& ctx, std::unique_ptr<PredictedFluid>& pred,
                           CoupledStepReport& rep) override {
     solid::SolidWorld& world = ctx.world;
     const Index nb = static_cast<Index>(world.bodies.size());
-    if (!m_have_force) m_held_force = initial_forces(ctx);
+    // The first step's held forces: those of the fluid's pressure at t = 0 (its dynamic
+    // part through J, the hydrostatic part exactly).
+    if (!m_have_force)
+      m_held_force = ctx.fluid.current_forces(body_interfaces(world, ctx.surfaces));
     {  // 1. the bodies with the fluid's last nodal forces held
       ScopedTimer timer(ctx.phases, "solid");
       for (Index b = 0; b < nb; ++b) step_body(world, b, ctx.h, rep);
     }
     // 2. the mesh around the bodies at tⁿ⁺¹, the fluid with their velocities held
-    mesh::TetMesh m = ctx.build(
-        node_positions(world, [&](Index b) -> MatX3 { return world.bodies[b].displacement; }));
-    pred = ctx.fluid.predict(std::move(m), ctx.h, surface_motion(world, ctx.surfaces), ctx.phases);
-    const InterfaceOperators ops(pred.mesh, body_interfaces(world, ctx.surfaces));
+    pred = predict_around_current(ctx);
     const std::vector<CoupledBody> held(nb);  // every body prescribed
-    CoupledSolution sol =
-        solve_coupled(make_input(pred, ctx.fluid.params(), ops, held), m_params.solve);
+    CoupledSolution sol = pred->solve(held, m_params.solve);
     add_solve_phases(ctx.phases, sol.report);
     m_held_force = sol.fluid_force;
     m_have_force = true;
@@ -40,20 +38,6 @@ class SplittingScheme final : public CouplingScheme {
   }
 
  private:
-  /// The first step's held forces: those of the fluid's pressure at t = 0 (its dynamic part
-  /// through J, the hydrostatic part exactly).
-  std::vector<VecX> initial_forces(const StepContext& ctx) const {
-    const mesh::TetMesh& m0 = ctx.fluid.mesh();
-    const fluid::FluidParams& fp = ctx.fluid.params();
-    const VecX rho = fluid::cell_fluid_density(m0, fp);
-    VecX p_dyn = ctx.fluid.state().p;
-    for (Index t = 0; t < m0.num_tets(); ++t)
-      p_dyn[t] -= fluid::hydrostatic_pressure(rho[t], fp.gravity, fp.hydrostatic_origin,
-                                              m0.circumcentres.row(t).transpose());
-    const InterfaceOperators ops(m0, body_interfaces(ctx.world, ctx.surfaces));
-    return fluid_forces(ops, p_dyn, rho, fp.gravity, fp.hydrostatic_origin);
-  }
-
   /// Body b's trapezoidal step with the held forces (a kinematic body: moved to tⁿ⁺¹).
   void step_body(solid::SolidWorld& world, Index b, double h, CoupledStepReport& rep) const {
     solid::SolidBody& body = world.bodies[b];

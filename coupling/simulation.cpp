@@ -4,6 +4,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "coupling/tet_fluid.hpp"
 
 namespace tetfsi::coupling {
 
@@ -14,10 +15,6 @@ std::vector<MatX3> current_positions(const solid::SolidWorld& world) {
   x.reserve(world.bodies.size());
   for (const solid::SolidBody& b : world.bodies) x.push_back(b.positions());
   return x;
-}
-
-std::string fmt_point(const Vec3& v) {
-  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
 }
 
 }  // namespace
@@ -35,40 +32,12 @@ RemeshPolicy::RemeshPolicy(mesh::FluidDomain domain, mesh::Sizing sizing,
   }
 }
 
-void RemeshPolicy::check_inside(size_t index, const MatX3& x) const {
-  const Vec3& lo = m_domain.lo;
-  const Vec3& hi = m_domain.hi;
-  for (Index k = 0; k < x.rows(); ++k) {
-    const Vec3 p = x.row(k).transpose();
-    if ((p.array() > lo.array()).all() && (p.array() < hi.array()).all()) continue;
-    const Vec3 blo = x.colwise().minCoeff().transpose();
-    const Vec3 bhi = x.colwise().maxCoeff().transpose();
-    throw MeshError(fmt::format(
-        "body '{}' (bodies[{}]) is not strictly inside the fluid box {}..{}: node {} is at {} "
-        "and the body spans {}..{}; enlarge fluid.domain or keep the body inside",
-        m_names[index], index, fmt_point(lo), fmt_point(hi), m_surfaces[index].nodes[k],
-        fmt_point(p), fmt_point(blo), fmt_point(bhi)));
-  }
-}
-
 mesh::TetMesh RemeshPolicy::build(const std::vector<MatX3>& positions,
                                   const fluid::RefineField* refine,
                                   mesh::RemeshReport* report) const {
   TETFSI_CHECK(positions.size() == m_surfaces.size(),
                "fluid remesh: {} position sets for {} bodies", positions.size(), m_surfaces.size());
-  std::vector<mesh::SolidSurface> solids(m_surfaces.size());
-  for (size_t i = 0; i < m_surfaces.size(); ++i) {
-    const BodySurface& bd = m_surfaces[i];
-    mesh::SolidSurface& s = solids[i];
-    s.body = static_cast<int>(i);
-    s.triangles = bd.triangles;
-    TETFSI_CHECK(bd.nodes.size() == 0 || positions[i].rows() > bd.nodes.maxCoeff(),
-                 "fluid remesh: {} positions for body '{}', its surface uses node {}",
-                 positions[i].rows(), m_names[i], bd.nodes.maxCoeff());
-    s.vertices.resize(bd.nodes.size(), 3);
-    for (Index k = 0; k < bd.nodes.size(); ++k) s.vertices.row(k) = positions[i].row(bd.nodes[k]);
-    check_inside(i, s.vertices);
-  }
+  std::vector<mesh::SolidSurface> solids = place_surfaces(m_domain, m_surfaces, m_names, positions);
   mesh::Sizing sizing = m_sizing;
   if (refine) sizing.refine = *refine;  // finer where smoke / vorticity is
   try {
@@ -88,7 +57,12 @@ FsiSimulation::FsiSimulation(solid::SolidWorld world, std::optional<FluidSetup> 
   TETFSI_REQUIRE(InputError, fluid || !coupling, "a two-way coupling ({}) needs a fluid",
                  coupling ? to_string(coupling->scheme) : "");
   if (!fluid) return;
-  m_fluid.emplace(fluid->params);
+  if (fluid->grid) {
+    m_grid.emplace(fluid->params, fluid->grid->spec, fluid->domain);
+    m_grid_forces = fluid->grid->forces;
+  } else {
+    m_fluid.emplace(fluid->params);
+  }
   m_policy.emplace(std::move(fluid->domain), std::move(fluid->sizing), m_world);
   if (coupling) m_stepper.emplace(std::move(*coupling), m_world);
 }
@@ -101,6 +75,16 @@ const fluid::FluidSimulation& FsiSimulation::fluid() const {
 fluid::FluidSimulation& FsiSimulation::fluid() {
   TETFSI_CHECK(m_fluid.has_value(), "FsiSimulation::fluid: the simulation has no fluid");
   return *m_fluid;
+}
+
+double FsiSimulation::fluid_time() const {
+  if (m_grid) return m_grid->time();
+  return m_fluid ? m_fluid->time() : 0.0;
+}
+
+std::vector<mesh::SolidSurface> FsiSimulation::grid_surfaces(
+    const std::vector<MatX3>& positions) const {
+  return place_surfaces(m_policy->domain(), m_policy->surfaces(), m_policy->names(), positions);
 }
 
 const mesh::TetMesh* FsiSimulation::mesh() const {
@@ -119,6 +103,11 @@ mesh::TetMesh FsiSimulation::build_mesh(const std::vector<MatX3>& positions, Pha
 }
 
 void FsiSimulation::start(PhaseTimes& phases) {
+  if (m_grid) {
+    m_started = false;
+    m_grid->initialize(grid_surfaces(current_positions(m_world)));
+    m_started = true;
+  }
   if (!m_fluid) return;
   m_started = false;
   m_fluid->initialize(build_mesh(current_positions(m_world), phases));
@@ -126,13 +115,17 @@ void FsiSimulation::start(PhaseTimes& phases) {
 }
 
 void FsiSimulation::rebuild_at_rest(PhaseTimes& phases) {
+  if (m_grid) {
+    m_grid->initialize(grid_surfaces(current_positions(m_world)));
+    m_started = true;
+  }
   if (!m_fluid) return;
   m_fluid->initialize(build_mesh(current_positions(m_world), phases));
   m_started = true;
 }
 
 FsiStepReport FsiSimulation::step(double h, PhaseTimes& phases) {
-  TETFSI_CHECK(!m_fluid || m_started, "FsiSimulation::step before start");
+  TETFSI_CHECK(!has_fluid() || m_started, "FsiSimulation::step before start");
   if (m_stepper) return step_two_way(h, phases);
   return step_one_way(h, phases);
 }
@@ -142,12 +135,25 @@ FsiStepReport FsiSimulation::step_one_way(double h, PhaseTimes& phases) {
   const double ts = now_seconds();
   r.solid = m_world.step(h, phases);
   r.solid_s = now_seconds() - ts;
-  if (!m_fluid) return r;
-  mesh::TetMesh m = build_mesh(current_positions(m_world), phases);
+  if (!has_fluid()) return r;
   PhaseTimes fp;
-  const double t0 = now_seconds();
-  r.fluid = m_fluid->step(std::move(m), h, surface_motion(m_world, m_policy->surfaces()), fp);
-  r.fluid_s = now_seconds() - t0;
+  const std::vector<fluid::SolidSurfaceMotion> motion =
+      surface_motion(m_world, m_policy->surfaces());
+  if (m_grid) {
+    std::vector<mesh::SolidSurface> s;
+    {
+      ScopedTimer timer(phases, "remesh");  // the surfaces around the bodies
+      s = grid_surfaces(current_positions(m_world));
+    }
+    const double t0 = now_seconds();
+    r.fluid = m_grid->step(std::move(s), motion, h, fp);
+    r.fluid_s = now_seconds() - t0;
+  } else {
+    mesh::TetMesh m = build_mesh(current_positions(m_world), phases);
+    const double t0 = now_seconds();
+    r.fluid = m_fluid->step(std::move(m), h, motion, fp);
+    r.fluid_s = now_seconds() - t0;
+  }
   phases.add("transfer", fp.get("transfer"));
   phases.add("forces", fp.get("forces"));
   phases.add("pressure_assembly", fp.get("assembly"));
@@ -158,12 +164,20 @@ FsiStepReport FsiSimulation::step_one_way(double h, PhaseTimes& phases) {
 FsiStepReport FsiSimulation::step_two_way(double h, PhaseTimes& phases) {
   // The builder times the remesh (and the observer's work) into `phases` itself; the
   // stepper's own phases are collected apart to tell the fluid's share.
-  const MeshBuilder build = [this, &phases](const std::vector<MatX3>& x) {
-    return build_mesh(x, phases);
-  };
   PhaseTimes sp;
   FsiStepReport r;
-  r.coupled = m_stepper->step(m_world, *m_fluid, build, h, sp);
+  std::vector<BodyInterface> bodies = body_interfaces(m_world, m_policy->surfaces());
+  if (m_grid) {
+    GridCoupledFluid fluid(*m_grid, m_policy->domain(), m_policy->surfaces(), m_policy->names(),
+                           std::move(bodies), m_grid_forces);
+    r.coupled = m_stepper->step(m_world, fluid, h, sp);
+  } else {
+    const MeshBuilder build = [this, &phases](const std::vector<MatX3>& x) {
+      return build_mesh(x, phases);
+    };
+    TetCoupledFluid fluid(*m_fluid, build, std::move(bodies));
+    r.coupled = m_stepper->step(m_world, fluid, h, sp);
+  }
   for (const auto& [name, seconds] : sp.entries()) phases.add(name, seconds);
   r.fluid_s =
       sp.get("transfer") + sp.get("forces") + sp.get("coupled_assembly") + sp.get("coupled_solve");

@@ -19,6 +19,7 @@
 
 #include "core/timer.hpp"
 #include "coupling/coupled_step.hpp"
+#include "coupling/grid_coupled.hpp"
 #include "fluid/simulation.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/world.hpp"
@@ -44,11 +45,9 @@ class RemeshPolicy {
   const mesh::FluidDomain& domain() const { return m_domain; }
   const mesh::Sizing& sizing() const { return m_sizing; }
   const std::vector<BodySurface>& surfaces() const { return m_surfaces; }
+  const std::vector<std::string>& names() const { return m_names; }
 
  private:
-  /// @param x the body's compact surface vertices (BodySurface::nodes order)
-  void check_inside(size_t index, const MatX3& x) const;
-
   mesh::FluidDomain m_domain;
   mesh::Sizing m_sizing;
   std::vector<BodySurface> m_surfaces;
@@ -56,11 +55,19 @@ class RemeshPolicy {
   std::string m_legend;              ///< "body 0 is 'sheet', body 1 is 'flag'"
 };
 
-/// The fluid of a simulation: its box, mesh sizing and physics.
+/// The regular-grid discretisation of a simulation's fluid (grid_coupled.hpp).
+struct GridSetup {
+  fluid::GridSpec spec;
+  GridPressureForces forces = GridPressureForces::Consistent;
+};
+
+/// The fluid of a simulation: its box, mesh sizing and physics; with `grid`, on the MAC grid
+/// instead of the dynamic tet mesh (the sizing is then unused).
 struct FluidSetup {
   mesh::FluidDomain domain;
   mesh::Sizing sizing;
   fluid::FluidParams params;
+  std::optional<GridSetup> grid;
 };
 
 /// One step of a simulation.
@@ -105,13 +112,21 @@ class FsiSimulation {
 
   solid::SolidWorld& world() { return m_world; }
   const solid::SolidWorld& world() const { return m_world; }
-  bool has_fluid() const { return m_fluid.has_value(); }
+  bool has_fluid() const { return m_fluid.has_value() || m_grid.has_value(); }
   bool two_way() const { return m_stepper.has_value(); }
-  /// The fluid (fluid scenes only); e.g. to set an initial velocity field after start.
+  /// The tet fluid (tet fluid scenes only); e.g. to set an initial velocity field after start.
   const fluid::FluidSimulation& fluid() const;
   fluid::FluidSimulation& fluid();
-  /// The current fluid mesh (nullptr before start succeeded, or without a fluid).
+  /// The grid fluid (grid scenes only, else nullptr).
+  const fluid::GridFluid* grid() const { return m_grid ? &*m_grid : nullptr; }
+  fluid::GridFluid* grid() { return m_grid ? &*m_grid : nullptr; }
+  /// The fluid's time (s) since start, either discretisation.
+  double fluid_time() const;
+  /// The current tet fluid mesh (nullptr before start succeeded, without a fluid, or on the
+  /// grid).
   const mesh::TetMesh* mesh() const;
+  /// Grid scenes: the grid's pressure forces form.
+  GridPressureForces grid_forces() const { return m_grid_forces; }
   const RemeshPolicy* remesh_policy() const { return m_policy ? &*m_policy : nullptr; }
   /// Two-way runs: the scheme's parameters.
   const CouplingParams* coupling() const { return m_stepper ? &m_stepper->params() : nullptr; }
@@ -120,10 +135,14 @@ class FsiSimulation {
   /// The policy's mesh around the bodies at `positions`, timed as the remesh phase, observed.
   mesh::TetMesh build_mesh(const std::vector<MatX3>& positions, PhaseTimes& phases);
   FsiStepReport step_one_way(double h, PhaseTimes& phases);
+  /// The grid fluid's surfaces around the bodies at `positions`.
+  std::vector<mesh::SolidSurface> grid_surfaces(const std::vector<MatX3>& positions) const;
   FsiStepReport step_two_way(double h, PhaseTimes& phases);
 
   solid::SolidWorld m_world;
   std::optional<fluid::FluidSimulation> m_fluid;
+  std::optional<fluid::GridFluid> m_grid;
+  GridPressureForces m_grid_forces = GridPressureForces::Consistent;
   std::optional<RemeshPolicy> m_policy;
   std::optional<CoupledStepper> m_stepper;
   MeshObserver m_observer;

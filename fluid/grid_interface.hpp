@@ -49,6 +49,7 @@ class GridInterface {
   const std::vector<GridInterfaceFace>& faces() const { return m_faces; }
   const std::vector<Index>& node_offsets() const { return m_offsets; }
   Index num_dofs() const { return 3 * m_offsets.back(); }
+  const std::vector<BodyInterface>& bodies() const { return m_bodies; }
 
   /// u_face[f] = (H u)_f for the Solid faces of every body b whose u[b] is not empty.
   void apply_H(const std::vector<VecX>& u, VecX& u_face) const;

@@ -10,28 +10,19 @@ namespace tetfsi::fluid {
 
 using mesh::FaceKind;
 
-namespace {
-
-/// Distance from a cell centre to the centre across face f (Interior) or to f (Open).
-double face_dual(const GridCells& gc, Index f) {
+double grid_face_dual(const GridCells& gc, Index f) {
   const double h = gc.grid.h[gc.grid.face_axis(f)];
   return gc.face_kind[f] == FaceKind::Open ? 0.5 * h : h;
 }
 
-/// The fluid cell next to a box face (−1 if none).
-Index inner_cell(const GridCells& gc, Index f) {
+Index grid_inner_cell(const GridCells& gc, Index f) {
   const auto c = gc.grid.face_cells(f);
   const Index in = c[0] >= 0 ? c[0] : c[1];
   return gc.fluid(in) ? in : -1;
 }
 
-struct Numbering {
-  VecXi unknown;  ///< #C → unknown, −1 for solid cells
-  std::vector<Index> cell;
-};
-
-Numbering number_fluid_cells(const GridCells& gc) {
-  Numbering n;
+GridNumbering number_fluid_cells(const GridCells& gc) {
+  GridNumbering n;
   n.unknown = VecXi::Constant(gc.grid.num_cells(), -1);
   for (Index c = 0; c < gc.grid.num_cells(); ++c)
     if (gc.fluid(c)) {
@@ -41,18 +32,17 @@ Numbering number_fluid_cells(const GridCells& gc) {
   return n;
 }
 
-/// M = −V D G between fluid cells (SPD with the pins): M_cc = Σ A/d, M_cn = −A/d.
-SparseMatrix grid_pressure_matrix(const GridCells& gc, const Numbering& n, const Regions& r) {
+SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, const Regions& r) {
   const GridSpec& g = gc.grid;
   std::vector<Triplet> trip;
   trip.reserve(7 * n.cell.size());
   for (Index f = 0; f < g.num_faces(); ++f) {
     const FaceKind k = gc.face_kind[f];
     if (k != FaceKind::Interior && k != FaceKind::Open) continue;
-    const double w = g.face_area(g.face_axis(f)) / face_dual(gc, f);
+    const double w = g.face_area(g.face_axis(f)) / grid_face_dual(gc, f);
     const auto c = g.face_cells(f);
     if (k == FaceKind::Open) {
-      const Index in = inner_cell(gc, f);
+      const Index in = grid_inner_cell(gc, f);
       if (in >= 0) trip.emplace_back(n.unknown[in], n.unknown[in], w);
       continue;
     }
@@ -72,7 +62,24 @@ SparseMatrix grid_pressure_matrix(const GridCells& gc, const Numbering& n, const
   return M;
 }
 
-}  // namespace
+void grid_apply_gradient(const GridCells& gc, const VecX& q, const VecX& q_open, VecX& u) {
+  const GridSpec& g = gc.grid;
+  const Index nf = g.num_faces();
+  // see [Chentanez06, Eq. (2)]: u = u* − (h/ρ) G p on the pressure-coupled faces.
+  for (Index f = 0; f < nf; ++f) {
+    const FaceKind k = gc.face_kind[f];
+    if (k == FaceKind::Interior) {
+      const auto c = g.face_cells(f);
+      u[f] -= (q[c[1]] - q[c[0]]) / grid_face_dual(gc, f);
+    } else if (k == FaceKind::Open) {
+      const Index in = grid_inner_cell(gc, f);
+      if (in < 0) continue;
+      const double qo = q_open.size() == nf ? q_open[f] : 0.0;
+      const bool upper = g.face_cells(f)[1] < 0;  // the box's upper side: +e_a points out
+      u[f] -= (upper ? qo - q[in] : q[in] - qo) / grid_face_dual(gc, f);
+    }
+  }
+}
 
 VecX grid_net_flux(const GridCells& gc, const VecX& u) {
   const GridSpec& g = gc.grid;
@@ -117,7 +124,7 @@ Regions grid_regions(const GridCells& gc) {
   }
   for (Index f = 0; f < g.num_faces(); ++f)
     if (gc.face_kind[f] == FaceKind::Open) {
-      const Index in = inner_cell(gc, f);
+      const Index in = grid_inner_cell(gc, f);
       if (in >= 0) r.has_open[r.cell_region[in]] = true;
     }
   return r;
@@ -130,7 +137,7 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
   TETFSI_CHECK(u.size() == nf, "u has {} entries for {} faces", u.size(), nf);
   ProjectionReport rep;
   double t0 = now_seconds();
-  const Numbering n = number_fluid_cells(gc);
+  const GridNumbering n = number_fluid_cells(gc);
   const Index nu = static_cast<Index>(n.cell.size());
   const Regions regions = grid_regions(gc);
   const SparseMatrix M = grid_pressure_matrix(gc, n, regions);
@@ -143,9 +150,9 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
   for (Index i = 0; i < nu; ++i) b[i] = -flux[n.cell[i]];
   if (q_open.size() == nf)
     for (Index f = 0; f < nf; ++f)
-      if (gc.face_kind[f] == FaceKind::Open && inner_cell(gc, f) >= 0)
-        b[n.unknown[inner_cell(gc, f)]] +=
-            g.face_area(g.face_axis(f)) / face_dual(gc, f) * q_open[f];
+      if (gc.face_kind[f] == FaceKind::Open && grid_inner_cell(gc, f) >= 0)
+        b[n.unknown[grid_inner_cell(gc, f)]] +=
+            g.face_area(g.face_axis(f)) / grid_face_dual(gc, f) * q_open[f];
   // A closed region's net boundary flux cannot be absorbed: remove it evenly (equal cells).
   std::vector<double> sum(regions.count(), 0.0), abs_sum(regions.count(), 0.0);
   std::vector<Index> cells(regions.count(), 0);
@@ -183,20 +190,7 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
                  sr.backend, sr.iterations);
   q = VecX::Zero(nc);
   for (Index i = 0; i < nu; ++i) q[n.cell[i]] = x[i];
-  // see [Chentanez06, Eq. (2)]: u = u* − (h/ρ) G p on the pressure-coupled faces.
-  for (Index f = 0; f < nf; ++f) {
-    const FaceKind k = gc.face_kind[f];
-    if (k == FaceKind::Interior) {
-      const auto c = g.face_cells(f);
-      u[f] -= (q[c[1]] - q[c[0]]) / face_dual(gc, f);
-    } else if (k == FaceKind::Open) {
-      const Index in = inner_cell(gc, f);
-      if (in < 0) continue;
-      const double qo = q_open.size() == nf ? q_open[f] : 0.0;
-      const bool upper = g.face_cells(f)[1] < 0;  // the box's upper side: +e_a points out
-      u[f] -= (upper ? qo - q[in] : q[in] - qo) / face_dual(gc, f);
-    }
-  }
+  grid_apply_gradient(gc, q, q_open, u);
   rep.divergence_after = grid_net_flux(gc, u).cwiseAbs().maxCoeff() / g.cell_volume();
   return rep;
 }

@@ -11,12 +11,34 @@
 ///    on Open faces, q = (h/ρ) p
 ///  - regions (fluid cells connected through Interior faces) without an Open face get one
 ///    pin and their net boundary flux removed first, as on the tet mesh (operators.hpp).
+#include <vector>
+
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
 #include "fluid/grid.hpp"
 #include "fluid/operators.hpp"
 
 namespace tetfsi::fluid {
+
+/// Distance from a cell centre to the cell centre across face f (Interior), or to f (Open).
+double grid_face_dual(const GridCells& gc, Index f);
+/// The fluid cell next to a box face (−1 if none).
+Index grid_inner_cell(const GridCells& gc, Index f);
+
+/// The pressure unknowns: one per fluid cell, in cell order.
+struct GridNumbering {
+  VecXi unknown;            ///< #C → unknown, −1 for solid cells
+  std::vector<Index> cell;  ///< unknown → cell
+};
+GridNumbering number_fluid_cells(const GridCells& gc);
+
+/// M = −V D G between the fluid cells (SPD with the pins): M_cc = Σ A/d, M_cn = −A/d over
+/// Interior faces, A/(h/2) on Open faces; one pin per region of `pins` without has_open (its
+/// first cell's diagonal doubled).
+SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, const Regions& pins);
+
+/// u ← u − G q on Interior faces and Open faces (q_open there; empty: 0), q per cell (#C).
+void grid_apply_gradient(const GridCells& gc, const VecX& q, const VecX& q_open, VecX& u);
 
 /// Net outward flux per cell (#C, m³/s; 0 for solid cells) of face velocities u (#F).
 VecX grid_net_flux(const GridCells& gc, const VecX& u);

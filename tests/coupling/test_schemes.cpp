@@ -8,6 +8,7 @@
 
 #include "core/error.hpp"
 #include "coupling/scheme.hpp"
+#include "coupling/tet_fluid.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/generate.hpp"
 #include "tests/coupling/coupled_test_utils.hpp"
@@ -54,12 +55,15 @@ TEST_CASE("schemes: each one, made by make_scheme, advances the bodies and the f
     const MatX3 d0 = world.bodies[0].displacement;
     const MeshBuilder build = [&](const std::vector<MatX3>& x) { return r.build(x); };
     PhaseTimes phases;
-    StepContext ctx{world, r.fluid(), build, r.surfaces(), h, phases};
-    fluid::FluidPrediction pred;
+    TetCoupledFluid fluid(r.fluid(), build, body_interfaces(world, r.surfaces()));
+    StepContext ctx{world, fluid, r.surfaces(), h, phases};
+    std::unique_ptr<PredictedFluid> pred;
     CoupledStepReport rep;
     const CoupledSolution sol = scheme->advance(ctx, pred, rep);
 
-    const mesh::TetMesh& m = pred.mesh;
+    const auto* tp = dynamic_cast<const TetPrediction*>(pred.get());
+    REQUIRE(tp);
+    const mesh::TetMesh& m = tp->prediction().mesh;
     REQUIRE(m.num_tets() > 0);
     CHECK(sol.u_face.size() == m.num_faces());
     CHECK(sol.p.size() == m.num_tets());

@@ -1,0 +1,111 @@
+#pragma once
+/// @file grid_coupled.hpp
+/// The simultaneous solve [Chentanez06, Eq. (7)] on the MAC grid (fluid/grid*.hpp) and the
+/// grid fluid behind the schemes' seam (fluid_seam.hpp). The system is coupled_system.hpp's,
+/// filled from the grid: one pressure unknown per fluid cell, C = diag(h/ρ) L with the grid's
+/// 7-point L (grid_pressure_matrix), the second block row's interface operator V D1 H
+/// (fluid::GridInterface), and the first row's pressure forces J in one of two forms
+/// [Chentanez06, §3.4, last paragraph]:
+///  - consistent (the default): J = (V D1 H)ᵀ. The system is symmetric quasi-definite like the
+///    tet fluid's, so every solver works (schur_amg: CG on the Schur complement with AMG), and
+///    the pressure does on the bodies exactly the power the bodies do on the fluid;
+///  - paper: the pressure interpolated side-aware at quadrature points of every body triangle
+///    and integrated (GridInterface::J_paper), built apart from H as in the paper. Exact for a
+///    linear pressure, but the system is not symmetric: with free bodies only the general
+///    solvers (umfpack, bicgstab_ilut: the paper's) take it, and the interface creates or
+///    absorbs the power CoupledReport::interface_imbalance.
+/// The hydrostatic part of a liquid's pressure pushes the bodies through the same J (exact
+/// for the paper form, which integrates a linear field exactly). Enclosed regions keep their
+/// volume as on the tet mesh; a cavity is every triangle of the body surface components the
+/// region's Solid faces cross.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/enum_names.hpp"
+#include "coupling/fluid_seam.hpp"
+#include "coupling/scheme.hpp"
+#include "fluid/grid.hpp"
+#include "fluid/grid_interface.hpp"
+#include "fluid/grid_simulation.hpp"
+
+namespace tetfsi::coupling {
+
+enum class GridPressureForces { Consistent, Paper };
+inline constexpr EnumNames<GridPressureForces, 2> k_grid_pressure_forces_names{
+    "fluid.grid.pressure_forces",
+    {{{GridPressureForces::Consistent, "consistent"}, {GridPressureForces::Paper, "paper"}}}};
+
+struct GridCoupledInput {
+  const fluid::GridCells* cells = nullptr;
+  const VecX* u_star = nullptr;  ///< #F v*, prescribed faces set
+  const VecX* p_open = nullptr;  ///< #F dynamic pressure on Open faces (Pa)
+  double rho = 0.0;              ///< fluid density (uniform on the grid)
+  double h = 0.0;
+  Vec3 gravity = Vec3::Zero(), hydrostatic_origin = Vec3::Zero();
+  const fluid::GridInterface* interface = nullptr;
+  const SparseMatrix* J = nullptr;   ///< 3N × #C, the first row's pressure forces
+  const SparseMatrix* Jc = nullptr;  ///< 3N × #C, (V D1 H)ᵀ
+  const std::vector<CoupledBody>* bodies = nullptr;
+  VolumeTargets* volume_targets = nullptr;  ///< null: no volume correction
+};
+
+/// Assemble (CoupledSystem), solve, keep enclosed volumes, finish with Eq. (8): the grid's
+/// counterpart of solve_coupled. @throws InputError for inconsistent sizes, or schur_amg on
+/// the non-symmetric paper form with free bodies; SolverError as solve_coupled.
+CoupledSolution solve_grid_coupled(const GridCoupledInput& in, const CoupledOptions& opt);
+
+/// The grid fluid's prediction of a step: the classified grid with v*, H, J.
+class GridPredicted final : public PredictedFluid {
+ public:
+  GridPredicted(fluid::GridPrediction pred, const fluid::FluidParams& params,
+                const std::vector<BodyInterface>& bodies, GridPressureForces forces);
+
+  const VecX& u_star() const override { return m_pred.u_star; }
+  CoupledSolution solve(const std::vector<CoupledBody>& bodies, const CoupledOptions& opt,
+                        const SolveVariant& variant = {}) const override;
+  void apply_H(const std::vector<VecX>& u, VecX& u_face) const override {
+    m_iface.apply_H(u, u_face);
+  }
+  void refuse_sealed_regions(const solid::SolidWorld& world, const char* scheme) const override;
+
+  fluid::GridPrediction& prediction() { return m_pred; }
+  const fluid::GridPrediction& prediction() const { return m_pred; }
+  const fluid::GridInterface& interface() const { return m_iface; }
+
+ private:
+  fluid::GridPrediction m_pred;
+  const fluid::FluidParams& m_params;
+  fluid::GridInterface m_iface;
+  SparseMatrix m_J, m_Jc;
+};
+
+/// The fluid's nodal forces (3n per body, N) of a pressure p (#C, total) through J (3N × #C).
+std::vector<VecX> grid_fluid_forces(const fluid::GridInterface& iface, const SparseMatrix& J,
+                                    const VecX& p);
+
+class GridCoupledFluid final : public CoupledFluid {
+ public:
+  /// @param surfaces, names, bodies per body (body_surface, SolidBody::name, body_interfaces)
+  GridCoupledFluid(fluid::GridFluid& fluid, const mesh::FluidDomain& domain,
+                   const std::vector<BodySurface>& surfaces, const std::vector<std::string>& names,
+                   std::vector<BodyInterface> bodies, GridPressureForces forces);
+
+  const fluid::FluidParams& params() const override { return m_fluid.params(); }
+  std::unique_ptr<PredictedFluid> predict(const std::vector<MatX3>& positions,
+                                          const std::vector<fluid::SolidSurfaceMotion>& motions,
+                                          double h, PhaseTimes& phases) override;
+  fluid::FluidStepReport commit(std::unique_ptr<PredictedFluid> pred,
+                                CoupledSolution& sol) override;
+  std::vector<VecX> current_forces(const std::vector<BodyInterface>& bodies) const override;
+
+ private:
+  fluid::GridFluid& m_fluid;
+  const mesh::FluidDomain& m_domain;
+  const std::vector<BodySurface>& m_surfaces;
+  const std::vector<std::string>& m_names;
+  std::vector<BodyInterface> m_bodies;
+  GridPressureForces m_forces;
+};
+
+}  // namespace tetfsi::coupling

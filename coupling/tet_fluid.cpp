@@ -1,0 +1,78 @@
+/// @file tet_fluid.cpp
+/// TetCoupledFluid (tet_fluid.hpp): the tet fluid's side of every coupling scheme.
+#include "coupling/tet_fluid.hpp"
+
+#include "core/error.hpp"
+#include "fluid/interface.hpp"
+#include "fluid/operators.hpp"
+
+namespace tetfsi::coupling {
+
+TetPrediction::TetPrediction(fluid::FluidPrediction pred, const fluid::FluidParams& params,
+                             const std::vector<BodyInterface>& bodies)
+    : m_pred(std::move(pred)), m_params(params), m_ops(m_pred.mesh, bodies) {}
+
+CoupledSolution TetPrediction::solve(const std::vector<CoupledBody>& bodies,
+                                     const CoupledOptions& opt, const SolveVariant& v) const {
+  CoupledInput in = make_input(m_pred, m_params, m_ops, bodies, v.targets);
+  if (v.u_star) in.u_star = v.u_star;
+  VecX zero_f;
+  if (v.homogeneous) {
+    zero_f = VecX::Zero(m_pred.mesh.num_faces());
+    in.u_star = &zero_f;
+    in.p_open = &zero_f;
+    in.gravity = Vec3::Zero();
+  }
+  return solve_coupled(in, opt);
+}
+
+void TetPrediction::refuse_sealed_regions(const solid::SolidWorld& world,
+                                          const char* scheme) const {
+  const mesh::TetMesh& m = m_pred.mesh;
+  const fluid::Regions regions = fluid::fluid_regions(m);
+  std::vector<Index> cells(regions.count(), 0);
+  for (Index t = 0; t < m.num_tets(); ++t) ++cells[regions.cell_region[t]];
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    if (!m.is_boundary(f) || m.face_kind[f] != mesh::FaceKind::Solid) continue;
+    const Index r = regions.cell_region[m.face_tets(f, 0)];
+    const solid::SolidBody& body = world.bodies[m.face_body[f]];
+    TETFSI_REQUIRE(InputError, regions.has_open[r] || body.is_kinematic(),
+                   "coupling.scheme {}: a fluid region of {} cells has no open face and is "
+                   "bounded by body '{}': a fluid-only projection cannot keep its volume; use "
+                   "coupling.scheme simultaneous, or give the region an open patch",
+                   scheme, cells[r], body.name());
+  }
+}
+
+TetCoupledFluid::TetCoupledFluid(fluid::FluidSimulation& fluid, const MeshBuilder& build,
+                                 std::vector<BodyInterface> bodies)
+    : m_fluid(fluid), m_build(build), m_bodies(std::move(bodies)) {}
+
+std::unique_ptr<PredictedFluid> TetCoupledFluid::predict(
+    const std::vector<MatX3>& positions, const std::vector<fluid::SolidSurfaceMotion>& motions,
+    double h, PhaseTimes& phases) {
+  mesh::TetMesh m = m_build(positions);
+  return std::make_unique<TetPrediction>(m_fluid.predict(std::move(m), h, motions, phases),
+                                         m_fluid.params(), m_bodies);
+}
+
+fluid::FluidStepReport TetCoupledFluid::commit(std::unique_ptr<PredictedFluid> pred,
+                                               CoupledSolution& sol) {
+  auto* tp = dynamic_cast<TetPrediction*>(pred.get());
+  TETFSI_CHECK(tp, "TetCoupledFluid::commit: a prediction of another fluid");
+  return m_fluid.commit(std::move(tp->prediction()), std::move(sol.u_face), std::move(sol.p));
+}
+
+std::vector<VecX> TetCoupledFluid::current_forces(const std::vector<BodyInterface>& bodies) const {
+  const mesh::TetMesh& m0 = m_fluid.mesh();
+  const fluid::FluidParams& fp = m_fluid.params();
+  const VecX rho = fluid::cell_fluid_density(m0, fp);
+  VecX p_dyn = m_fluid.state().p;
+  for (Index t = 0; t < m0.num_tets(); ++t)
+    p_dyn[t] -= fluid::hydrostatic_pressure(rho[t], fp.gravity, fp.hydrostatic_origin,
+                                            m0.circumcentres.row(t).transpose());
+  const InterfaceOperators ops(m0, bodies);
+  return fluid_forces(ops, p_dyn, rho, fp.gravity, fp.hydrostatic_origin);
+}
+
+}  // namespace tetfsi::coupling
