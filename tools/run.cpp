@@ -380,6 +380,8 @@ coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld wo
   std::optional<coupling::CouplingParams> coupling;
   if (scene.fluid) {
     fluid = coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params};
+    if (scene.fluid->grid_spec)
+      fluid->grid = coupling::GridSetup{*scene.fluid->grid_spec, scene.fluid->grid.pressure_forces};
     if (scene.two_way()) coupling = scene.coupling->params;
   }
   return coupling::FsiSimulation(std::move(world), std::move(fluid), std::move(coupling));

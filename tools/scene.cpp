@@ -586,6 +586,10 @@ class Parser {
         fail(child_path(m.path, "surface_size"),
              fmt::format("must be <= far_size ({} m), got {} m", z.far_size, z.surface_size));
     }
+    if (f.discretization == Discretization::Grid) grid(n, f);
+    else if (has(n, "grid"))
+      fail(child_path(n.path, "grid"),
+           "applies only to fluid.discretization \"grid\"; remove it or set the discretization");
     fp.gravity = f.gravity ? gravity : Vec3::Zero();
     for (int a = 0; a < 3; ++a)  // the box corner highest against gravity
       fp.hydrostatic_origin[a] = fp.gravity[a] < 0 ? f.domain.hi[a] : f.domain.lo[a];
@@ -611,6 +615,46 @@ class Parser {
                          fp.refine.size));
     }
     return f;
+  }
+
+  /// fluid.grid of a grid scene: the grid's cells from cell_size or cells, within max_cells;
+  /// the tet mesh's keys refused.
+  void grid(const Node& n, FluidSpec& f) const {
+    for (const char* key : {"mesh", "refine", "reconstruction", "min_dual_fraction"})
+      if (has(n, key))
+        fail(child_path(n.path, key),
+             "is a key of the tet mesh, not of fluid.discretization \"grid\"; remove it");
+    if (f.params.enclosed_density > 0 && f.params.enclosed_density != f.params.density)
+      fail(child_path(n.path, "enclosed_density"),
+           "is not available on the grid yet; remove it or use fluid.discretization \"tet\"");
+    const Node g = require(n, "grid");
+    GridKeys& k = f.grid;
+    read(g, fluid_grid_keys(), k);
+    const bool by_size = has(g, "cell_size"), by_cells = has(g, "cells");
+    if (!by_size && !by_cells)
+      fail(g.path, "give cell_size (m) or cells [nx, ny, nz]");
+    const Vec3 lo = f.domain.lo, hi = f.domain.hi;
+    fluid::GridSpec spec;
+    if (by_size) {
+      spec = fluid::GridSpec::from_cell_size(lo, hi, k.cell_size);
+      const Vec3i n_size(static_cast<int>(spec.n[0]), static_cast<int>(spec.n[1]),
+                         static_cast<int>(spec.n[2]));
+      if (by_cells && n_size != k.cells)
+        fail(child_path(g.path, "cells"),
+             fmt::format("[{}, {}, {}] disagrees with cell_size {} m, which gives [{}, {}, {}]; "
+                         "give one of them",
+                         k.cells.x(), k.cells.y(), k.cells.z(), k.cell_size, n_size.x(),
+                         n_size.y(), n_size.z()));
+      k.cells = n_size;
+    } else {
+      spec = fluid::GridSpec::from_cells(lo, hi, {k.cells.x(), k.cells.y(), k.cells.z()});
+    }
+    if (spec.num_cells() > k.max_cells)
+      fail(child_path(g.path, by_size ? "cell_size" : "cells"),
+           fmt::format("gives {} x {} x {} = {} cells, more than fluid.grid.max_cells ({}); "
+                       "use larger cells or raise max_cells",
+                       spec.n[0], spec.n[1], spec.n[2], spec.num_cells(), k.max_cells));
+    f.grid_spec = spec;
   }
 
   /// The solid section: the integrator of bodies that step alone and the equilibrium
@@ -699,7 +743,12 @@ json fluid_json(const FluidSpec& f) {
   for (std::size_t i = 0; i < f.domain.patches.size(); ++i)
     domain["patches"].push_back(patch_keys().write({f.domain.patches[i], fp.patches.at(i)}));
   j["domain"] = domain;
-  j["mesh"] = fluid_mesh_keys().write(f.sizing);
+  if (f.grid_spec) {  // the tet mesh's keys are refused on the grid
+    j.erase("reconstruction");
+    j.erase("min_dual_fraction");
+    j["grid"] = fluid_grid_keys().write(f.grid);
+  } else
+    j["mesh"] = fluid_mesh_keys().write(f.sizing);
   j["buoyancy"] = buoyancy_keys().write(fp);
   j["decay"] = decay_keys().write(fp);
   j["solver"] = fluid_solver_keys().write(fp);
@@ -709,7 +758,7 @@ json fluid_json(const FluidSpec& f) {
     js["box"] = source_box_keys().write({src.lo, src.hi});
     j["sources"].push_back(js);
   }
-  j["refine"] = refine_keys().write(fp.refine);
+  if (!f.grid_spec) j["refine"] = refine_keys().write(fp.refine);
   return j;
 }
 

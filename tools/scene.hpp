@@ -145,7 +145,10 @@
 #include <nlohmann/json.hpp>
 
 #include "core/types.hpp"
+#include "core/enum_names.hpp"
 #include "coupling/coupled_step.hpp"
+#include "coupling/grid_coupled.hpp"
+#include "fluid/grid.hpp"
 #include "fluid/params.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/material.hpp"
@@ -260,6 +263,19 @@ struct StaticSpec {
   int max_iterations = 60;
 };
 
+/// Where the fluid lives: the dynamic tet mesh, or the regular MAC grid.
+enum class Discretization { Tet, Grid };
+inline constexpr EnumNames<Discretization, 2> k_discretization_names{
+    "fluid discretization", {{{Discretization::Tet, "tet"}, {Discretization::Grid, "grid"}}}};
+
+/// The scene keys fluid.grid: the MAC grid over the fluid box (coupling/grid_coupled.hpp).
+struct GridKeys {
+  double cell_size = 0.0;       ///< m; 0: from `cells`
+  Vec3i cells = Vec3i::Zero();  ///< per axis; resolved from cell_size when that is given
+  int max_cells = 2'000'000;
+  coupling::GridPressureForces pressure_forces = coupling::GridPressureForces::Consistent;
+};
+
 /// The optional fluid of a scene: the box it fills and the size of its mesh, as the remesher
 /// takes them (mesh/remesh.hpp), and its physics. `sizing.refine` is never set from a scene
 /// (`params.refine` says what the run should ask for).
@@ -270,6 +286,10 @@ struct FluidSpec {
   /// order), `params.gravity` is the scene's gravity if `gravity` else zero.
   fluid::FluidParams params;
   bool gravity = false;  ///< the scene key fluid.gravity
+  Discretization discretization = Discretization::Tet;
+  GridKeys grid;  ///< grid scenes: the keys (cells resolved)
+  /// grid scenes: the grid the fluid runs on
+  std::optional<fluid::GridSpec> grid_spec;
 };
 
 /// How the fluid and the bodies of a fluid scene interact (the scene key "coupling").

@@ -800,7 +800,13 @@ const Section<FluidSpec>& fluid_keys() {
                        .type = KeyType::Object,
                        .doc = "the box and its boundary",
                        .required = true}),
-       sub<FluidSpec>({.key = "mesh", .type = KeyType::Object, .doc = "the fluid mesh's sizes"}),
+       bind_enum<FluidSpec>(
+           {.key = "discretization",
+            .doc = "tet: the tet mesh rebuilt every step; grid: a regular MAC grid"},
+           k_discretization_names, TETFSI_AT(discretization)),
+       sub<FluidSpec>(
+           {.key = "mesh", .type = KeyType::Object, .doc = "the fluid mesh's sizes (tet)"}),
+       sub<FluidSpec>({.key = "grid", .type = KeyType::Object, .doc = "the MAC grid (grid)"}),
        bind<FluidSpec>(
            {.key = "density",
             .type = KeyType::Number,
@@ -969,6 +975,37 @@ const Section<mesh::Sizing>& fluid_mesh_keys() {
                 .range = k_non_negative,
                 .note = "0: no budget"},
                TETFSI_AT(max_cells))}};
+  return s;
+}
+
+const Section<GridKeys>& fluid_grid_keys() {
+  using G = GridKeys;
+  static const Section<G> s{
+      "fluid.grid",
+      "fluid.discretization grid: cells over fluid.domain; give cell_size or cells",
+      {{{.key = "cell_size",
+         .type = KeyType::Number,
+         .doc = "about this size: round(box length / cell_size) cells per axis",
+         .unit = "m",
+         .range = k_positive,
+         .default_text = "from cells"},
+        [](const G& g) { return g.cell_size > 0 ? json(g.cell_size) : json(); },
+        [](G& g, const json& v) { g.cell_size = v.get<double>(); }},
+       bind<G>({.key = "cells",
+                .type = KeyType::Cells,
+                .doc = "per axis (with cell_size: must agree with it)",
+                .range = k_count,
+                .default_text = "from cell_size"},
+               TETFSI_AT(cells)),
+       bind<G>({.key = "max_cells",
+                .type = KeyType::Integer,
+                .doc = "a larger grid is refused",
+                .range = k_count},
+               TETFSI_AT(max_cells)),
+       bind_enum<G>({.key = "pressure_forces",
+                     .doc = "J: consistent (V D1 H)^T, symmetric; paper: quadrature on the "
+                            "triangles [Chentanez06, S3.4]"},
+                    coupling::k_grid_pressure_forces_names, TETFSI_AT(pressure_forces))}};
   return s;
 }
 
@@ -1236,7 +1273,7 @@ const std::vector<KeySection>& scene_key_sections() {
       rows_of(pin_keys()),          rows_of(load_keys()),           rows_of(selection_box_keys()),
       rows_of(kinematic_keys()),    rows_of(plane_obstacle_keys()), rows_of(box_obstacle_keys()),
       rows_of(fluid_keys()),        rows_of(domain_keys()),         rows_of(patch_keys()),
-      rows_of(fluid_mesh_keys()),   rows_of(buoyancy_keys()),       rows_of(decay_keys()),
+      rows_of(fluid_mesh_keys()),   rows_of(fluid_grid_keys()),     rows_of(buoyancy_keys()),       rows_of(decay_keys()),
       rows_of(fluid_solver_keys()), rows_of(source_keys()),         rows_of(source_box_keys()),
       rows_of(refine_keys()),       rows_of(coupling_keys())};
   return sections;

@@ -170,6 +170,7 @@ const Section<FluidSpec>& fluid_keys();
 const Section<mesh::FluidDomain>& domain_keys();
 const Section<PatchKeys>& patch_keys();
 const Section<mesh::Sizing>& fluid_mesh_keys();
+const Section<GridKeys>& fluid_grid_keys();
 const Section<fluid::FluidParams>& buoyancy_keys();
 const Section<fluid::FluidParams>& decay_keys();
 const Section<fluid::FluidParams>& fluid_solver_keys();
