@@ -674,17 +674,26 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
   }
 }
 
-void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
-                               const mesh::TetMesh* fluid, const FluidFrameFields* fluid_fields) {
+std::vector<std::string> OutputWriter::write_bodies(const solid::SolidWorld& world, int step) {
   TETFSI_CHECK(world.bodies.size() == m_pvd.size(), "world has {} bodies, output has {}",
                world.bodies.size(), m_pvd.size());
-  // Every file first, then the collections: a frame that fails half-way is in none of them.
   std::vector<std::string> rel(world.bodies.size());
   for (size_t i = 0; i < world.bodies.size(); ++i) {
     const std::string& name = m_file_names[i];
     rel[i] = fmt::format("{}/{}_{:06d}.vtu", name, name, step);
     write_body_vtu(m_out / rel[i], world.bodies[i], world.gravity, m_compression);
   }
+  return rel;
+}
+
+void OutputWriter::add_bodies_to_pvds(const std::vector<std::string>& rel, double time) {
+  for (size_t i = 0; i < rel.size(); ++i) m_pvd[i].add(time, rel[i]);
+}
+
+void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
+                               const mesh::TetMesh* fluid, const FluidFrameFields* fluid_fields) {
+  // Every file first, then the collections: a frame that fails half-way is in none of them.
+  const std::vector<std::string> rel = write_bodies(world, step);
   const bool with_fluid = m_fluid_pvd && fluid;
   const std::string rel_f = fmt::format("fluid/fluid_{:06d}.vtu", step);
   const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
@@ -692,7 +701,7 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
     write_fluid_vtu(m_out / rel_f, *fluid, m_compression, fluid_fields);
     write_interface_vtp(m_out / rel_i, *fluid, m_compression, fluid_fields);
   }
-  for (size_t i = 0; i < world.bodies.size(); ++i) m_pvd[i].add(time, rel[i]);
+  add_bodies_to_pvds(rel, time);
   if (with_fluid) {
     m_fluid_pvd->add(time, rel_f);
     m_interface_pvd->add(time, rel_i);

@@ -328,6 +328,12 @@ class OutputWriter {
   std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
   StatsWriter m_stats;
   int m_frames = 0;
+
+  /// Write every body's `.vtu` of the frame; returns their paths relative to m_out, in body
+  /// order, for the `.pvd`s (which the caller updates once the frame's other files exist).
+  std::vector<std::string> write_bodies(const solid::SolidWorld& world, int step);
+  /// Add the frame to every body's `.pvd`.
+  void add_bodies_to_pvds(const std::vector<std::string>& rel, double time);
 };
 
 /// A body name made safe for file names: characters other than [A-Za-z0-9_.-] become '_'
