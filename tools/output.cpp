@@ -842,6 +842,24 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
   ++m_frames;
 }
 
+void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, double time,
+                                    const GridFrameFields& grid) {
+  TETFSI_CHECK(m_fluid_pvd && m_interface_pvd,
+               "write_grid_frame: the scene has no fluid (no fluid.pvd, interface.pvd)");
+  // The grid's sizes before any file, then every file, then the collections.
+  check_grid_cells(grid);
+  check_grid_surface(grid);
+  const std::vector<std::string> rel = write_bodies(world, step);
+  const std::string rel_f = fmt::format("fluid/fluid_{:06d}.vti", step);
+  const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
+  write_grid_vti(m_out / rel_f, grid, m_compression);
+  write_grid_interface_vtp(m_out / rel_i, grid, m_compression);
+  add_bodies_to_pvds(rel, time);
+  m_fluid_pvd->add(time, rel_f);
+  m_interface_pvd->add(time, rel_i);
+  ++m_frames;
+}
+
 void OutputWriter::write_summary(const std::string& json_text) {
   write_text_file_atomic(m_out / "summary.json", json_text);
 }

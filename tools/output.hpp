@@ -2,7 +2,8 @@
 /// @file output.hpp
 /// Simulation output for ParaView: one `.vtu` per body and frame, a `.pvd` collection per
 /// body that lists the frames with their times, and a `stats.csv` with one row per step.
-/// A scene with a fluid also gets the fluid mesh and its solid-interface faces per frame.
+/// A scene with a fluid also gets the fluid mesh and its solid-interface faces per frame (a
+/// grid fluid: its cells as image data and the bodies' surface triangles).
 ///
 /// Layout of an output folder `OUT` (all of it written by `OutputWriter`):
 /// ```
@@ -10,9 +11,10 @@
 /// OUT/<body>.pvd                   collection: (time, file) per frame, open this in ParaView
 /// OUT/<body>/<body>_<step>.vtu     frames (step number, 6 digits)
 /// OUT/fluid.pvd                    fluid scenes: the fluid mesh of each frame
-/// OUT/fluid/fluid_<step>.vtu         (write_fluid_vtu)
+/// OUT/fluid/fluid_<step>.vtu         (write_fluid_vtu), or for a grid fluid
+/// OUT/fluid/fluid_<step>.vti         (write_grid_vti, OutputWriter::write_grid_frame)
 /// OUT/interface.pvd                fluid scenes: the fluid faces on the solids of each frame
-/// OUT/interface/interface_<step>.vtp (write_interface_vtp)
+/// OUT/interface/interface_<step>.vtp (write_interface_vtp; grid fluid: write_grid_interface_vtp)
 /// OUT/stats.csv                    one row per step (see StatsWriter::columns())
 /// OUT/summary.json                 written by the run loop at the end (tools/run.hpp)
 /// ```
@@ -363,6 +365,14 @@ class OutputWriter {
   void write_frame(const solid::SolidWorld& world, int step, double time,
                    const mesh::TetMesh* fluid = nullptr,
                    const FluidFrameFields* fluid_fields = nullptr);
+  /// As write_frame, with the grid fluid: `fluid/fluid_<step>.vti` (write_grid_vti) in
+  /// fluid.pvd and `interface/interface_<step>.vtp` (write_grid_interface_vtp) in
+  /// interface.pvd. The sizes of `grid` are checked before any file is written, and every file
+  /// of the frame is written before any `.pvd` lists it.
+  /// @throws InternalError if the scene has no fluid (has_fluid()) or `grid`'s sizes do not
+  ///   agree (then no file of the frame is written).
+  void write_grid_frame(const solid::SolidWorld& world, int step, double time,
+                        const GridFrameFields& grid);
   /// Append a row to stats.csv.
   void write_stats(const StepStats& row) { m_stats.write(row); }
   /// Write `summary.json` (pretty JSON text, atomically).

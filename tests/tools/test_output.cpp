@@ -1115,3 +1115,53 @@ TEST_CASE("write_grid_vti / write_grid_interface_vtp: a size mismatch throws bef
     expect_error(vtp_writer, vtp, g, {"surface_triangles row 2", "(0, 4, 2)", "4 surface_points"});
   }
 }
+
+TEST_CASE("OutputWriter::write_grid_frame: fluid.pvd lists the .vti, interface.pvd the .vtp") {
+  TempDir dir("layout_grid");
+  const fs::path out = dir.path / "run";
+  Scene scene;
+  scene.name = "unit";
+  scene.fluid = FluidSpec{};
+  solid::SolidWorld world;
+  world.bodies.push_back(make_test_body());
+  GridFrameFields g = make_grid_frame();
+  {
+    OutputWriter w(out, scene, world);
+    w.write_grid_frame(world, 0, 0.0, g);
+    g.pressure.array() += 1.0;
+    w.write_grid_frame(world, 4, 0.25, g);
+    CHECK(w.frames_written() == 2);
+
+    // A frame with inconsistent grid sizes throws before any of its files is written, and
+    // is in no collection.
+    GridFrameFields bad = g;
+    bad.surface_body.resize(1);
+    CHECK_THROWS_AS(w.write_grid_frame(world, 8, 0.5, bad), InternalError);
+    CHECK(!fs::exists(out / "block" / "block_000008.vtu"));
+    CHECK(!fs::exists(out / "fluid" / "fluid_000008.vti"));
+    CHECK(w.frames_written() == 2);
+  }
+  CHECK(!has_tmp_files(out));
+  for (const char* pvd : {"block.pvd", "fluid.pvd", "interface.pvd"}) {
+    CAPTURE(pvd);
+    CHECK(parse_pvd(out / pvd).times == std::vector<double>{0.0, 0.25});
+  }
+  const ParsedPvd fluid = parse_pvd(out / "fluid.pvd");
+  CHECK(fluid.files ==
+        std::vector<std::string>{"fluid/fluid_000000.vti", "fluid/fluid_000004.vti"});
+  const ParsedPvd iface = parse_pvd(out / "interface.pvd");
+  CHECK(iface.files == std::vector<std::string>{"interface/interface_000000.vtp",
+                                                "interface/interface_000004.vtp"});
+  CHECK(parse_pvd(out / "block.pvd").files.at(1) == "block/block_000004.vtu");
+  auto image = read_vti(out / fluid.files[1]);
+  CHECK(image->GetNumberOfCells() == 60);
+  CHECK(max_diff(image->GetCellData()->GetArray("pressure"), g.pressure) == 0.0);
+  CHECK(read_vtp(out / iface.files[1])->GetNumberOfCells() == 4);
+
+  // A scene without a fluid has no fluid.pvd to list a grid frame in.
+  Scene plain;
+  plain.name = "unit";
+  OutputWriter w(dir.path / "plain", plain, world);
+  CHECK_THROWS_AS(w.write_grid_frame(world, 0, 0.0, g), InternalError);
+  CHECK(!fs::exists(dir.path / "plain" / "block" / "block_000000.vtu"));
+}
