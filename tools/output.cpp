@@ -1,8 +1,10 @@
 #include "tools/output.hpp"
 
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <system_error>
 
 #include <vtkCellArray.h>
@@ -10,6 +12,7 @@
 #include <vtkCommand.h>
 #include <vtkDoubleArray.h>
 #include <vtkErrorCode.h>
+#include <vtkImageData.h>
 #include <vtkLogger.h>
 #include <vtkNew.h>
 #include <vtkObjectFactory.h>
@@ -20,6 +23,7 @@
 #include <vtkTypeInt32Array.h>
 #include <vtkUnsignedCharArray.h>
 #include <vtkUnstructuredGrid.h>
+#include <vtkXMLImageDataWriter.h>
 #include <vtkXMLPolyDataWriter.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
@@ -461,6 +465,135 @@ void write_interface_vtp(const fs::path& path, const mesh::TetMesh& m, Compressi
   write_xml_atomic(writer, poly, path, compression);
 }
 
+// ---- grid fluid ----------------------------------------------------------------------------
+
+namespace {
+
+/// #C of a grid frame. @throws InternalError if a cell count is < 1 or #C overflows Index, or
+/// the origin or a spacing is not finite (a spacing also not positive).
+Index grid_num_cells(const GridFrameFields& g) {
+  const auto& n = g.cells;
+  std::int64_t nc = 1;
+  for (int a = 0; a < 3; ++a) {
+    TETFSI_CHECK(n[a] >= 1, "grid frame: cells = {} × {} × {}, each must be ≥ 1", n[0], n[1], n[2]);
+    TETFSI_CHECK(std::isfinite(g.spacing[a]) && g.spacing[a] > 0.0,
+                 "grid frame: spacing = ({}, {}, {}), each must be positive and finite",
+                 g.spacing[0], g.spacing[1], g.spacing[2]);
+    nc *= n[a];
+  }
+  TETFSI_CHECK(g.origin.allFinite(), "grid frame: origin = ({}, {}, {}) is not finite", g.origin[0],
+               g.origin[1], g.origin[2]);
+  TETFSI_CHECK(nc <= std::numeric_limits<Index>::max(), "grid frame: {} × {} × {} cells overflow",
+               n[0], n[1], n[2]);
+  return static_cast<Index>(nc);
+}
+
+/// #C. @throws InternalError naming the first cell array of `g` that is not #C long.
+Index check_grid_cells(const GridFrameFields& g) {
+  const Index nc = grid_num_cells(g);
+  auto check = [&](const char* name, Index size) {
+    TETFSI_CHECK(size == nc, "grid frame: '{}' has {} entries for {} cells ({} × {} × {})", name,
+                 size, nc, g.cells[0], g.cells[1], g.cells[2]);
+  };
+  check("pressure", static_cast<Index>(g.pressure.size()));
+  check("density", static_cast<Index>(g.density.size()));
+  check("temperature", static_cast<Index>(g.temperature.size()));
+  check("divergence", static_cast<Index>(g.divergence.size()));
+  check("vorticity", static_cast<Index>(g.vorticity.size()));
+  check("velocity", static_cast<Index>(g.velocity.rows()));
+  check("solid", static_cast<Index>(g.solid.size()));
+  return nc;
+}
+
+/// @throws InternalError naming the first surface array of `g` of the wrong size, or the
+/// first triangle with a point index outside [0, #P).
+void check_grid_surface(const GridFrameFields& g) {
+  const Index np = static_cast<Index>(g.surface_points.rows());
+  const Index nt = static_cast<Index>(g.surface_triangles.rows());
+  auto check = [&](const char* name, Index size, Index expected, const char* of) {
+    TETFSI_CHECK(size == expected, "grid frame: '{}' has {} rows for {} {}", name, size, expected,
+                 of);
+  };
+  check("surface_body", static_cast<Index>(g.surface_body.size()), nt, "surface_triangles");
+  check("surface_pressure", static_cast<Index>(g.surface_pressure.size()), nt, "surface_triangles");
+  check("surface_pressure_jump", static_cast<Index>(g.surface_pressure_jump.size()), nt,
+        "surface_triangles");
+  check("surface_force", static_cast<Index>(g.surface_force.rows()), np, "surface_points");
+  for (Index t = 0; t < nt; ++t) {
+    const auto tri = g.surface_triangles.row(t);
+    TETFSI_CHECK(tri.minCoeff() >= 0 && tri.maxCoeff() < np,
+                 "grid frame: surface_triangles row {} = ({}, {}, {}) indexes past {} "
+                 "surface_points",
+                 t, tri[0], tri[1], tri[2], np);
+  }
+}
+
+}  // namespace
+
+void write_grid_vti(const fs::path& path, const GridFrameFields& g, Compression compression) {
+  install_vtk_output_window();
+  const Index nc = check_grid_cells(g);
+
+  vtkNew<vtkImageData> image;
+  image->SetDimensions(g.cells[0] + 1, g.cells[1] + 1, g.cells[2] + 1);  // points
+  image->SetOrigin(g.origin[0], g.origin[1], g.origin[2]);
+  image->SetSpacing(g.spacing[0], g.spacing[1], g.spacing[2]);
+
+  // Cell data: GridSpec::cell's x-fastest numbering is ImageData's, so copied as they are.
+  vtkCellData* cd = image->GetCellData();
+  cd->AddArray(scalar_array("pressure", g.pressure));
+  cd->AddArray(scalar_array("smoke_density", g.density));
+  cd->AddArray(scalar_array("temperature", g.temperature));
+  cd->AddArray(scalar_array("divergence", g.divergence));
+  cd->AddArray(scalar_array("vorticity", g.vorticity));
+  cd->AddArray(vector_array("velocity", g.velocity.data(), nc));
+  vtkNew<vtkUnsignedCharArray> solid;
+  solid->SetName("solid");
+  solid->SetNumberOfComponents(1);
+  solid->SetNumberOfTuples(nc);
+  std::memcpy(solid->GetPointer(0), g.solid.data(), static_cast<size_t>(nc));
+  cd->AddArray(solid);
+
+  vtkNew<vtkXMLImageDataWriter> writer;
+  write_xml_atomic(writer, image, path, compression);
+}
+
+void write_grid_interface_vtp(const fs::path& path, const GridFrameFields& g,
+                              Compression compression) {
+  install_vtk_output_window();
+  check_grid_surface(g);
+  const Index np = static_cast<Index>(g.surface_points.rows());
+  const Index nt = static_cast<Index>(g.surface_triangles.rows());
+
+  VecX area(nt);
+  MatX3 normal(nt, 3);
+  for (Index t = 0; t < nt; ++t) {
+    const Vec3 a = g.surface_points.row(g.surface_triangles(t, 0));
+    const Vec3 b = g.surface_points.row(g.surface_triangles(t, 1));
+    const Vec3 c = g.surface_points.row(g.surface_triangles(t, 2));
+    const Vec3 n = (b - a).cross(c - a);  // outward: the triangles are outward-oriented
+    const double len = n.norm();
+    area[t] = 0.5 * len;
+    normal.row(t) = len > 0.0 ? Vec3(n / len) : Vec3::Zero();
+  }
+
+  vtkNew<vtkPolyData> poly;
+  vtkNew<vtkPoints> points;
+  points->SetData(vector_array("Points", g.surface_points.data(), np));
+  poly->SetPoints(points);
+  poly->SetPolys(int32_cells(g.surface_triangles.data(), nt, 3));
+  poly->GetPointData()->AddArray(vector_array("fluid_force", g.surface_force.data(), np));
+  vtkCellData* cd = poly->GetCellData();
+  cd->AddArray(int_array("body", g.surface_body));
+  cd->AddArray(scalar_array("pressure", g.surface_pressure));
+  cd->AddArray(scalar_array("pressure_jump", g.surface_pressure_jump));
+  cd->AddArray(scalar_array("area", area));
+  cd->AddArray(vector_array("normal", normal.data(), nt));
+
+  vtkNew<vtkXMLPolyDataWriter> writer;
+  write_xml_atomic(writer, poly, path, compression);
+}
+
 // ---- .pvd ----------------------------------------------------------------------------------
 
 PvdWriter::PvdWriter(fs::path pvd_path) : m_path(std::move(pvd_path)) {}
@@ -674,17 +807,26 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
   }
 }
 
-void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
-                               const mesh::TetMesh* fluid, const FluidFrameFields* fluid_fields) {
+std::vector<std::string> OutputWriter::write_bodies(const solid::SolidWorld& world, int step) {
   TETFSI_CHECK(world.bodies.size() == m_pvd.size(), "world has {} bodies, output has {}",
                world.bodies.size(), m_pvd.size());
-  // Every file first, then the collections: a frame that fails half-way is in none of them.
   std::vector<std::string> rel(world.bodies.size());
   for (size_t i = 0; i < world.bodies.size(); ++i) {
     const std::string& name = m_file_names[i];
     rel[i] = fmt::format("{}/{}_{:06d}.vtu", name, name, step);
     write_body_vtu(m_out / rel[i], world.bodies[i], world.gravity, m_compression);
   }
+  return rel;
+}
+
+void OutputWriter::add_bodies_to_pvds(const std::vector<std::string>& rel, double time) {
+  for (size_t i = 0; i < rel.size(); ++i) m_pvd[i].add(time, rel[i]);
+}
+
+void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
+                               const mesh::TetMesh* fluid, const FluidFrameFields* fluid_fields) {
+  // Every file first, then the collections: a frame that fails half-way is in none of them.
+  const std::vector<std::string> rel = write_bodies(world, step);
   const bool with_fluid = m_fluid_pvd && fluid;
   const std::string rel_f = fmt::format("fluid/fluid_{:06d}.vtu", step);
   const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
@@ -692,11 +834,29 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
     write_fluid_vtu(m_out / rel_f, *fluid, m_compression, fluid_fields);
     write_interface_vtp(m_out / rel_i, *fluid, m_compression, fluid_fields);
   }
-  for (size_t i = 0; i < world.bodies.size(); ++i) m_pvd[i].add(time, rel[i]);
+  add_bodies_to_pvds(rel, time);
   if (with_fluid) {
     m_fluid_pvd->add(time, rel_f);
     m_interface_pvd->add(time, rel_i);
   }
+  ++m_frames;
+}
+
+void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, double time,
+                                    const GridFrameFields& grid) {
+  TETFSI_CHECK(m_fluid_pvd && m_interface_pvd,
+               "write_grid_frame: the scene has no fluid (no fluid.pvd, interface.pvd)");
+  // The grid's sizes before any file, then every file, then the collections.
+  check_grid_cells(grid);
+  check_grid_surface(grid);
+  const std::vector<std::string> rel = write_bodies(world, step);
+  const std::string rel_f = fmt::format("fluid/fluid_{:06d}.vti", step);
+  const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
+  write_grid_vti(m_out / rel_f, grid, m_compression);
+  write_grid_interface_vtp(m_out / rel_i, grid, m_compression);
+  add_bodies_to_pvds(rel, time);
+  m_fluid_pvd->add(time, rel_f);
+  m_interface_pvd->add(time, rel_i);
   ++m_frames;
 }
 

@@ -2,7 +2,8 @@
 /// @file output.hpp
 /// Simulation output for ParaView: one `.vtu` per body and frame, a `.pvd` collection per
 /// body that lists the frames with their times, and a `stats.csv` with one row per step.
-/// A scene with a fluid also gets the fluid mesh and its solid-interface faces per frame.
+/// A scene with a fluid also gets the fluid mesh and its solid-interface faces per frame (a
+/// grid fluid: its cells as image data and the bodies' surface triangles).
 ///
 /// Layout of an output folder `OUT` (all of it written by `OutputWriter`):
 /// ```
@@ -10,9 +11,10 @@
 /// OUT/<body>.pvd                   collection: (time, file) per frame, open this in ParaView
 /// OUT/<body>/<body>_<step>.vtu     frames (step number, 6 digits)
 /// OUT/fluid.pvd                    fluid scenes: the fluid mesh of each frame
-/// OUT/fluid/fluid_<step>.vtu         (write_fluid_vtu)
+/// OUT/fluid/fluid_<step>.vtu         (write_fluid_vtu), or for a grid fluid
+/// OUT/fluid/fluid_<step>.vti         (write_grid_vti, OutputWriter::write_grid_frame)
 /// OUT/interface.pvd                fluid scenes: the fluid faces on the solids of each frame
-/// OUT/interface/interface_<step>.vtp (write_interface_vtp)
+/// OUT/interface/interface_<step>.vtp (write_interface_vtp; grid fluid: write_grid_interface_vtp)
 /// OUT/stats.csv                    one row per step (see StatsWriter::columns())
 /// OUT/summary.json                 written by the run loop at the end (tools/run.hpp)
 /// ```
@@ -28,7 +30,9 @@
 /// no fsync, so not against power loss.) Nothing that tetfsi did not write is ever deleted.
 ///
 /// VTK stays inside output.cpp; this header only sees plain types.
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -126,6 +130,61 @@ void write_fluid_vtu(const std::filesystem::path& path, const mesh::TetMesh& flu
 /// @throws InputError naming the file if it cannot be written.
 void write_interface_vtp(const std::filesystem::path& path, const mesh::TetMesh& fluid,
                          Compression compression, const FluidFrameFields* fields = nullptr);
+
+/// One frame of the grid fluid (fluid/grid.hpp): plain data, filled by the run loop from
+/// fluid::GridFluid. Cell c = i + nx (j + ny k), x fastest (GridSpec::cell, VTK ImageData's
+/// order); #C = nx ny nz.
+struct GridFrameFields {
+  Vec3 origin = Vec3::Zero();              ///< lower corner of the fluid box (m)
+  Vec3 spacing = Vec3::Ones();             ///< cell size per axis (m)
+  std::array<Index, 3> cells = {1, 1, 1};  ///< nx, ny, nz
+  // ---- per cell (#C) ----
+  VecX pressure;                    ///< Pa (total; 0 in solid cells)
+  VecX density;                     ///< smoke density (kg/m³)
+  VecX temperature;                 ///< K
+  VecX divergence;                  ///< 1/s
+  VecX vorticity;                   ///< |curl u| (1/s)
+  MatX3 velocity;                   ///< #C × 3 at the cell centres (m/s)
+  std::vector<std::uint8_t> solid;  ///< #C: 1 where the cell is not fluid (inside a body)
+  // ---- the bodies' boundary triangles at the frame (the grid's solid interface) ----
+  MatX3 surface_points;        ///< #P × 3 (m)
+  MatX3i surface_triangles;    ///< #Tr × 3 into surface_points, outward-oriented
+  VecXi surface_body;          ///< #Tr body index
+  VecX surface_pressure;       ///< #Tr Pa, the pressure the fluid exerts on the outer side
+  VecX surface_pressure_jump;  ///< #Tr Pa, outer − inner side (NaN/0 where a side has no fluid)
+  MatX3 surface_force;         ///< #P × 3 N, the fluid's nodal force on each surface point
+};
+
+/// Write the grid fluid of a frame as XML image data (`.vti`, appended raw binary), for
+/// ParaView's slices and volume rendering.
+///
+/// Extent 0..n_a points per axis (n_a + 1 points, n_a cells), `origin` and `spacing` as
+/// given. Cell data (Float64 unless noted): `pressure` (Pa), `smoke_density` (kg/m³),
+/// `temperature` (K), `divergence` (1/s), `vorticity` (1/s), `velocity` (3 components, m/s),
+/// `solid` (UInt8). Compression as write_body_vtu.
+///
+/// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
+/// @throws InternalError naming the array and both sizes if a cell array is not #C long, or
+///   if a cell count is < 1 or a spacing not positive and finite (nothing is written then);
+///   InputError naming the file if it cannot be written.
+void write_grid_vti(const std::filesystem::path& path, const GridFrameFields& g,
+                    Compression compression);
+
+/// Write the grid fluid's solid interface, the bodies' surface triangles of the frame, as an
+/// XML poly data file (appended raw binary), in triangle order.
+///
+/// Points are `surface_points` (m), triangles `surface_triangles` in their stored order (so
+/// the right-hand normal points out of the body). Cell data: `body` (Int32), `pressure` (Pa),
+/// `pressure_jump` (Pa), `area` (m²), `normal` (3 components: the unit outward normal, 0 for a
+/// degenerate triangle). Point data: `fluid_force` (3 components, N). No triangles gives an
+/// empty, valid file.
+///
+/// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
+/// @throws InternalError naming the array and both sizes if a surface array has the wrong
+///   size, or naming the triangle if it indexes past #P (nothing is written then); InputError
+///   naming the file if it cannot be written.
+void write_grid_interface_vtp(const std::filesystem::path& path, const GridFrameFields& g,
+                              Compression compression);
 
 /// `s` with its line breaks turned into spaces: the CLI prints messages as single lines.
 std::string one_line(std::string s);
@@ -306,6 +365,14 @@ class OutputWriter {
   void write_frame(const solid::SolidWorld& world, int step, double time,
                    const mesh::TetMesh* fluid = nullptr,
                    const FluidFrameFields* fluid_fields = nullptr);
+  /// As write_frame, with the grid fluid: `fluid/fluid_<step>.vti` (write_grid_vti) in
+  /// fluid.pvd and `interface/interface_<step>.vtp` (write_grid_interface_vtp) in
+  /// interface.pvd. The sizes of `grid` are checked before any file is written, and every file
+  /// of the frame is written before any `.pvd` lists it.
+  /// @throws InternalError if the scene has no fluid (has_fluid()) or `grid`'s sizes do not
+  ///   agree (then no file of the frame is written).
+  void write_grid_frame(const solid::SolidWorld& world, int step, double time,
+                        const GridFrameFields& grid);
   /// Append a row to stats.csv.
   void write_stats(const StepStats& row) { m_stats.write(row); }
   /// Write `summary.json` (pretty JSON text, atomically).
@@ -328,6 +395,12 @@ class OutputWriter {
   std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
   StatsWriter m_stats;
   int m_frames = 0;
+
+  /// Write every body's `.vtu` of the frame; returns their paths relative to m_out, in body
+  /// order, for the `.pvd`s (which the caller updates once the frame's other files exist).
+  std::vector<std::string> write_bodies(const solid::SolidWorld& world, int step);
+  /// Add the frame to every body's `.pvd`.
+  void add_bodies_to_pvds(const std::vector<std::string>& rel, double time);
 };
 
 /// A body name made safe for file names: characters other than [A-Za-z0-9_.-] become '_'

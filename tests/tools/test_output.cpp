@@ -1,5 +1,6 @@
-// Tests of tools/output.cpp: .vtu frames read back with VTK's own reader, .pvd collections
-// parsed with VTK's XML parser, stats.csv shape, output-folder layout and atomic writes.
+// Tests of tools/output.cpp: .vtu / .vti frames read back with VTK's own readers, .pvd
+// collections parsed with VTK's XML parser, stats.csv shape, output-folder layout and atomic
+// writes.
 #include <doctest/doctest.h>
 #include <unistd.h>
 
@@ -13,6 +14,7 @@
 #include <vtkCellArray.h>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
+#include <vtkImageData.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
@@ -20,6 +22,7 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLDataElement.h>
 #include <vtkXMLDataParser.h>
+#include <vtkXMLImageDataReader.h>
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <nlohmann/json.hpp>
@@ -188,6 +191,60 @@ std::string read_text(const fs::path& p) {
   std::stringstream ss;
   ss << f.rdbuf();
   return ss.str();
+}
+
+/// A 3 × 4 × 5-cell grid frame from (−0.5, 0.25, 1/3) with spacing (0.6 / 3, 0.2, 0.3) m
+/// whose cell fields are distinct functions of the cell index c = i + 3 (j + 4 k), every 7th
+/// cell solid (1/3, 0.6 / 3 and the fields are not short decimals, so a bit-exact read-back
+/// means every bit went through);
+/// and as its interface the four outward triangles of a tetrahedron, two per body, with one
+/// NaN pressure jump (a side without fluid).
+GridFrameFields make_grid_frame() {
+  GridFrameFields g;
+  g.origin = Vec3(-0.5, 0.25, 1.0 / 3.0);
+  g.spacing = Vec3(0.6 / 3.0, 0.2, 0.3);
+  g.cells = {3, 4, 5};
+  const Index nc = 60;
+  g.pressure.resize(nc);
+  g.density.resize(nc);
+  g.temperature.resize(nc);
+  g.divergence.resize(nc);
+  g.vorticity.resize(nc);
+  g.velocity.resize(nc, 3);
+  g.solid.resize(nc);
+  for (Index c = 0; c < nc; ++c) {
+    g.pressure[c] = 1000.0 + c / 3.0;
+    g.density[c] = std::sin(0.7 * c);
+    g.temperature[c] = 293.15 + std::sqrt(static_cast<double>(c));
+    g.divergence[c] = -1e-9 * c / 7.0;
+    g.vorticity[c] = std::exp(0.05 * c);
+    g.velocity.row(c) = Vec3(c / 11.0, -c / 13.0, std::cos(c));
+    g.solid[static_cast<size_t>(c)] = c % 7 == 0 ? 1 : 0;
+  }
+  g.surface_points.resize(4, 3);
+  g.surface_points << 0.1, 0.4, 1.2, 0.3, 0.4, 1.2, 0.1, 0.6, 1.2, 0.1, 0.4, 1.4;
+  g.surface_triangles.resize(4, 3);
+  g.surface_triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;  // normals −z, −y, −x, (1,1,1)/√3
+  g.surface_body = VecXi(4);
+  g.surface_body << 0, 0, 1, 1;
+  g.surface_pressure = VecX(4);
+  g.surface_pressure << 101325.0 / 3.0, -7.25, 0.0, 1e5 / 7.0;
+  g.surface_pressure_jump = VecX(4);
+  g.surface_pressure_jump << 12.5 / 3.0, std::nan(""), 0.0, -3.75;
+  g.surface_force.resize(4, 3);
+  for (Index p = 0; p < 4; ++p) g.surface_force.row(p) = Vec3(p / 3.0, -0.5 * p, 1.0 + p / 9.0);
+  return g;
+}
+
+/// Read a .vti with VTK's reader; fails the test if the reader reports an error.
+vtkSmartPointer<vtkImageData> read_vti(const fs::path& p) {
+  vtkNew<vtkXMLImageDataReader> r;
+  r->SetFileName(p.c_str());
+  r->Update();
+  REQUIRE(r->GetErrorCode() == 0);
+  vtkSmartPointer<vtkImageData> g = r->GetOutput();
+  REQUIRE(g != nullptr);
+  return g;
 }
 
 }  // namespace
@@ -833,4 +890,278 @@ TEST_CASE("OutputWriter with a fluid: fluid.pvd and interface.pvd next to the bo
     CHECK(msg.find("body 'fluid'") != std::string::npos);
     CHECK(msg.find("rename the body") != std::string::npos);
   }
+}
+
+TEST_CASE("write_grid_vti: dimensions, origin, spacing and every cell array bit-exact") {
+  TempDir dir("grid_vti");
+  const GridFrameFields g = make_grid_frame();
+  const Index nc = 60;
+  for (const char* name : {"none", "lz4", "zlib"}) {
+    CAPTURE(name);
+    const Compression c = parse_compression(name);
+    const fs::path p = dir.path / fmt::format("fluid_{}.vti", name);
+    write_grid_vti(p, g, c);
+    CHECK(!has_tmp_files(dir.path));
+    const std::string text = read_text(p);
+    const std::string head = text.substr(0, text.find("<AppendedData"));
+    CHECK(head.find("type=\"ImageData\"") != std::string::npos);
+    if (c == Compression::LZ4) CHECK(head.find("vtkLZ4DataCompressor") != std::string::npos);
+    if (c == Compression::None) CHECK(head.find("compressor=") == std::string::npos);
+    CHECK(head.find("format=\"appended\"") != std::string::npos);
+
+    auto image = read_vti(p);
+    int dims[3];
+    image->GetDimensions(dims);
+    CHECK(dims[0] == 4);  // points = cells + 1
+    CHECK(dims[1] == 5);
+    CHECK(dims[2] == 6);
+    CHECK(image->GetNumberOfCells() == nc);
+    double origin[3], spacing[3];
+    image->GetOrigin(origin);
+    image->GetSpacing(spacing);
+    for (int a = 0; a < 3; ++a) {
+      CHECK(origin[a] == g.origin[a]);
+      CHECK(spacing[a] == g.spacing[a]);
+    }
+
+    vtkCellData* cd = image->GetCellData();
+    const std::pair<const char*, const VecX*> scalars[] = {{"pressure", &g.pressure},
+                                                           {"smoke_density", &g.density},
+                                                           {"temperature", &g.temperature},
+                                                           {"divergence", &g.divergence},
+                                                           {"vorticity", &g.vorticity}};
+    for (const auto& [aname, values] : scalars) {
+      CAPTURE(aname);
+      vtkDataArray* a = cd->GetArray(aname);
+      REQUIRE(a != nullptr);
+      CHECK(a->GetDataType() == VTK_DOUBLE);
+      CHECK(max_diff(a, *values) == 0.0);
+    }
+    vtkDataArray* u = cd->GetArray("velocity");
+    CHECK(max_diff(u, g.velocity.data(), nc) == 0.0);
+    vtkDataArray* solid = cd->GetArray("solid");
+    REQUIRE(solid != nullptr);
+    CHECK(solid->GetDataType() == VTK_UNSIGNED_CHAR);
+    REQUIRE(solid->GetNumberOfTuples() == nc);
+    bool solid_ok = true;
+    for (Index k = 0; k < nc; ++k)
+      solid_ok = solid_ok && solid->GetComponent(k, 0) == g.solid[static_cast<size_t>(k)];
+    CHECK(solid_ok);
+
+    // x fastest: VTK's cell (i, j, k) is ours i + nx (j + ny k), and it sits where that cell
+    // of the grid is.
+    for (const std::array<int, 3>& ijk :
+         {std::array<int, 3>{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {2, 3, 4}, {1, 2, 3}}) {
+      CAPTURE(ijk[0]);
+      CAPTURE(ijk[1]);
+      CAPTURE(ijk[2]);
+      int q[3] = {ijk[0], ijk[1], ijk[2]};
+      const vtkIdType id = image->ComputeCellId(q);
+      const Index c = ijk[0] + 3 * (ijk[1] + 4 * ijk[2]);
+      CHECK(id == c);
+      CHECK(cd->GetArray("pressure")->GetComponent(id, 0) == g.pressure[c]);
+      CHECK(cd->GetArray("temperature")->GetComponent(id, 0) == g.temperature[c]);
+      for (int a = 0; a < 3; ++a) CHECK(u->GetComponent(id, a) == g.velocity(c, a));
+      double bounds[6];
+      image->GetCellBounds(id, bounds);
+      for (int a = 0; a < 3; ++a) {
+        CHECK(bounds[2 * a] == doctest::Approx(g.origin[a] + ijk[a] * g.spacing[a]));
+        CHECK(bounds[2 * a + 1] == doctest::Approx(g.origin[a] + (ijk[a] + 1) * g.spacing[a]));
+      }
+    }
+  }
+}
+
+TEST_CASE(
+    "write_grid_interface_vtp: the surface triangles with pressure, jump, area, normal and "
+    "the fluid force") {
+  TempDir dir("grid_interface");
+  const GridFrameFields g = make_grid_frame();
+  for (const char* name : {"none", "lz4"}) {
+    CAPTURE(name);
+    const fs::path p = dir.path / fmt::format("interface_{}.vtp", name);
+    write_grid_interface_vtp(p, g, parse_compression(name));
+    CHECK(!has_tmp_files(dir.path));
+    auto poly = read_vtp(p);
+    REQUIRE(poly->GetNumberOfPolys() == 4);
+    REQUIRE(poly->GetNumberOfCells() == 4);
+    REQUIRE(poly->GetNumberOfPoints() == 4);
+    bool cells_ok = true;
+    for (Index t = 0; t < 4; ++t) {
+      vtkIdType npts = 0;
+      const vtkIdType* pts = nullptr;
+      poly->GetCellPoints(t, npts, pts);
+      cells_ok = cells_ok && npts == 3;
+      for (int k = 0; k < 3 && cells_ok; ++k) cells_ok = pts[k] == g.surface_triangles(t, k);
+    }
+    CHECK(cells_ok);
+    double dx = 0.0;
+    for (Index i = 0; i < 4; ++i) {
+      double x[3];
+      poly->GetPoint(i, x);
+      for (int k = 0; k < 3; ++k) dx = std::max(dx, std::abs(x[k] - g.surface_points(i, k)));
+    }
+    CHECK(dx == 0.0);
+
+    vtkCellData* cd = poly->GetCellData();
+    for (const char* a : {"body", "pressure", "pressure_jump", "area", "normal"})
+      REQUIRE(cd->GetArray(a) != nullptr);
+    CHECK(cd->GetArray("body")->GetDataType() == VTK_INT);
+    CHECK(cd->GetArray("normal")->GetNumberOfComponents() == 3);
+    vtkDataArray* jump = cd->GetArray("pressure_jump");
+    for (Index t = 0; t < 4; ++t) {
+      CAPTURE(t);
+      CHECK(cd->GetArray("body")->GetComponent(t, 0) == g.surface_body[t]);
+      CHECK(cd->GetArray("pressure")->GetComponent(t, 0) == g.surface_pressure[t]);
+      if (std::isnan(g.surface_pressure_jump[t]))
+        CHECK(std::isnan(jump->GetComponent(t, 0)));
+      else
+        CHECK(jump->GetComponent(t, 0) == g.surface_pressure_jump[t]);
+    }
+    // Areas (0.2 m legs): three right triangles of 0.02 m², the slanted one √3/2 · 0.04.
+    vtkDataArray* area = cd->GetArray("area");
+    for (Index t = 0; t < 3; ++t) CHECK(area->GetComponent(t, 0) == doctest::Approx(0.02));
+    CHECK(area->GetComponent(3, 0) == doctest::Approx(0.02 * std::sqrt(3.0)));
+    // Outward unit normals.
+    vtkDataArray* normal = cd->GetArray("normal");
+    const double r = 1.0 / std::sqrt(3.0);
+    const double expected[4][3] = {{0, 0, -1}, {0, -1, 0}, {-1, 0, 0}, {r, r, r}};
+    double dn = 0.0;
+    for (Index t = 0; t < 4; ++t)
+      for (int k = 0; k < 3; ++k)
+        dn = std::max(dn, std::abs(normal->GetComponent(t, k) - expected[t][k]));
+    CHECK(dn <= 1e-12);
+    // The fluid's nodal force as point data, bit-exact.
+    vtkDataArray* force = poly->GetPointData()->GetArray("fluid_force");
+    CHECK(max_diff(force, g.surface_force.data(), 4) == 0.0);
+  }
+
+  // No triangles: an empty file that reads back.
+  GridFrameFields empty = make_grid_frame();
+  empty.surface_points.resize(0, 3);
+  empty.surface_triangles.resize(0, 3);
+  empty.surface_body.resize(0);
+  empty.surface_pressure.resize(0);
+  empty.surface_pressure_jump.resize(0);
+  empty.surface_force.resize(0, 3);
+  write_grid_interface_vtp(dir.path / "empty.vtp", empty, Compression::LZ4);
+  auto e = read_vtp(dir.path / "empty.vtp");
+  CHECK(e->GetNumberOfCells() == 0);
+  CHECK(e->GetNumberOfPoints() == 0);
+}
+
+TEST_CASE("write_grid_vti / write_grid_interface_vtp: a size mismatch throws before any file") {
+  TempDir dir("grid_sizes");
+  const fs::path vti = dir.path / "f.vti";
+  const fs::path vtp = dir.path / "i.vtp";
+  auto expect_error = [&](auto write, const fs::path& p, const GridFrameFields& g,
+                          const std::vector<std::string>& words) {
+    try {
+      write(p, g, Compression::LZ4);
+      FAIL("expected an InternalError");
+    } catch (const InternalError& e) {
+      const std::string msg = e.what();
+      CAPTURE(msg);
+      CHECK(msg.find('\n') == std::string::npos);
+      for (const std::string& w : words) CHECK(msg.find(w) != std::string::npos);
+    }
+    CHECK(!fs::exists(p));
+    CHECK(!has_tmp_files(dir.path));
+  };
+  const auto vti_writer = [](const fs::path& p, const GridFrameFields& g, Compression c) {
+    write_grid_vti(p, g, c);
+  };
+  const auto vtp_writer = [](const fs::path& p, const GridFrameFields& g, Compression c) {
+    write_grid_interface_vtp(p, g, c);
+  };
+  {
+    GridFrameFields g = make_grid_frame();
+    g.pressure.resize(59);
+    expect_error(vti_writer, vti, g, {"'pressure'", "59", "60 cells", "3 × 4 × 5"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.velocity.resize(61, 3);
+    expect_error(vti_writer, vti, g, {"'velocity'", "61", "60 cells"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.solid.pop_back();
+    expect_error(vti_writer, vti, g, {"'solid'", "59"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.cells = {3, 0, 5};
+    expect_error(vti_writer, vti, g, {"cells", "3 × 0 × 5"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.spacing[1] = 0.0;
+    expect_error(vti_writer, vti, g, {"spacing"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.surface_pressure.resize(3);
+    expect_error(vtp_writer, vtp, g, {"'surface_pressure'", "3", "4 surface_triangles"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.surface_force.resize(5, 3);
+    expect_error(vtp_writer, vtp, g, {"'surface_force'", "5", "4 surface_points"});
+  }
+  {
+    GridFrameFields g = make_grid_frame();
+    g.surface_triangles(2, 1) = 4;
+    expect_error(vtp_writer, vtp, g, {"surface_triangles row 2", "(0, 4, 2)", "4 surface_points"});
+  }
+}
+
+TEST_CASE("OutputWriter::write_grid_frame: fluid.pvd lists the .vti, interface.pvd the .vtp") {
+  TempDir dir("layout_grid");
+  const fs::path out = dir.path / "run";
+  Scene scene;
+  scene.name = "unit";
+  scene.fluid = FluidSpec{};
+  solid::SolidWorld world;
+  world.bodies.push_back(make_test_body());
+  GridFrameFields g = make_grid_frame();
+  {
+    OutputWriter w(out, scene, world);
+    w.write_grid_frame(world, 0, 0.0, g);
+    g.pressure.array() += 1.0;
+    w.write_grid_frame(world, 4, 0.25, g);
+    CHECK(w.frames_written() == 2);
+
+    // A frame with inconsistent grid sizes throws before any of its files is written, and
+    // is in no collection.
+    GridFrameFields bad = g;
+    bad.surface_body.resize(1);
+    CHECK_THROWS_AS(w.write_grid_frame(world, 8, 0.5, bad), InternalError);
+    CHECK(!fs::exists(out / "block" / "block_000008.vtu"));
+    CHECK(!fs::exists(out / "fluid" / "fluid_000008.vti"));
+    CHECK(w.frames_written() == 2);
+  }
+  CHECK(!has_tmp_files(out));
+  for (const char* pvd : {"block.pvd", "fluid.pvd", "interface.pvd"}) {
+    CAPTURE(pvd);
+    CHECK(parse_pvd(out / pvd).times == std::vector<double>{0.0, 0.25});
+  }
+  const ParsedPvd fluid = parse_pvd(out / "fluid.pvd");
+  CHECK(fluid.files ==
+        std::vector<std::string>{"fluid/fluid_000000.vti", "fluid/fluid_000004.vti"});
+  const ParsedPvd iface = parse_pvd(out / "interface.pvd");
+  CHECK(iface.files == std::vector<std::string>{"interface/interface_000000.vtp",
+                                                "interface/interface_000004.vtp"});
+  CHECK(parse_pvd(out / "block.pvd").files.at(1) == "block/block_000004.vtu");
+  auto image = read_vti(out / fluid.files[1]);
+  CHECK(image->GetNumberOfCells() == 60);
+  CHECK(max_diff(image->GetCellData()->GetArray("pressure"), g.pressure) == 0.0);
+  CHECK(read_vtp(out / iface.files[1])->GetNumberOfCells() == 4);
+
+  // A scene without a fluid has no fluid.pvd to list a grid frame in.
+  Scene plain;
+  plain.name = "unit";
+  OutputWriter w(dir.path / "plain", plain, world);
+  CHECK_THROWS_AS(w.write_grid_frame(world, 0, 0.0, g), InternalError);
+  CHECK(!fs::exists(dir.path / "plain" / "block" / "block_000000.vtu"));
 }
