@@ -105,7 +105,11 @@ mesh::TetMesh FsiSimulation::build_mesh(const std::vector<MatX3>& positions, Pha
 void FsiSimulation::start(PhaseTimes& phases) {
   if (m_grid) {
     m_started = false;
-    m_grid->initialize(grid_surfaces(current_positions(m_world)));
+    try {
+      m_grid->initialize(grid_surfaces(current_positions(m_world)));
+    } catch (const InputError& e) {  // classify_grid names bodies by index
+      throw InputError(fmt::format("{} ({})", e.what(), m_policy->legend()));
+    }
     m_started = true;
   }
   if (!m_fluid) return;

@@ -46,6 +46,8 @@ class RemeshPolicy {
   const mesh::Sizing& sizing() const { return m_sizing; }
   const std::vector<BodySurface>& surfaces() const { return m_surfaces; }
   const std::vector<std::string>& names() const { return m_names; }
+  /// "body 0 is 'sheet', body 1 is 'flag'"
+  const std::string& legend() const { return m_legend; }
 
  private:
   mesh::FluidDomain m_domain;
@@ -125,6 +127,8 @@ class FsiSimulation {
   /// The current tet fluid mesh (nullptr before start succeeded, without a fluid, or on the
   /// grid).
   const mesh::TetMesh* mesh() const;
+  /// The fluid has been started (start succeeded).
+  bool fluid_started() const { return m_started; }
   /// Grid scenes: the grid's pressure forces form.
   GridPressureForces grid_forces() const { return m_grid_forces; }
   const RemeshPolicy* remesh_policy() const { return m_policy ? &*m_policy : nullptr; }

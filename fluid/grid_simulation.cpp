@@ -110,17 +110,28 @@ double cell_derivative(const GridCells& gc, const Eigen::Ref<const VecX>& v, Ind
   return 0.0;
 }
 
-/// Per-cell vorticity confinement ε h (N × ω), N = ∇|ω| / |∇|ω|| [Fedkiw01, Eq. (11)] on the
-/// grid's cell-centred velocity (see forces.hpp for the tet mesh's).
-MatX3 grid_confinement(const GridCells& gc, const MatX3& uc, double epsilon) {
-  const GridSpec& g = gc.grid;
-  const Index nc = g.num_cells();
-  MatX3 w = MatX3::Zero(nc, 3), a = MatX3::Zero(nc, 3);
+}  // namespace
+
+MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc) {
+  const Index nc = gc.grid.num_cells();
+  MatX3 w = MatX3::Zero(nc, 3);
   for (Index c = 0; c < nc; ++c) {
     if (!gc.fluid(c)) continue;
     const auto d = [&](int comp, int ax) { return cell_derivative(gc, uc.col(comp), c, ax); };
     w.row(c) << d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1);
   }
+  return w;
+}
+
+namespace {
+
+/// Per-cell vorticity confinement ε h (N × ω), N = ∇|ω| / |∇|ω|| [Fedkiw01, Eq. (11)] on the
+/// grid's cell-centred velocity (see forces.hpp for the tet mesh's).
+MatX3 grid_confinement(const GridCells& gc, const MatX3& uc, double epsilon) {
+  const GridSpec& g = gc.grid;
+  const Index nc = g.num_cells();
+  const MatX3 w = grid_vorticity(gc, uc);
+  MatX3 a = MatX3::Zero(nc, 3);
   const VecX wn = w.rowwise().norm();
   const double hc = g.h.mean();
   for (Index c = 0; c < nc; ++c) {

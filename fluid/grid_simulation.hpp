@@ -42,6 +42,9 @@ struct GridPrediction {
 
 /// Velocity at the cell centres (#C × 3): the mean of each axis' two faces.
 MatX3 cell_velocities(const GridCells& gc, const VecX& u);
+/// curl u per cell (#C × 3, 1/s; 0 in solid cells) of the cell-centred velocity uc: central
+/// differences, one-sided next to solid cells and the box.
+MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc);
 
 class GridFluid {
  public:

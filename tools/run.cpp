@@ -147,7 +147,9 @@ class StateSnapshot {
 
 /// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
 void write_frame(OutputWriter& out, const coupling::FsiSimulation& sim, int step, double t) {
-  if (sim.mesh()) {
+  if (sim.grid() && sim.fluid_started()) {
+    out.write_grid_frame(sim.world(), step, t, grid_frame_fields(sim));
+  } else if (sim.mesh()) {
     const FluidFrameFields fields = frame_fields(sim.fluid());
     out.write_frame(sim.world(), step, t, sim.mesh(), &fields);
   } else {
@@ -504,6 +506,7 @@ std::string summary_json(const RunResult& r) {
                      {"max_residual", c.max_residual},
                      {"unconverged_solves", c.unconverged_solves},
                      {"max_interface_power", c.max_interface_power},
+                     {"max_interface_imbalance", c.max_interface_imbalance},
                      {"max_enclosed_regions", c.max_enclosed_regions},
                      {"max_volume_drift", c.max_volume_drift},
                      {"enclosed_volume", c.enclosed_volume},

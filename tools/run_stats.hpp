@@ -42,9 +42,12 @@ struct CouplingSummary {
   double max_residual = 0.0;         ///< worst relative residual of any coupled solve
   int unconverged_solves = 0;        ///< coupled solves that reported converged = false
   double max_interface_power = 0.0;  ///< max over steps of |pᵀ Jᵀ u| (W)
-  Index max_enclosed_regions = 0;    ///< most enclosed regions in one step
-  double max_volume_drift = 0.0;     ///< max over steps and regions of |after − target| / target
-  double enclosed_volume = 0.0;  ///< Σ of the enclosed regions' volume after the last step (m³)
+  /// max over steps of |pᵀ Jᵀ u − pᵀ V D1 H u| (W): 0 but for round-off unless the grid's
+  /// paper J
+  double max_interface_imbalance = 0.0;
+  Index max_enclosed_regions = 0;  ///< most enclosed regions in one step
+  double max_volume_drift = 0.0;   ///< max over steps and regions of |after − target| / target
+  double enclosed_volume = 0.0;    ///< Σ of the enclosed regions' volume after the last step (m³)
   /// Steps whose mesh had to be built around the bodies at tⁿ because the predicted surfaces
   /// x* = x + h u could not be meshed (e.g. a body predicted out of the box).
   int unpredicted_meshes = 0;
@@ -84,5 +87,9 @@ class RunRecorder {
 
 /// The fields of the fluid's current state, for a frame.
 FluidFrameFields frame_fields(const fluid::FluidSimulation& sim);
+/// The fields of a grid fluid's frame (grid scenes): the cells' fields, the bodies' boundary
+/// triangles with the pressure on each side and the fluid's nodal forces (J of the scene's
+/// fluid.grid.pressure_forces, total pressure).
+GridFrameFields grid_frame_fields(const coupling::FsiSimulation& sim);
 
 }  // namespace tetfsi::tools

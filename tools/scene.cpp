@@ -586,10 +586,12 @@ class Parser {
         fail(child_path(m.path, "surface_size"),
              fmt::format("must be <= far_size ({} m), got {} m", z.far_size, z.surface_size));
     }
-    if (f.discretization == Discretization::Grid) grid(n, f);
+    // fluid.mesh and fluid.grid are the two discretisations' sections: a scene may carry
+    // both, fluid.discretization picks one
+    if (f.discretization == Discretization::Grid)
+      grid(n, f);
     else if (has(n, "grid"))
-      fail(child_path(n.path, "grid"),
-           "applies only to fluid.discretization \"grid\"; remove it or set the discretization");
+      read(child(n, "grid"), fluid_grid_keys(), f.grid);
     fp.gravity = f.gravity ? gravity : Vec3::Zero();
     for (int a = 0; a < 3; ++a)  // the box corner highest against gravity
       fp.hydrostatic_origin[a] = fp.gravity[a] < 0 ? f.domain.hi[a] : f.domain.lo[a];
@@ -620,19 +622,22 @@ class Parser {
   /// fluid.grid of a grid scene: the grid's cells from cell_size or cells, within max_cells;
   /// the tet mesh's keys refused.
   void grid(const Node& n, FluidSpec& f) const {
-    for (const char* key : {"mesh", "refine", "reconstruction", "min_dual_fraction"})
+    for (const char* key : {"refine", "reconstruction", "min_dual_fraction"})
       if (has(n, key))
         fail(child_path(n.path, key),
              "is a key of the tet mesh, not of fluid.discretization \"grid\"; remove it");
     if (f.params.enclosed_density > 0 && f.params.enclosed_density != f.params.density)
       fail(child_path(n.path, "enclosed_density"),
            "is not available on the grid yet; remove it or use fluid.discretization \"tet\"");
-    const Node g = require(n, "grid");
+    if (!has(n, "grid"))
+      fail(n.path,
+           "fluid.discretization \"grid\" needs fluid.grid with cell_size (m) or cells "
+           "[nx, ny, nz]");
+    const Node g = child(n, "grid");
     GridKeys& k = f.grid;
     read(g, fluid_grid_keys(), k);
     const bool by_size = has(g, "cell_size"), by_cells = has(g, "cells");
-    if (!by_size && !by_cells)
-      fail(g.path, "give cell_size (m) or cells [nx, ny, nz]");
+    if (!by_size && !by_cells) fail(g.path, "give cell_size (m) or cells [nx, ny, nz]");
     const Vec3 lo = f.domain.lo, hi = f.domain.hi;
     fluid::GridSpec spec;
     if (by_size) {
@@ -643,8 +648,8 @@ class Parser {
         fail(child_path(g.path, "cells"),
              fmt::format("[{}, {}, {}] disagrees with cell_size {} m, which gives [{}, {}, {}]; "
                          "give one of them",
-                         k.cells.x(), k.cells.y(), k.cells.z(), k.cell_size, n_size.x(),
-                         n_size.y(), n_size.z()));
+                         k.cells.x(), k.cells.y(), k.cells.z(), k.cell_size, n_size.x(), n_size.y(),
+                         n_size.z()));
       k.cells = n_size;
     } else {
       spec = fluid::GridSpec::from_cells(lo, hi, {k.cells.x(), k.cells.y(), k.cells.z()});
@@ -747,8 +752,8 @@ json fluid_json(const FluidSpec& f) {
     j.erase("reconstruction");
     j.erase("min_dual_fraction");
     j["grid"] = fluid_grid_keys().write(f.grid);
-  } else
-    j["mesh"] = fluid_mesh_keys().write(f.sizing);
+  }
+  j["mesh"] = fluid_mesh_keys().write(f.sizing);
   j["buoyancy"] = buoyancy_keys().write(fp);
   j["decay"] = decay_keys().write(fp);
   j["solver"] = fluid_solver_keys().write(fp);
@@ -850,6 +855,20 @@ Scene parse_scene(const json& j, const fs::path& file) {
     } else {
       s.coupling = p.coupling_spec(nullptr, deformable, dynamic);
     }
+  }
+
+  // The grid's paper J makes the simultaneous system non-symmetric (grid_coupled.hpp).
+  if (s.two_way() && s.fluid->grid_spec &&
+      s.fluid->grid.pressure_forces == coupling::GridPressureForces::Paper &&
+      s.coupling->params.solve.solver == coupling::CoupledSolverKind::SchurAmg) {
+    const coupling::Scheme sc = s.coupling->params.scheme;
+    if (sc == coupling::Scheme::Simultaneous || sc == coupling::Scheme::Newton)
+      p.fail("fluid.grid.pressure_forces",
+             fmt::format("\"paper\" makes the coupled system of coupling.scheme {} "
+                         "non-symmetric, which coupling.solver schur_amg cannot solve; set "
+                         "coupling.solver to umfpack or bicgstab_ilut, or pressure_forces to "
+                         "\"consistent\"",
+                         coupling::to_string(sc)));
   }
 
   // A two-way coupled step integrates the bodies itself, as its scheme says.

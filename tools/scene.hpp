@@ -144,8 +144,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/types.hpp"
 #include "core/enum_names.hpp"
+#include "core/types.hpp"
 #include "coupling/coupled_step.hpp"
 #include "coupling/grid_coupled.hpp"
 #include "fluid/grid.hpp"

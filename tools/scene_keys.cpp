@@ -1265,17 +1265,17 @@ std::string key_value_text(const json& v) {
 
 const std::vector<KeySection>& scene_key_sections() {
   static const std::vector<KeySection> sections = {
-      rows_of(top_level_keys()),    rows_of(time_keys()),           rows_of(output_keys()),
-      rows_of(solver_keys()),       rows_of(solid_keys()),          rows_of(static_keys()),
-      rows_of(body_keys()),         rows_of(mesh_keys()),           rows_of(mesh_box_keys()),
-      rows_of(mesh_sphere_keys()),  rows_of(mesh_shell_keys()),     rows_of(mesh_hollow_box_keys()),
-      rows_of(mesh_tube_keys()),    rows_of(transform_keys()),      rows_of(material_keys()),
-      rows_of(pin_keys()),          rows_of(load_keys()),           rows_of(selection_box_keys()),
-      rows_of(kinematic_keys()),    rows_of(plane_obstacle_keys()), rows_of(box_obstacle_keys()),
-      rows_of(fluid_keys()),        rows_of(domain_keys()),         rows_of(patch_keys()),
-      rows_of(fluid_mesh_keys()),   rows_of(fluid_grid_keys()),     rows_of(buoyancy_keys()),       rows_of(decay_keys()),
-      rows_of(fluid_solver_keys()), rows_of(source_keys()),         rows_of(source_box_keys()),
-      rows_of(refine_keys()),       rows_of(coupling_keys())};
+      rows_of(top_level_keys()),   rows_of(time_keys()),           rows_of(output_keys()),
+      rows_of(solver_keys()),      rows_of(solid_keys()),          rows_of(static_keys()),
+      rows_of(body_keys()),        rows_of(mesh_keys()),           rows_of(mesh_box_keys()),
+      rows_of(mesh_sphere_keys()), rows_of(mesh_shell_keys()),     rows_of(mesh_hollow_box_keys()),
+      rows_of(mesh_tube_keys()),   rows_of(transform_keys()),      rows_of(material_keys()),
+      rows_of(pin_keys()),         rows_of(load_keys()),           rows_of(selection_box_keys()),
+      rows_of(kinematic_keys()),   rows_of(plane_obstacle_keys()), rows_of(box_obstacle_keys()),
+      rows_of(fluid_keys()),       rows_of(domain_keys()),         rows_of(patch_keys()),
+      rows_of(fluid_mesh_keys()),  rows_of(fluid_grid_keys()),     rows_of(buoyancy_keys()),
+      rows_of(decay_keys()),       rows_of(fluid_solver_keys()),   rows_of(source_keys()),
+      rows_of(source_box_keys()),  rows_of(refine_keys()),         rows_of(coupling_keys())};
   return sections;
 }
 
