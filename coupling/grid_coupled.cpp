@@ -83,9 +83,12 @@ void group_cells(const GridCoupledInput& in, const GridDofs& d, CoupledSystem& s
   sys.groups.cell_group = d.cells.unknown;
   sys.groups.count = sys.ng;
   sys.gvol = VecX::Constant(sys.ng, gc.grid.cell_volume());
-  sys.grho = VecX::Constant(sys.ng, in.rho);
+  sys.grho = VecX(sys.ng);
   sys.greg = VecXi(sys.ng);
-  for (Index g = 0; g < sys.ng; ++g) sys.greg[g] = sys.regions.cell_region[d.cells.cell[g]];
+  for (Index g = 0; g < sys.ng; ++g) {
+    sys.greg[g] = sys.regions.cell_region[d.cells.cell[g]];
+    sys.grho[g] = (*in.rho)[d.cells.cell[g]];
+  }
   sys.rvol = VecX::Zero(sys.nr);
   for (Index g = 0; g < sys.ng; ++g) sys.rvol[sys.greg[g]] += sys.gvol[g];
 }
@@ -124,7 +127,7 @@ void assemble_interface(const GridCoupledInput& in, const GridDofs& d, CoupledSy
   if (in.gravity.squaredNorm() == 0) return;
   VecX ph(gc.grid.num_cells());
   for (Index c = 0; c < ph.size(); ++c)
-    ph[c] = fluid::hydrostatic_pressure(in.rho, in.gravity, in.hydrostatic_origin,
+    ph[c] = fluid::hydrostatic_pressure((*in.rho)[c], in.gravity, in.hydrostatic_origin,
                                         gc.grid.cell_centre(c));
   const VecX f = *in.J * ph;
   for (Index dof = 0; dof < f.size(); ++dof)
@@ -227,12 +230,20 @@ void find_enclosed(const GridCoupledInput& in, const CoupledOptions& opt, Couple
   std::vector<std::vector<std::vector<Index>>> comps(bi.size());
   for (size_t b = 0; b < bi.size(); ++b) comps[b] = surface_components(bi[b], comp[b]);
   std::vector<std::vector<std::pair<Index, Index>>> hit(sys.enclosed.size());
+  // the triangle each Solid face's segment meets first from the region's side (a thin shell's
+  // segment crosses both of its surfaces; the cavity is bounded by the near one)
+  const fluid::GridSpec& g = gc.grid;
   for (Index f = 0; f < nf; ++f) {
     if (!free_face(in, f)) continue;
-    const fluid::SurfacePoint& sp = gc.face_solid[f];
-    for (Index c : gc.grid.face_cells(f))
-      if (gc.fluid(c) && slot[sys.regions.cell_region[c]] >= 0)
-        hit[slot[sys.regions.cell_region[c]]].emplace_back(sp.body, comp[sp.body][sp.triangle]);
+    const auto cells = g.face_cells(f);
+    for (int side = 0; side < 2; ++side) {
+      const Index c = cells[side], o = cells[1 - side];
+      if (!gc.fluid(c) || slot[sys.regions.cell_region[c]] < 0) continue;
+      const Vec3 a = g.cell_centre(c), b = o >= 0 ? g.cell_centre(o) : g.face_centre(f);
+      fluid::SurfacePoint sp;
+      if (!gc.solids.first_crossing(a, b, &sp) || sp.body < 0) sp = gc.face_solid[f];
+      hit[slot[sys.regions.cell_region[c]]].emplace_back(sp.body, comp[sp.body][sp.triangle]);
+    }
   }
   sys.cavities.resize(sys.enclosed.size());
   for (size_t k = 0; k < hit.size(); ++k) {
@@ -260,7 +271,7 @@ CoupledSystem assemble_grid_coupled(const GridCoupledInput& in, const CoupledOpt
   sys.pin_regions = sys.regions;
   for (Index r = 0; r < sys.nr; ++r)
     sys.pin_regions.has_open[r] = sys.regions.has_open[r] || sys.lifted[r];
-  sys.gs = VecX::Constant(sys.ng, in.h / in.rho);
+  sys.gs = VecX::Constant(sys.ng, in.h).cwiseQuotient(sys.grho);  // h/ρ per cell
   sys.C = sys.gs.asDiagonal() * fluid::grid_pressure_matrix(*in.cells, d.cells, sys.pin_regions);
   const VecX r = second_row(in, d, sys, r_prescribed, rep);
   sys.bs = VecX(sys.ns);
@@ -302,8 +313,12 @@ void finish_grid_coupled(const GridCoupledInput& in, const CoupledSystem& sys, c
   // faces of free bodies
   sol.u_face = *in.u_star;
   in.interface->apply_H(sol.u, sol.u_face);
-  const double s = in.h / in.rho;
-  fluid::grid_apply_gradient(gc, s * sol.p, s * *in.p_open, sol.u_face);
+  const VecX s = VecX::Constant(nc, in.h).cwiseQuotient(*in.rho);  // q = (h/ρ) p
+  VecX q_open = *in.p_open;
+  for (Index f = 0; f < g.num_faces(); ++f)
+    if (gc.face_kind[f] == FaceKind::Open && fluid::grid_inner_cell(gc, f) >= 0)
+      q_open[f] *= s[fluid::grid_inner_cell(gc, f)];
+  fluid::grid_apply_gradient(gc, s.cwiseProduct(sol.p), q_open, sol.u_face);
   VecX source = VecX::Zero(nc);
   for (Index k = 0; k < ne; ++k)
     for (Index q = 0; q < sys.ng; ++q)
@@ -313,8 +328,8 @@ void finish_grid_coupled(const GridCoupledInput& in, const CoupledSystem& sys, c
       (fluid::grid_net_flux(gc, sol.u_face) - source).cwiseAbs().maxCoeff() / g.cell_volume();
   VecX p_total = sol.p;
   for (Index q = 0; q < nc; ++q)
-    p_total[q] +=
-        fluid::hydrostatic_pressure(in.rho, in.gravity, in.hydrostatic_origin, g.cell_centre(q));
+    p_total[q] += fluid::hydrostatic_pressure((*in.rho)[q], in.gravity, in.hydrostatic_origin,
+                                              g.cell_centre(q));
   sol.fluid_force = grid_fluid_forces(*in.interface, *in.J, p_total);
   rep.assembly_s += now_seconds() - t0;
 }
@@ -376,7 +391,7 @@ CoupledSolution GridPredicted::solve(const std::vector<CoupledBody>& bodies,
   in.cells = &m_pred.cells;
   in.u_star = v.u_star ? v.u_star : &m_pred.u_star;
   in.p_open = &m_pred.p_open;
-  in.rho = m_params.density;
+  in.rho = &m_pred.rho;
   in.h = m_pred.h;
   in.gravity = m_params.gravity;
   in.hydrostatic_origin = m_params.hydrostatic_origin;

@@ -40,7 +40,7 @@ struct GridCoupledInput {
   const fluid::GridCells* cells = nullptr;
   const VecX* u_star = nullptr;  ///< #F v*, prescribed faces set
   const VecX* p_open = nullptr;  ///< #F dynamic pressure on Open faces (Pa)
-  double rho = 0.0;              ///< fluid density (uniform on the grid)
+  const VecX* rho = nullptr;     ///< #C fluid density per cell
   double h = 0.0;
   Vec3 gravity = Vec3::Zero(), hydrostatic_origin = Vec3::Zero();
   const fluid::GridInterface* interface = nullptr;

@@ -1,6 +1,7 @@
 #include "fluid/grid_simulation.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <Eigen/Geometry>
@@ -23,8 +24,8 @@ void check_grid_params(const FluidParams& p) {
   TETFSI_REQUIRE(InputError, p.gravity.allFinite(), "fluid.gravity must be finite");
   TETFSI_REQUIRE(InputError, std::isfinite(p.vorticity_confinement) && p.vorticity_confinement >= 0,
                  "fluid.vorticity_confinement must be >= 0, got {}", p.vorticity_confinement);
-  TETFSI_REQUIRE(InputError, p.enclosed_density == 0 || p.enclosed_density == p.density,
-                 "fluid.enclosed_density is not available on the grid yet: remove it");
+  TETFSI_REQUIRE(InputError, std::isfinite(p.enclosed_density) && p.enclosed_density >= 0,
+                 "fluid.enclosed_density must be >= 0, got {}", p.enclosed_density);
   for (double v : {p.buoyancy_alpha, p.buoyancy_beta, p.smoke_decay, p.temperature_decay})
     TETFSI_REQUIRE(InputError, std::isfinite(v) && v >= 0,
                    "fluid: buoyancy and decay rates must be finite and >= 0, got {}", v);
@@ -112,12 +113,31 @@ double cell_derivative(const GridCells& gc, const Eigen::Ref<const VecX>& v, Ind
 
 }  // namespace
 
+VecX grid_cell_density(const GridCells& gc, const FluidParams& p) {
+  const GridSpec& g = gc.grid;
+  VecX rho = VecX::Constant(g.num_cells(), p.density);
+  if (!(p.enclosed_density > 0) || p.enclosed_density == p.density) return rho;
+  const Regions regions = grid_regions(gc);
+  std::vector<bool> enclosed(static_cast<size_t>(regions.count()), true);
+  for (Index f = 0; f < g.num_faces(); ++f) {
+    const FaceKind k = gc.face_kind[f];
+    if (k == FaceKind::Interior || k == FaceKind::Solid) continue;
+    for (Index c : g.face_cells(f))
+      if (gc.fluid(c)) enclosed[regions.cell_region[c]] = false;
+  }
+  for (Index c = 0; c < g.num_cells(); ++c)
+    if (gc.fluid(c) && enclosed[regions.cell_region[c]]) rho[c] = p.enclosed_density;
+  return rho;
+}
+
 MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc) {
   const Index nc = gc.grid.num_cells();
   MatX3 w = MatX3::Zero(nc, 3);
+  // contiguous components (a column of the row-major uc would be copied on every call)
+  const std::array<VecX, 3> comp_of = {VecX(uc.col(0)), VecX(uc.col(1)), VecX(uc.col(2))};
   for (Index c = 0; c < nc; ++c) {
     if (!gc.fluid(c)) continue;
-    const auto d = [&](int comp, int ax) { return cell_derivative(gc, uc.col(comp), c, ax); };
+    const auto d = [&](int comp, int ax) { return cell_derivative(gc, comp_of[comp], c, ax); };
     w.row(c) << d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1);
   }
   return w;
@@ -192,10 +212,11 @@ void GridFluid::initialize(std::vector<mesh::SolidSurface> surfaces) {
   m_state.temperature = VecX::Constant(nc, m_params.ambient_temperature);
   m_state.p = VecX::Zero(nc);
   apply_sources(m_cells, m_params, m_state.density, m_state.temperature);
+  const VecX rho = grid_cell_density(m_cells, m_params);
   for (Index c = 0; c < nc; ++c)
     if (m_cells.fluid(c))
-      m_state.p[c] = hydrostatic_pressure(m_params.density, m_params.gravity,
-                                          m_params.hydrostatic_origin, m_grid.cell_centre(c));
+      m_state.p[c] = hydrostatic_pressure(rho[c], m_params.gravity, m_params.hydrostatic_origin,
+                                          m_grid.cell_centre(c));
   m_time = 0.0;
   m_initialized = true;
 }
@@ -211,6 +232,7 @@ GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
   {  // see [Chentanez06, Eq. (1)] without the pressure: advection, then the forces
     ScopedTimer timer(phases, "transfer");
     pred.cells = classify_grid(m_grid, m_domain, std::move(surfaces));
+    pred.rho = grid_cell_density(pred.cells, m_params);
     Eigen::MatrixXd s(m_grid.num_cells(), 2);
     s.col(0) = m_state.density;
     s.col(1) = m_state.temperature;
@@ -244,8 +266,9 @@ std::pair<VecX, VecX> GridFluid::project(const GridPrediction& pred, FluidStepRe
     m_solver = make_linear_solver(m_params.solver,
                                   SolverOptions{.rel_tol = m_params.solver_rel_tol,
                                                 .max_iterations = m_params.solver_max_iterations});
-  const double s = pred.h / m_params.density;  // q = (h/ρ) p
-  VecX u = pred.u_star, q;                     // zero initial guess
+  // q = (h/ρ) p per cell (an enclosed region has its own ρ and no Open face)
+  const double s = pred.h / m_params.density;
+  VecX u = pred.u_star, q;  // zero initial guess
   const ProjectionReport pr = grid_project(pred.cells, s * pred.p_open, u, q, *m_solver);
   phases.add("assembly", pr.assembly_s);
   phases.add("solve", pr.setup_s + pr.solve_s);
@@ -258,7 +281,7 @@ std::pair<VecX, VecX> GridFluid::project(const GridPrediction& pred, FluidStepRe
                  "grid pressure solve did not converge ({} iterations, residual {:.3g}): lower "
                  "the time step or raise fluid.solver_max_iterations",
                  pr.iterations, pr.residual);
-  return {std::move(u), q / s};
+  return {std::move(u), VecX(q.cwiseProduct(pred.rho) / pred.h)};
 }
 
 FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, FluidStepReport rep) {
@@ -270,7 +293,7 @@ FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, Fluid
   const GridCells& gc = pred.cells;
   for (Index c = 0; c < g.num_cells(); ++c)
     p_dyn[c] = gc.fluid(c)
-                   ? p_dyn[c] + hydrostatic_pressure(m_params.density, m_params.gravity,
+                   ? p_dyn[c] + hydrostatic_pressure(pred.rho[c], m_params.gravity,
                                                      m_params.hydrostatic_origin, g.cell_centre(c))
                    : 0.0;
   m_state = GridState{std::move(u), std::move(p_dyn), std::move(pred.density),
@@ -282,7 +305,7 @@ FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, Fluid
   rep.kinetic_energy = rep.smoke_mass = rep.max_speed = rep.cfl = 0.0;
   for (Index c = 0; c < g.num_cells(); ++c) {
     if (!m_cells.fluid(c)) continue;
-    rep.kinetic_energy += 0.5 * m_params.density * g.cell_volume() * uc.row(c).squaredNorm();
+    rep.kinetic_energy += 0.5 * pred.rho[c] * g.cell_volume() * uc.row(c).squaredNorm();
     rep.smoke_mass += g.cell_volume() * m_state.density[c];
     rep.cfl = std::max(rep.cfl, pred.h * uc.row(c).norm() / g.h.minCoeff());
   }

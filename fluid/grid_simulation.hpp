@@ -10,8 +10,8 @@
 /// Inflow patches (speed, and the cells next to them take the patch's smoke and
 /// temperature), Open patches' pressures, and liquids' hydrostatic split p = p_dyn + ρ g·x.
 /// Vorticity confinement [Fedkiw01, Eq. (11)] on the cell-centred velocity (central
-/// differences, one-sided next to solids). Not yet on the grid: enclosed densities
-/// (InputError if set).
+/// differences, one-sided next to solids). Regions sealed by Solid faces take
+/// `enclosed_density` (grid_cell_density).
 #include <memory>
 #include <vector>
 
@@ -37,11 +37,15 @@ struct GridPrediction {
   VecX u_star;
   VecX density, temperature;
   VecX p_open;  ///< #F dynamic pressure on Open faces (Pa)
+  VecX rho;     ///< #C fluid density per cell (grid_cell_density)
   Index traces_clamped = 0;
 };
 
 /// Velocity at the cell centres (#C × 3): the mean of each axis' two faces.
 MatX3 cell_velocities(const GridCells& gc, const VecX& u);
+/// The fluid density of every cell (#C, kg/m³): `enclosed_density` in regions bounded only by
+/// Solid faces when it is set, `density` elsewhere.
+VecX grid_cell_density(const GridCells& gc, const FluidParams& p);
 /// curl u per cell (#C × 3, 1/s; 0 in solid cells) of the cell-centred velocity uc: central
 /// differences, one-sided next to solid cells and the box.
 MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc);

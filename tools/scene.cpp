@@ -626,9 +626,6 @@ class Parser {
       if (has(n, key))
         fail(child_path(n.path, key),
              "is a key of the tet mesh, not of fluid.discretization \"grid\"; remove it");
-    if (f.params.enclosed_density > 0 && f.params.enclosed_density != f.params.density)
-      fail(child_path(n.path, "enclosed_density"),
-           "is not available on the grid yet; remove it or use fluid.discretization \"tet\"");
     if (!has(n, "grid"))
       fail(n.path,
            "fluid.discretization \"grid\" needs fluid.grid with cell_size (m) or cells "
