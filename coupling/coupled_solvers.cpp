@@ -94,7 +94,11 @@ AmgPreconditioner* amg_for(const CoupledSystem& sys, const CoupledOptions& opt,
     if (bodies[b].free)
       dinv.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) =
           bodies[b].A.diagonal().cwiseInverse();
-  const SparseMatrix Pm = sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() * sys.J);
+  // (the grid's paper form: P from the second row's operator on both sides, symmetric)
+  const SparseMatrix Pm =
+      sys.symmetric ? SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() * sys.J))
+                    : SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() *
+                                                        SparseMatrix(sys.Jt.transpose())));
   own = make_amg_preconditioner();
   own->setup(Pm);
   AmgPreconditioner* amg = own.get();
@@ -223,6 +227,51 @@ SolveReport schur_pcg(const SchurOperator& op, const CoupledOptions& opt, const 
   return sr;
 }
 
+/// Right-preconditioned BiCGSTAB on S x = rhs for the non-symmetric S = C + Jt A⁻¹ J of the
+/// grid's paper form, preconditioned by the AMG V-cycle, stopped on the true residual.
+SolveReport schur_bicgstab(const SchurOperator& op, const CoupledOptions& opt, const VecX& rhs,
+                           VecX& x) {
+  SolveReport sr{"schur_amg (bicgstab)", false, 0, 0.0, 0.0, 0.0};
+  const double t1 = now_seconds();
+  const double bn = rhs.norm();
+  x = VecX::Zero(op.sys.ng);
+  if (bn == 0.0) {
+    sr.converged = true;
+    return sr;
+  }
+  VecX r = rhs, rh = rhs, p = VecX::Zero(rhs.size()), v = p, ph, sh, t;
+  double rho = 1, alpha = 1, omega = 1;
+  // the AMG V-cycle alone (the balancing coarse space of op.precondition assumes symmetry)
+  const auto M = [&](const VecX& in, VecX& out) { op.amg->apply(in, out); };
+  while (sr.iterations < opt.max_iterations && r.norm() > opt.rel_tol * bn) {
+    const double rho1 = rh.dot(r);
+    if (rho1 == 0.0) break;
+    p = r + (rho1 / rho) * (alpha / omega) * (p - omega * v);
+    M(p, ph);
+    op.S(ph, v);
+    alpha = rho1 / rh.dot(v);
+    const VecX sv = r - alpha * v;
+    ++sr.iterations;
+    if (sv.norm() <= opt.rel_tol * bn) {
+      x += alpha * ph;
+      r = sv;
+      break;
+    }
+    M(sv, sh);
+    op.S(sh, t);
+    omega = t.dot(sv) / t.dot(t);
+    x += alpha * ph + omega * sh;
+    r = sv - omega * t;
+    rho = rho1;
+    if (!std::isfinite(omega) || omega == 0.0) break;
+  }
+  op.S(x, t);
+  sr.residual = (rhs - t).norm() / bn;  // the true residual
+  sr.converged = sr.residual <= opt.rel_tol;
+  sr.solve_s = now_seconds() - t1;
+  return sr;
+}
+
 }  // namespace
 
 CoupledSolves solve_assembled(const CoupledSystem& sys, CoupledSolverKind which,
@@ -258,6 +307,50 @@ CoupledSolves solve_assembled(const CoupledSystem& sys, CoupledSolverKind which,
   return x;
 }
 
+namespace {
+
+/// The grid's paper form: BiCGSTAB on S per right-hand side, u = A⁻¹ (b + J p); LU (the
+/// paper's umfpack) if the iteration fails.
+CoupledSolves solve_schur_nonsymmetric(const CoupledSystem& sys, const SchurOperator& op,
+                                       const CoupledOptions& opt, CoupledReport& rep) {
+  const Index ns = sys.ns, nrhs = static_cast<Index>(sys.R2.size());
+  CoupledSolves x;
+  x.U.resize(nrhs);
+  x.P.resize(nrhs);
+  x.Pa.assign(nrhs, VecX());
+  bool ok = true;
+  VecX Ab;
+  op.solve_A(sys.bs, Ab);
+  CoupledReport it = rep;
+  for (Index k = 0; k < nrhs && ok; ++k) {
+    VecX rhs = -sys.R2[k];
+    if (k == 0) rhs -= sys.Jt * Ab;
+    VecX p;
+    const SolveReport sr = schur_bicgstab(op, opt, rhs, p);
+    merge(sr, it);
+    ok = sr.converged;
+    VecX u;
+    op.solve_A((k == 0 ? sys.bs : VecX(VecX::Zero(ns))) + sys.J * p, u);
+    x.U[k] = u;
+    x.P[k] = p;
+  }
+  if (ok) {
+    rep = it;
+    rep.backend = "schur_amg (bicgstab)";
+    return x;
+  }
+  logger().debug(
+      "coupled solve: BiCGSTAB on the non-symmetric Schur complement did not converge ({} "
+      "iterations, residual {:.3g}); solving by LU (umfpack)",
+      it.iterations, it.residual);
+  rep.backend = "schur_amg+umfpack";
+  CoupledSolves lu = solve_assembled(sys, CoupledSolverKind::Umfpack, opt, rep);
+  lu.Pa.assign(nrhs, VecX());
+  return lu;
+}
+
+}  // namespace
+
 CoupledSolves solve_schur_amg(const CoupledSystem& sys, const CoupledOptions& opt,
                               CoupledReport& rep) {
   const double t0 = now_seconds();
@@ -266,6 +359,7 @@ CoupledSolves solve_schur_amg(const CoupledSystem& sys, const CoupledOptions& op
   std::unique_ptr<AmgPreconditioner> own_amg;
   const SchurOperator op(sys, solve_A, amg_for(sys, opt, own_amg));
   rep.setup_s = now_seconds() - t0;
+  if (!sys.symmetric && ns > 0) return solve_schur_nonsymmetric(sys, op, opt, rep);
   bool breakdown = false;
   CoupledSolves x;
   x.U.resize(nrhs);

@@ -125,11 +125,12 @@ void assemble_interface(const GridCoupledInput& in, const GridDofs& d, CoupledSy
   // the hydrostatic pressure ρ g·(x − origin) at the cell centres through J
   hydro = VecX::Zero(sys.ns);
   if (in.gravity.squaredNorm() == 0) return;
+  TETFSI_CHECK(in.Jh, "grid coupled solve: gravity without the hydrostatic J");
   VecX ph(gc.grid.num_cells());
   for (Index c = 0; c < ph.size(); ++c)
     ph[c] = fluid::hydrostatic_pressure((*in.rho)[c], in.gravity, in.hydrostatic_origin,
                                         gc.grid.cell_centre(c));
-  const VecX f = *in.J * ph;
+  const VecX f = *in.Jh * ph;  // the paper's J: exact for the linear hydrostatic field
   for (Index dof = 0; dof < f.size(); ++dof)
     if (d.free_dof[dof] >= 0) hydro[d.free_dof[dof]] = f[dof];
 }
@@ -326,19 +327,31 @@ void finish_grid_coupled(const GridCoupledInput& in, const CoupledSystem& sys, c
         source[d.cells.cell[q]] = c[k] * sys.gvol[q] / sys.rvol[sys.enclosed[k]];
   rep.divergence_after =
       (fluid::grid_net_flux(gc, sol.u_face) - source).cwiseAbs().maxCoeff() / g.cell_volume();
-  VecX p_total = sol.p;
-  for (Index q = 0; q < nc; ++q)
-    p_total[q] += fluid::hydrostatic_pressure((*in.rho)[q], in.gravity, in.hydrostatic_origin,
-                                              g.cell_centre(q));
-  sol.fluid_force = grid_fluid_forces(*in.interface, *in.J, p_total);
+  const bool liquid = in.gravity.squaredNorm() > 0;
+  VecX ph = VecX::Zero(nc);
+  for (Index q = 0; q < nc && liquid; ++q)
+    ph[q] = fluid::hydrostatic_pressure((*in.rho)[q], in.gravity, in.hydrostatic_origin,
+                                        g.cell_centre(q));
+  sol.fluid_force = grid_fluid_forces(*in.interface, *in.J, sol.p, liquid ? in.Jh : nullptr, &ph);
   rep.assembly_s += now_seconds() - t0;
 }
 
 }  // namespace
 
+VecX grid_hydrostatic_pressure(const fluid::GridCells& gc, const VecX& rho,
+                               const fluid::FluidParams& params) {
+  VecX ph(gc.grid.num_cells());
+  for (Index c = 0; c < ph.size(); ++c)
+    ph[c] = fluid::hydrostatic_pressure(rho[c], params.gravity, params.hydrostatic_origin,
+                                        gc.grid.cell_centre(c));
+  return ph;
+}
+
 std::vector<VecX> grid_fluid_forces(const fluid::GridInterface& iface, const SparseMatrix& J,
-                                    const VecX& p) {
-  const VecX f = J * p;
+                                    const VecX& p_dyn, const SparseMatrix* Jh,
+                                    const VecX* p_hydro) {
+  VecX f = J * p_dyn;
+  if (Jh && p_hydro) f += *Jh * *p_hydro;
   const std::vector<Index>& off = iface.node_offsets();
   std::vector<VecX> F(iface.bodies().size());
   for (size_t b = 0; b < F.size(); ++b) F[b] = f.segment(3 * off[b], 3 * (off[b + 1] - off[b]));
@@ -354,11 +367,6 @@ CoupledSolution solve_grid_coupled(const GridCoupledInput& in, const CoupledOpti
   rep.converged = true;
   GridDofs d;
   const CoupledSystem sys = assemble_grid_coupled(in, opt, d, rep);
-  TETFSI_REQUIRE(InputError,
-                 sys.symmetric || sys.ns == 0 || opt.solver != CoupledSolverKind::SchurAmg,
-                 "coupling.solver schur_amg needs a symmetric system, and "
-                 "fluid.grid.pressure_forces \"paper\" is not: use coupling.solver umfpack or "
-                 "bicgstab_ilut with it, or fluid.grid.pressure_forces \"consistent\"");
   const CoupledSolves x = opt.solver == CoupledSolverKind::SchurAmg
                               ? solve_schur_amg(sys, opt, rep)
                               : solve_assembled(sys, opt.solver, opt, rep);
@@ -380,9 +388,10 @@ CoupledSolution solve_grid_coupled(const GridCoupledInput& in, const CoupledOpti
 
 GridPredicted::GridPredicted(fluid::GridPrediction pred, const fluid::FluidParams& params,
                              const std::vector<BodyInterface>& bodies, GridPressureForces forces)
-    : m_pred(std::move(pred)), m_params(params), m_iface(m_pred.cells, bodies) {
+    : m_pred(std::move(pred)), m_params(params), m_iface(m_pred.cells, bodies), m_forces(forces) {
   m_Jc = m_iface.J_consistent();
-  if (forces == GridPressureForces::Paper) m_J = m_iface.J_paper();
+  if (forces == GridPressureForces::Paper || params.gravity.squaredNorm() > 0)
+    m_Jp = m_iface.J_paper();
 }
 
 CoupledSolution GridPredicted::solve(const std::vector<CoupledBody>& bodies,
@@ -397,7 +406,8 @@ CoupledSolution GridPredicted::solve(const std::vector<CoupledBody>& bodies,
   in.hydrostatic_origin = m_params.hydrostatic_origin;
   in.interface = &m_iface;
   in.Jc = &m_Jc;
-  in.J = m_J.size() ? &m_J : &m_Jc;
+  in.J = m_forces == GridPressureForces::Paper ? &m_Jp : &m_Jc;
+  in.Jh = m_Jp.size() ? &m_Jp : nullptr;
   in.bodies = &bodies;
   in.volume_targets = v.targets;
   VecX zero_f;
@@ -454,10 +464,13 @@ fluid::FluidStepReport GridCoupledFluid::commit(std::unique_ptr<PredictedFluid> 
 }
 
 std::vector<VecX> GridCoupledFluid::current_forces(const std::vector<BodyInterface>& bodies) const {
-  const fluid::GridInterface iface(m_fluid.cells(), bodies);
-  const SparseMatrix J =
-      m_forces == GridPressureForces::Paper ? iface.J_paper() : iface.J_consistent();
-  return grid_fluid_forces(iface, J, m_fluid.state().p);
+  const fluid::GridCells& gc = m_fluid.cells();
+  const fluid::GridInterface iface(gc, bodies);
+  const SparseMatrix Jp = iface.J_paper();
+  const VecX ph = grid_hydrostatic_pressure(gc, fluid::grid_cell_density(gc, params()), params());
+  const VecX p_dyn = m_fluid.state().p - ph;  // J reads fluid cells only
+  return grid_fluid_forces(iface, m_forces == GridPressureForces::Paper ? Jp : iface.J_consistent(),
+                           p_dyn, &Jp, &ph);
 }
 
 }  // namespace tetfsi::coupling

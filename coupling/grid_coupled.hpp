@@ -14,8 +14,9 @@
 ///    linear pressure, but the system is not symmetric: with free bodies only the general
 ///    solvers (umfpack, bicgstab_ilut: the paper's) take it, and the interface creates or
 ///    absorbs the power CoupledReport::interface_imbalance.
-/// The hydrostatic part of a liquid's pressure pushes the bodies through the same J (exact
-/// for the paper form, which integrates a linear field exactly). Enclosed regions keep their
+/// The hydrostatic part of a liquid's pressure pushes the bodies through the paper's J in both
+/// forms (it integrates a linear field exactly: a neutrally buoyant body floats), as on the
+/// tet mesh, where it is exact at the face centroids. Enclosed regions keep their
 /// volume as on the tet mesh; a cavity is every triangle of the body surface components the
 /// region's Solid faces cross.
 #include <memory>
@@ -46,6 +47,9 @@ struct GridCoupledInput {
   const fluid::GridInterface* interface = nullptr;
   const SparseMatrix* J = nullptr;   ///< 3N × #C, the first row's pressure forces
   const SparseMatrix* Jc = nullptr;  ///< 3N × #C, (V D1 H)ᵀ
+  /// 3N × #C, the paper's J: the hydrostatic part's forces (exact for a linear pressure;
+  /// may be null without gravity)
+  const SparseMatrix* Jh = nullptr;
   const std::vector<CoupledBody>* bodies = nullptr;
   VolumeTargets* volume_targets = nullptr;  ///< null: no volume correction
 };
@@ -77,12 +81,19 @@ class GridPredicted final : public PredictedFluid {
   fluid::GridPrediction m_pred;
   const fluid::FluidParams& m_params;
   fluid::GridInterface m_iface;
-  SparseMatrix m_J, m_Jc;
+  SparseMatrix m_Jp, m_Jc;  ///< the paper's J (paper form, or for gravity), (V D1 H)ᵀ
+  GridPressureForces m_forces;
 };
 
-/// The fluid's nodal forces (3n per body, N) of a pressure p (#C, total) through J (3N × #C).
+/// The hydrostatic pressure ρ_c g·(x_c − origin) at every cell centre (#C, Pa).
+VecX grid_hydrostatic_pressure(const fluid::GridCells& gc, const VecX& rho,
+                               const fluid::FluidParams& params);
+
+/// The fluid's nodal forces (3n per body, N): the dynamic pressure p_dyn (#C) through J, the
+/// hydrostatic p_hydro (#C) through Jh (the paper's J: exact for a linear field), 3N × #C.
 std::vector<VecX> grid_fluid_forces(const fluid::GridInterface& iface, const SparseMatrix& J,
-                                    const VecX& p);
+                                    const VecX& p_dyn, const SparseMatrix* Jh = nullptr,
+                                    const VecX* p_hydro = nullptr);
 
 class GridCoupledFluid final : public CoupledFluid {
  public:

@@ -60,7 +60,7 @@ class RemeshPolicy {
 /// The regular-grid discretisation of a simulation's fluid (grid_coupled.hpp).
 struct GridSetup {
   fluid::GridSpec spec;
-  GridPressureForces forces = GridPressureForces::Consistent;
+  GridPressureForces forces = GridPressureForces::Paper;
 };
 
 /// The fluid of a simulation: its box, mesh sizing and physics; with `grid`, on the MAC grid

@@ -854,20 +854,6 @@ Scene parse_scene(const json& j, const fs::path& file) {
     }
   }
 
-  // The grid's paper J makes the simultaneous system non-symmetric (grid_coupled.hpp).
-  if (s.two_way() && s.fluid->grid_spec &&
-      s.fluid->grid.pressure_forces == coupling::GridPressureForces::Paper &&
-      s.coupling->params.solve.solver == coupling::CoupledSolverKind::SchurAmg) {
-    const coupling::Scheme sc = s.coupling->params.scheme;
-    if (sc == coupling::Scheme::Simultaneous || sc == coupling::Scheme::Newton)
-      p.fail("fluid.grid.pressure_forces",
-             fmt::format("\"paper\" makes the coupled system of coupling.scheme {} "
-                         "non-symmetric, which coupling.solver schur_amg cannot solve; set "
-                         "coupling.solver to umfpack or bicgstab_ilut, or pressure_forces to "
-                         "\"consistent\"",
-                         coupling::to_string(sc)));
-  }
-
   // A two-way coupled step integrates the bodies itself, as its scheme says.
   if (s.two_way() && s.solid.integrator != solid::Integrator::Linearized &&
       s.coupling->scheme_name() != solid::to_string(s.solid.integrator)) {

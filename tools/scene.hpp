@@ -273,7 +273,7 @@ struct GridKeys {
   double cell_size = 0.0;       ///< m; 0: from `cells`
   Vec3i cells = Vec3i::Zero();  ///< per axis; resolved from cell_size when that is given
   int max_cells = 2'000'000;
-  coupling::GridPressureForces pressure_forces = coupling::GridPressureForces::Consistent;
+  coupling::GridPressureForces pressure_forces = coupling::GridPressureForces::Paper;
 };
 
 /// The optional fluid of a scene: the box it fills and the size of its mesh, as the remesher

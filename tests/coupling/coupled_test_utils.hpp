@@ -20,6 +20,7 @@ struct CoupledRig {
   mesh::Sizing sizing;
   fluid::FluidParams fluid_params;
   coupling::CouplingParams coupling;
+  std::optional<coupling::GridSetup> grid;  ///< set: the fluid on this MAC grid
   std::unique_ptr<coupling::FsiSimulation> sim;
 
   /// The bodies: the rig's own before start(), the simulation's after.
@@ -38,7 +39,7 @@ struct CoupledRig {
   /// Build the simulation (two-way, `coupling`) and the fluid at rest on the mesh of t = 0.
   void start() {
     sim = std::make_unique<coupling::FsiSimulation>(
-        std::move(m_world), coupling::FluidSetup{domain, sizing, fluid_params}, coupling);
+        std::move(m_world), coupling::FluidSetup{domain, sizing, fluid_params, grid}, coupling);
     PhaseTimes phases;
     sim->start(phases);
   }
