@@ -98,7 +98,10 @@ void group_cells(const GridCoupledInput& in, const GridDofs& d, CoupledSystem& s
 void assemble_interface(const GridCoupledInput& in, const GridDofs& d, CoupledSystem& sys,
                         VecX& hydro, VecX& r_prescribed) {
   const GridCells& gc = *in.cells;
-  sys.lifted.assign(sys.nr, false);
+  // A region is lifted (its level held by a free body) when the body feels its pressure
+  // (J) and its flux sees the body's motion (V D1 H) — both, or the paper form is singular
+  // on a pocket one of them misses.
+  std::vector<bool> by_J(sys.nr, false), by_Jc(sys.nr, false);
   r_prescribed = VecX::Zero(sys.ng);
   Triplets jt, kt;
   auto scan = [&](const SparseMatrix& M, bool first_row) {
@@ -110,12 +113,14 @@ void assemble_interface(const GridCoupledInput& in, const GridDofs& d, CoupledSy
         if (!first_row && d.fixed_free[dof]) r_prescribed[g] += it.value() * d.prescribed[dof];
         if (d.free_dof[dof] < 0 || it.value() == 0.0) continue;
         (first_row ? jt : kt).emplace_back(d.free_dof[dof], g, it.value());
-        sys.lifted[sys.greg[g]] = true;
+        (first_row ? by_J : by_Jc)[sys.greg[g]] = true;
       }
     }
   };
   scan(*in.J, true);
   scan(*in.Jc, false);
+  sys.lifted.assign(sys.nr, false);
+  for (Index r = 0; r < sys.nr; ++r) sys.lifted[r] = by_J[r] && by_Jc[r];
   sys.J = SparseMatrix(sys.ns, sys.ng);
   sys.J.setFromTriplets(jt.begin(), jt.end());
   SparseMatrix Kc(sys.ns, sys.ng);

@@ -183,6 +183,10 @@ int bench_step(const std::filesystem::path& scene_file, const BenchStepOptions& 
                  "{}: bench step needs a fluid scene (no 'fluid' section)", scene_file.string());
   TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic,
                  "{}: bench step needs a dynamic scene (mode is 'static')", scene_file.string());
+  TETFSI_REQUIRE(InputError, !scene.fluid->grid_spec,
+                 "{}: bench step times the tet mesh's steps; fluid.discretization \"grid\" is not "
+                 "benchmarked yet (time it with `tetfsi run`: stats.csv has the phases)",
+                 scene_file.string());
   TETFSI_REQUIRE(InputError, opt.steps >= 2,
                  "bench step: --steps must be at least 2 (the first is a warm-up), got {}",
                  opt.steps);
