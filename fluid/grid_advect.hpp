@@ -21,7 +21,7 @@ Vec3 grid_trace_back(const GridCells& gc, const VecX& u, const Vec3& x, double h
 struct GridAdvected {
   VecX u;        ///< #F: the face component at the traced point (Interior and Open faces; 0
                  ///< elsewhere — the caller sets prescribed faces)
-  VecX scalars;  ///< #C × k stacked column-wise: each scalar at the traced cell centre
+  Eigen::MatrixXd scalars;  ///< #C × k: each scalar at the traced cell centre
   Index traces_clamped = 0;
 };
 
