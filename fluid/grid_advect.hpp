@@ -19,8 +19,8 @@ Vec3 grid_velocity_at(const GridCells& gc, const VecX& u, const Vec3& x);
 Vec3 grid_trace_back(const GridCells& gc, const VecX& u, const Vec3& x, double h, bool& clamped);
 
 struct GridAdvected {
-  VecX u;        ///< #F: the face component at the traced point (Interior and Open faces; 0
-                 ///< elsewhere — the caller sets prescribed faces)
+  VecX u;  ///< #F: the face component at the traced point (Interior and Open faces; 0
+           ///< elsewhere — the caller sets prescribed faces)
   Eigen::MatrixXd scalars;  ///< #C × k: each scalar at the traced cell centre
   Index traces_clamped = 0;
 };
