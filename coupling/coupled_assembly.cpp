@@ -116,7 +116,7 @@ VecX second_row(const CoupledInput& in, CoupledSystem& sys, const VecX& r_prescr
                 CoupledReport& rep) {
   const TetMesh& m = *in.mesh;
   const std::vector<CoupledBody>& bodies = *in.bodies;
-  const Index nt = m.num_tets(), nf = m.num_faces(), nr = sys.nr, ng = sys.ng;
+  const Index nt = m.num_tets(), nf = m.num_faces();
   VecX v0 = *in.u_star;
   for (Index f = 0; f < nf; ++f)
     if (m.face_kind[f] == FaceKind::Solid && bodies[m.face_body[f]].free) v0[f] = 0.0;
@@ -131,20 +131,7 @@ VecX second_row(const CoupledInput& in, CoupledSystem& sys, const VecX& r_prescr
       const Index g = sys.groups.cell_group[m.face_tets(f, 0)];
       r[g] -= sys.gs[g] * m.face_areas[f] / sys.d_eff[f] * (*in.p_open)[f];
     }
-  std::vector<double> sum(nr, 0.0), abs_sum(nr, 0.0);
-  for (Index g = 0; g < ng; ++g) {
-    sum[sys.greg[g]] += r[g];
-    abs_sum[sys.greg[g]] += std::abs(r[g]);
-  }
-  for (Index k = 0; k < nr; ++k) {
-    if (sys.pin_regions.has_open[k]) continue;
-    ++rep.pinned_regions;
-    if (abs_sum[k] > 0)
-      rep.incompatibility = std::max(rep.incompatibility, std::abs(sum[k]) / abs_sum[k]);
-  }
-  for (Index g = 0; g < ng; ++g)
-    if (!sys.pin_regions.has_open[sys.greg[g]])
-      r[g] -= sum[sys.greg[g]] * sys.gvol[g] / sys.rvol[sys.greg[g]];
+  remove_pinned_flux(sys, r, rep);
   return r;
 }
 
@@ -208,27 +195,48 @@ CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt
   sys.C = sys.gs.asDiagonal() * sys.C;
 
   // the second block row's right-hand side, see [Chentanez06, Eq. (6)]
-  const VecX r = second_row(in, sys, r_prescribed, rep);
+  VecX r = second_row(in, sys, r_prescribed, rep);
+  find_enclosed(in, opt, sys);
+  stack_right_hand_sides(sys, std::move(r), hydro);
+  rep.assembly_s = now_seconds() - t0;
+  return sys;
+}
+
+void remove_pinned_flux(const CoupledSystem& sys, VecX& r, CoupledReport& rep) {
+  const Index nr = sys.nr, ng = sys.ng;
+  std::vector<double> sum(nr, 0.0), abs_sum(nr, 0.0);
+  for (Index g = 0; g < ng; ++g) {
+    sum[sys.greg[g]] += r[g];
+    abs_sum[sys.greg[g]] += std::abs(r[g]);
+  }
+  for (Index k = 0; k < nr; ++k) {
+    if (sys.pin_regions.has_open[k]) continue;
+    ++rep.pinned_regions;
+    if (abs_sum[k] > 0)
+      rep.incompatibility = std::max(rep.incompatibility, std::abs(sum[k]) / abs_sum[k]);
+  }
+  for (Index g = 0; g < ng; ++g)
+    if (!sys.pin_regions.has_open[sys.greg[g]])
+      r[g] -= sum[sys.greg[g]] * sys.gvol[g] / sys.rvol[sys.greg[g]];
+}
+
+void stack_right_hand_sides(CoupledSystem& sys, VecX r, const VecX& hydro) {
   sys.bs = VecX(sys.ns);
   for (Index b = 0; b < sys.nb; ++b)
-    if ((*in.bodies)[b].free)
-      sys.bs.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) = (*in.bodies)[b].b;
+    if ((*sys.bodies)[b].free)
+      sys.bs.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) = (*sys.bodies)[b].b;
   sys.bs += hydro;
-  find_enclosed(in, opt, sys);
-  rep.assembly_s = now_seconds() - t0;
-
   // Right-hand sides of the second block row: column 0 the step's, column 1 + k region k's
   // unit net flux (K's second block row reads −Jᵀu − C p = R2, R2 = r − s).
   const Index ne = static_cast<Index>(sys.enclosed.size());
   sys.R2.assign(1 + ne, VecX());
-  sys.R2[0] = r;
+  sys.R2[0] = std::move(r);
   for (Index k = 0; k < ne; ++k) {
     sys.R2[1 + k] = VecX::Zero(sys.ng);
     for (Index g = 0; g < sys.ng; ++g)
       if (sys.greg[g] == sys.enclosed[k])
         sys.R2[1 + k][g] = -sys.gvol[g] / sys.rvol[sys.enclosed[k]];
   }
-  return sys;
 }
 
 }  // namespace tetfsi::coupling

@@ -59,21 +59,26 @@ CoupledSolution solve_coupled(const CoupledInput& in, const CoupledOptions& opt)
   rep.backend = to_string(opt.solver);
   rep.converged = true;
   const CoupledSystem sys = assemble_coupled(in, opt, rep);
-  const CoupledSolves x = opt.solver == CoupledSolverKind::SchurAmg
-                              ? solve_schur_amg(sys, opt, rep)
-                              : solve_assembled(sys, opt.solver, opt, rep);
-  for (size_t k = 0; k < x.U.size(); ++k)
-    TETFSI_REQUIRE(SolverError, x.U[k].allFinite() && x.P[k].allFinite(),
-                   "coupled solve ({}) returned non-finite values after {} iterations; reduce "
-                   "time.dt",
-                   rep.backend, rep.iterations);
-  if (!rep.converged)
-    logger().warn("coupled solve ({}) did not converge: {} iterations, residual {:.3g}",
-                  rep.backend, rep.iterations, rep.residual);
-  const VecX c =
-      sys.enclosed.empty() ? VecX() : solve_enclosed_volumes(sys, x, *in.volume_targets, rep);
+  const auto [x, c] = solve_system(sys, opt, in.volume_targets, rep, "coupled solve");
   finish_coupled(sys, x, c, sol);
   return sol;
+}
+
+std::pair<CoupledSolves, VecX> solve_system(const CoupledSystem& sys, const CoupledOptions& opt,
+                                            VolumeTargets* targets, CoupledReport& rep,
+                                            const char* what) {
+  CoupledSolves x = opt.solver == CoupledSolverKind::SchurAmg
+                        ? solve_schur_amg(sys, opt, rep)
+                        : solve_assembled(sys, opt.solver, opt, rep);
+  for (size_t k = 0; k < x.U.size(); ++k)
+    TETFSI_REQUIRE(SolverError, x.U[k].allFinite() && x.P[k].allFinite(),
+                   "{} ({}) returned non-finite values after {} iterations; reduce time.dt", what,
+                   rep.backend, rep.iterations);
+  if (!rep.converged)
+    logger().warn("{} ({}) did not converge: {} iterations, residual {:.3g}", what, rep.backend,
+                  rep.iterations, rep.residual);
+  VecX c = sys.enclosed.empty() ? VecX() : solve_enclosed_volumes(sys, x, *targets, rep);
+  return {std::move(x), std::move(c)};
 }
 
 std::pair<VecX, VecX> combine_solves(const CoupledSolves& x, const VecX& c) {

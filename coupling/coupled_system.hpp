@@ -237,6 +237,13 @@ struct CoupledSystem {
 CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt,
                                CoupledReport& rep);
 
+/// The shared end of both assemblies (tet, grid): the second row r (per group) with the net
+/// flux of every region that nothing fixes removed (rep.pinned_regions, incompatibility).
+void remove_pinned_flux(const CoupledSystem& sys, VecX& r, CoupledReport& rep);
+/// sys.bs from the free bodies' b plus `hydro`; sys.R2 from the step's row r and one unit net
+/// flux column per enclosed region (sys.enclosed must be set).
+void stack_right_hand_sides(CoupledSystem& sys, VecX r, const VecX& hydro);
+
 /// Solutions per right-hand side: u (ns), p = Z Pa + P (Z the Schur solver's coarse space of
 /// body-held region constants; Pa empty otherwise).
 struct CoupledSolves {
@@ -273,6 +280,13 @@ std::pair<VecX, VecX> combine_solves(const CoupledSolves& x, const VecX& c);
 /// uⁿ⁺¹ per body (3n) from the stacked u, fixed DOFs at their prescribed values; empty for
 /// bodies that are not free.
 std::vector<VecX> body_velocities(const CoupledSystem& sys, const VecX& u);
+
+/// The assembled system solved by opt.solver (checked finite, a warning if unconverged) and
+/// the enclosed regions' fluxes c (empty without them). `what` names the solve in messages.
+/// @throws SolverError if the result is not finite.
+std::pair<CoupledSolves, VecX> solve_system(const CoupledSystem& sys, const CoupledOptions& opt,
+                                            VolumeTargets* targets, CoupledReport& rep,
+                                            const char* what);
 
 /// Combine the solves with the fluxes c and finish: p per cell, u per body, the interface
 /// power, Eq. (8) for the face velocities, the divergence after, the fluid's forces.

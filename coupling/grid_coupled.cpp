@@ -169,20 +169,7 @@ VecX second_row(const GridCoupledInput& in, const GridDofs& d, CoupledSystem& sy
       r[k] -=
           sys.gs[k] * g.face_area(g.face_axis(f)) / fluid::grid_face_dual(gc, f) * (*in.p_open)[f];
     }
-  std::vector<double> sum(sys.nr, 0.0), abs_sum(sys.nr, 0.0);
-  for (Index k = 0; k < sys.ng; ++k) {
-    sum[sys.greg[k]] += r[k];
-    abs_sum[sys.greg[k]] += std::abs(r[k]);
-  }
-  for (Index k = 0; k < sys.nr; ++k) {
-    if (sys.pin_regions.has_open[k]) continue;
-    ++rep.pinned_regions;
-    if (abs_sum[k] > 0)
-      rep.incompatibility = std::max(rep.incompatibility, std::abs(sum[k]) / abs_sum[k]);
-  }
-  for (Index k = 0; k < sys.ng; ++k)
-    if (!sys.pin_regions.has_open[sys.greg[k]])
-      r[k] -= sum[sys.greg[k]] * sys.gvol[k] / sys.rvol[sys.greg[k]];
+  remove_pinned_flux(sys, r, rep);
   return r;
 }
 
@@ -279,22 +266,9 @@ CoupledSystem assemble_grid_coupled(const GridCoupledInput& in, const CoupledOpt
     sys.pin_regions.has_open[r] = sys.regions.has_open[r] || sys.lifted[r];
   sys.gs = VecX::Constant(sys.ng, in.h).cwiseQuotient(sys.grho);  // h/ρ per cell
   sys.C = sys.gs.asDiagonal() * fluid::grid_pressure_matrix(*in.cells, d.cells, sys.pin_regions);
-  const VecX r = second_row(in, d, sys, r_prescribed, rep);
-  sys.bs = VecX(sys.ns);
-  for (Index b = 0; b < sys.nb; ++b)
-    if ((*in.bodies)[b].free)
-      sys.bs.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) = (*in.bodies)[b].b;
-  sys.bs += hydro;
+  VecX r = second_row(in, d, sys, r_prescribed, rep);
   find_enclosed(in, opt, sys);
-  const Index ne = static_cast<Index>(sys.enclosed.size());
-  sys.R2.assign(1 + ne, VecX());
-  sys.R2[0] = r;
-  for (Index k = 0; k < ne; ++k) {
-    sys.R2[1 + k] = VecX::Zero(sys.ng);
-    for (Index g = 0; g < sys.ng; ++g)
-      if (sys.greg[g] == sys.enclosed[k])
-        sys.R2[1 + k][g] = -sys.gvol[g] / sys.rvol[sys.enclosed[k]];
-  }
+  stack_right_hand_sides(sys, std::move(r), hydro);
   rep.assembly_s = now_seconds() - t0;
   return sys;
 }
@@ -372,19 +346,7 @@ CoupledSolution solve_grid_coupled(const GridCoupledInput& in, const CoupledOpti
   rep.converged = true;
   GridDofs d;
   const CoupledSystem sys = assemble_grid_coupled(in, opt, d, rep);
-  const CoupledSolves x = opt.solver == CoupledSolverKind::SchurAmg
-                              ? solve_schur_amg(sys, opt, rep)
-                              : solve_assembled(sys, opt.solver, opt, rep);
-  for (size_t k = 0; k < x.U.size(); ++k)
-    TETFSI_REQUIRE(SolverError, x.U[k].allFinite() && x.P[k].allFinite(),
-                   "grid coupled solve ({}) returned non-finite values after {} iterations; "
-                   "reduce time.dt",
-                   rep.backend, rep.iterations);
-  if (!rep.converged)
-    logger().warn("grid coupled solve ({}) did not converge: {} iterations, residual {:.3g}",
-                  rep.backend, rep.iterations, rep.residual);
-  const VecX c =
-      sys.enclosed.empty() ? VecX() : solve_enclosed_volumes(sys, x, *in.volume_targets, rep);
+  const auto [x, c] = solve_system(sys, opt, in.volume_targets, rep, "grid coupled solve");
   finish_grid_coupled(in, sys, d, x, c, sol);
   return sol;
 }

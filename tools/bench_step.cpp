@@ -80,9 +80,9 @@ struct Case {
 
 /// The scene's fluid, one-way, around `world`.
 coupling::FsiSimulation make_one_way(const Scene& scene, solid::SolidWorld world) {
-  return coupling::FsiSimulation(
-      std::move(world),
-      coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params});
+  return coupling::FsiSimulation(std::move(world),
+                                 coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing,
+                                                      scene.fluid->params, std::nullopt});
 }
 
 /// Cells of the scene's fluid mesh at t = 0 (one remesh).

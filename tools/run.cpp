@@ -381,7 +381,8 @@ coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld wo
   std::optional<coupling::FluidSetup> fluid;
   std::optional<coupling::CouplingParams> coupling;
   if (scene.fluid) {
-    fluid = coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params};
+    fluid = coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params,
+                                 std::nullopt};
     if (scene.fluid->grid_spec)
       fluid->grid = coupling::GridSetup{*scene.fluid->grid_spec, scene.fluid->grid.pressure_forces};
     if (scene.two_way()) coupling = scene.coupling->params;
