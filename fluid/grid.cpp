@@ -36,81 +36,10 @@ GridSpec GridSpec::from_cell_size(const Vec3& lo, const Vec3& hi, double cell_si
   return from_cells(lo, hi, n);
 }
 
-Index GridSpec::num_faces(int a) const {
-  Index c = 1;
-  for (int b = 0; b < 3; ++b) c *= n[b] + (b == a ? 1 : 0);
-  return c;
-}
-
-Index GridSpec::face_offset(int a) const {
-  Index o = 0;
-  for (int b = 0; b < a; ++b) o += num_faces(b);
-  return o;
-}
-
-std::array<Index, 3> GridSpec::cell_ijk(Index c) const {
-  return {c % n[0], (c / n[0]) % n[1], c / (n[0] * n[1])};
-}
-
-Vec3 GridSpec::cell_centre(Index c) const {
-  const auto ijk = cell_ijk(c);
-  Vec3 x;
-  for (int a = 0; a < 3; ++a) x[a] = lo[a] + (static_cast<double>(ijk[a]) + 0.5) * h[a];
-  return x;
-}
-
-Index GridSpec::face(int a, Index i, Index j, Index k) const {
-  const Index d0 = n[0] + (a == 0), d1 = n[1] + (a == 1);
-  return face_offset(a) + i + d0 * (j + d1 * k);
-}
-
-int GridSpec::face_axis(Index f) const {
-  return f < face_offset(1) ? 0 : (f < face_offset(2) ? 1 : 2);
-}
-
-std::array<Index, 3> GridSpec::face_ijk(Index f) const {
-  const int a = face_axis(f);
-  const Index l = f - face_offset(a);
-  const Index d0 = n[0] + (a == 0), d1 = n[1] + (a == 1);
-  return {l % d0, (l / d0) % d1, l / (d0 * d1)};
-}
-
-Vec3 GridSpec::face_centre(Index f) const {
-  const int a = face_axis(f);
-  const auto ijk = face_ijk(f);
-  Vec3 x;
-  for (int b = 0; b < 3; ++b)
-    x[b] = lo[b] + (static_cast<double>(ijk[b]) + (b == a ? 0.0 : 0.5)) * h[b];
-  return x;
-}
-
-std::array<Index, 2> GridSpec::face_cells(Index f) const {
-  const int a = face_axis(f);
-  auto ijk = face_ijk(f);
-  const Index i = ijk[a];
-  std::array<Index, 2> c{-1, -1};
-  if (i > 0) {
-    ijk[a] = i - 1;
-    c[0] = cell(ijk[0], ijk[1], ijk[2]);
-  }
-  if (i < n[a]) {
-    ijk[a] = i;
-    c[1] = cell(ijk[0], ijk[1], ijk[2]);
-  }
-  return c;
-}
-
 int GridSpec::face_side(Index f) const {
   const int a = face_axis(f);
   const Index i = face_ijk(f)[a];
   return i == 0 ? 2 * a : (i == n[a] ? 2 * a + 1 : -1);
-}
-
-Index GridSpec::cell_at(const Vec3& x) const {
-  std::array<Index, 3> ijk{};
-  for (int a = 0; a < 3; ++a)
-    ijk[a] = std::clamp<Index>(static_cast<Index>(std::floor((x[a] - lo[a]) / h[a])), 0, n[a] - 1);
-  return cell(ijk[0], ijk[1], ijk[2]);
 }
 
 // ---- triangles ---------------------------------------------------------------------------
@@ -125,26 +54,6 @@ Tri triangle(const mesh::SolidSurface& s, Index t) {
   Tri r;
   for (int k = 0; k < 3; ++k) r.p[k] = s.vertices.row(s.triangles(t, k)).transpose();
   return r;
-}
-
-/// Segment a + s (b − a), s ∈ [0, 1], against a triangle (Möller–Trumbore, closed: a hit on an
-/// edge counts, so queries err towards "blocked").
-bool segment_triangle(const Vec3& a, const Vec3& b, const Tri& T, double& s, Vec3& bary) {
-  const Vec3 d = b - a, e1 = T.p[1] - T.p[0], e2 = T.p[2] - T.p[0];
-  const Vec3 q = d.cross(e2);
-  const double det = e1.dot(q);
-  const double scale = e1.norm() * e2.norm() * d.norm();
-  if (std::abs(det) <= 1e-14 * scale) return false;  // parallel
-  const Vec3 r = a - T.p[0];
-  const double u = r.dot(q) / det;
-  if (u < 0.0 || u > 1.0) return false;
-  const Vec3 w = r.cross(e1);
-  const double v = d.dot(w) / det;
-  if (v < 0.0 || u + v > 1.0) return false;
-  s = e2.dot(w) / det;
-  if (s < 0.0 || s > 1.0) return false;
-  bary = Vec3(1.0 - u - v, u, v);
-  return true;
 }
 
 /// Edge function of p against the 2D edge (e0 → e1), computed from the lexicographically
@@ -231,45 +140,83 @@ std::array<Index, 3> line_ijk(int a, Index i, Index j, Index k) {
 // ---- GridSolids --------------------------------------------------------------------------
 
 GridSolids::GridSolids(const GridSpec& g, std::vector<mesh::SolidSurface> surfaces)
-    : m_grid(g), m_surfaces(std::move(surfaces)) {
+    : m_grid(g), m_surfaces(std::move(surfaces)), m_margin(1e-9 * g.h.minCoeff()) {
   const Index nc = g.num_cells();
-  m_bucket.assign(nc, {});
-  m_near.assign(nc, 0);
+  std::vector<std::array<Index, 6>> range;  // per packed triangle: cell index box
   for (size_t b = 0; b < m_surfaces.size(); ++b) {
     const mesh::SolidSurface& s = m_surfaces[b];
     for (Index t = 0; t < s.triangles.rows(); ++t) {
       const Tri T = triangle(s, t);
-      Vec3 lo = T.p[0].cwiseMin(T.p[1]).cwiseMin(T.p[2]);
-      Vec3 hi = T.p[0].cwiseMax(T.p[1]).cwiseMax(T.p[2]);
-      std::array<Index, 3> i0{}, i1{};
+      Packed P;
+      P.p0 = T.p[0];
+      P.e1 = T.p[1] - T.p[0];
+      P.e2 = T.p[2] - T.p[0];
+      P.e12 = P.e1.norm() * P.e2.norm();
+      P.lo = T.p[0].cwiseMin(T.p[1]).cwiseMin(T.p[2]);
+      P.hi = T.p[0].cwiseMax(T.p[1]).cwiseMax(T.p[2]);
+      P.body = static_cast<Index>(b);
+      P.tri = t;
+      std::array<Index, 6> r{};
       for (int a = 0; a < 3; ++a) {
         const double eps = 1e-9 * g.h[a];
-        i0[a] = std::clamp<Index>(static_cast<Index>(std::floor((lo[a] - eps - g.lo[a]) / g.h[a])),
-                                  0, g.n[a] - 1);
-        i1[a] = std::clamp<Index>(static_cast<Index>(std::floor((hi[a] + eps - g.lo[a]) / g.h[a])),
-                                  0, g.n[a] - 1);
+        r[a] = std::clamp<Index>(static_cast<Index>(std::floor((P.lo[a] - eps - g.lo[a]) / g.h[a])),
+                                 0, g.n[a] - 1);
+        r[3 + a] = std::clamp<Index>(
+            static_cast<Index>(std::floor((P.hi[a] + eps - g.lo[a]) / g.h[a])), 0, g.n[a] - 1);
       }
-      for (Index k = i0[2]; k <= i1[2]; ++k)
-        for (Index j = i0[1]; j <= i1[1]; ++j)
-          for (Index i = i0[0]; i <= i1[0]; ++i)
-            m_bucket[g.cell(i, j, k)].emplace_back(static_cast<Index>(b), t);
+      m_tris.push_back(P);
+      range.push_back(r);
     }
   }
-  for (Index c = 0; c < nc; ++c) {
-    if (m_bucket[c].empty()) continue;
-    const auto ijk = g.cell_ijk(c);
-    for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
-      for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
-        for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1); ++i)
-          m_near[g.cell(i, j, k)] = 1;
+  // Two passes (count, fill) into compressed lists per reach, in body-then-triangle order.
+  for (int reach = 0; reach < 3; ++reach) {
+    std::vector<Index>& start = m_start[reach];
+    std::vector<Index>& items = m_items[reach];
+    start.assign(nc + 1, 0);
+    const auto each_cell = [&](const std::array<Index, 6>& r, auto&& f) {
+      for (Index k = std::max<Index>(0, r[2] - reach); k <= std::min(g.n[2] - 1, r[5] + reach); ++k)
+        for (Index j = std::max<Index>(0, r[1] - reach); j <= std::min(g.n[1] - 1, r[4] + reach);
+             ++j)
+          for (Index i = std::max<Index>(0, r[0] - reach); i <= std::min(g.n[0] - 1, r[3] + reach);
+               ++i)
+            f(g.cell(i, j, k));
+    };
+    for (const auto& r : range) each_cell(r, [&](Index c) { ++start[c + 1]; });
+    for (Index c = 0; c < nc; ++c) start[c + 1] += start[c];
+    items.resize(start[nc]);
+    std::vector<Index> fill(start.begin(), start.end() - 1);
+    for (size_t p = 0; p < range.size(); ++p)
+      each_cell(range[p], [&](Index c) { items[fill[c]++] = static_cast<Index>(p); });
   }
+  m_near.assign(nc, 0);  // a bucket within one cell: a reach-1 list
+  for (Index c = 0; c < nc; ++c) m_near[c] = m_start[1][c] < m_start[1][c + 1];
+}
+
+/// Segment a + s d, s ∈ [0, 1], against a triangle (Möller–Trumbore, closed: a hit on an
+/// edge counts, so queries err towards "blocked"); dn = |d|.
+bool GridSolids::crosses(const Packed& T, const Vec3& a, const Vec3& d, double dn, double& s,
+                         Vec3& bary) const {
+  const Vec3 q = d.cross(T.e2);
+  const double det = T.e1.dot(q);
+  if (std::abs(det) <= 1e-14 * (T.e12 * dn)) return false;  // parallel
+  const Vec3 r = a - T.p0;
+  const double u = r.dot(q) / det;
+  if (u < 0.0 || u > 1.0) return false;
+  const Vec3 w = r.cross(T.e1);
+  const double v = d.dot(w) / det;
+  if (v < 0.0 || u + v > 1.0) return false;
+  s = T.e2.dot(w) / det;
+  if (s < 0.0 || s > 1.0) return false;
+  bary = Vec3(1.0 - u - v, u, v);
+  return true;
 }
 
 bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
                                 double* t_out) const {
-  if (m_bucket.empty()) return false;
+  if (m_tris.empty()) return false;
   const GridSpec& g = m_grid;
   std::array<Index, 3> i0{}, i1{};
+  const Vec3 slo = a.cwiseMin(b).array() - m_margin, shi = a.cwiseMax(b).array() + m_margin;
   for (int ax = 0; ax < 3; ++ax) {
     const double lo = std::min(a[ax], b[ax]), hi = std::max(a[ax], b[ax]);
     i0[ax] = std::clamp<Index>(static_cast<Index>(std::floor((lo - g.lo[ax]) / g.h[ax])), 0,
@@ -277,20 +224,71 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
     i1[ax] = std::clamp<Index>(static_cast<Index>(std::floor((hi - g.lo[ax]) / g.h[ax])), 0,
                                g.n[ax] - 1);
   }
+  const Vec3 d = b - a;
+  const double dn = d.norm();
   double best = std::numeric_limits<double>::infinity();
   for (Index k = i0[2]; k <= i1[2]; ++k)
     for (Index j = i0[1]; j <= i1[1]; ++j)
-      for (Index i = i0[0]; i <= i1[0]; ++i)
-        for (const auto& [body, tri] : m_bucket[g.cell(i, j, k)]) {
+      for (Index i = i0[0]; i <= i1[0]; ++i) {
+        const Index c = g.cell(i, j, k);
+        for (Index e = m_start[0][c]; e < m_start[0][c + 1]; ++e) {
+          const Packed& T = m_tris[m_items[0][e]];
+          // a box test first: it cannot reject a crossing (the slack is far above round-off)
+          if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) continue;
           double s = 0;
           Vec3 w;
-          if (!segment_triangle(a, b, triangle(m_surfaces[body], tri), s, w) || s >= best) continue;
+          if (!crosses(T, a, d, dn, s, w) || s >= best) continue;
           best = s;
-          if (hit) *hit = SurfacePoint{body, tri, w};
+          if (hit) *hit = SurfacePoint{T.body, T.tri, w};
           if (!hit && !t_out) return true;
         }
+      }
   if (t_out) *t_out = best;
   return std::isfinite(best);
+}
+
+GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach)
+    : m_solids(&solids), m_x(x) {
+  TETFSI_CHECK(reach >= 0 && reach <= 2, "GridSolids::Probe: reach {} (0..2)", reach);
+  if (solids.m_tris.empty()) return;
+  const GridSpec& g = solids.m_grid;
+  std::array<Index, 3> i{};
+  for (int a = 0; a < 3; ++a) {
+    i[a] =
+        std::clamp<Index>(static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a])), 0, g.n[a] - 1);
+    const Index lo = i[a] - reach, hi = i[a] + reach;
+    const double inf = std::numeric_limits<double>::infinity();
+    m_box_lo[a] = lo <= 0 ? -inf : g.lo[a] + static_cast<double>(lo) * g.h[a];
+    m_box_hi[a] = hi >= g.n[a] - 1 ? inf : g.lo[a] + static_cast<double>(hi + 1) * g.h[a];
+  }
+  if ((x.array() < m_box_lo.array()).any() || (x.array() > m_box_hi.array()).any()) {
+    m_box_lo = m_box_hi = x;  // (not inside its own block by round-off: every query falls back)
+    m_box_hi[0] = -std::numeric_limits<double>::infinity();
+  }
+  const Index c = g.cell(i[0], i[1], i[2]);
+  m_begin = solids.m_items[reach].data() + solids.m_start[reach][c];
+  m_end = solids.m_items[reach].data() + solids.m_start[reach][c + 1];
+}
+
+bool GridSolids::Probe::visible(const Vec3& b) const {
+  if (m_solids->m_tris.empty()) return true;
+  // A segment inside the block's box meets only triangles of the block's list (a crossing
+  // point lies in a block cell, whose bucket holds every triangle whose box reaches it).
+  if ((b.array() < m_box_lo.array()).any() || (b.array() > m_box_hi.array()).any())
+    return m_solids->visible(m_x, b);
+  if (m_begin == m_end) return true;
+  const double margin = m_solids->m_margin;
+  const Vec3 slo = m_x.cwiseMin(b).array() - margin, shi = m_x.cwiseMax(b).array() + margin;
+  const Vec3 d = b - m_x;
+  const double dn = d.norm();
+  for (const Index* e = m_begin; e != m_end; ++e) {
+    const Packed& T = m_solids->m_tris[*e];
+    if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) continue;
+    double s = 0;
+    Vec3 w;
+    if (m_solids->crosses(T, m_x, d, dn, s, w)) return false;
+  }
+  return true;
 }
 
 // ---- classification ----------------------------------------------------------------------

@@ -17,7 +17,9 @@
 ///
 /// Faces are numbered axis by axis: axis a has (n_a + 1) × n_b × n_c faces; face (i, j, k) of
 /// axis 0 lies at x = lo_x + i h_x between cells (i − 1, j, k) and (i, j, k), and so on.
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <vector>
 
 #include "core/types.hpp"
@@ -40,28 +42,78 @@ struct GridSpec {
 
   Index num_cells() const { return n[0] * n[1] * n[2]; }
   /// Faces of axis a, and the first global face index of axis a (face_offset(3) = #F).
-  Index num_faces(int a) const;
-  Index face_offset(int a) const;
+  Index num_faces(int a) const {
+    Index c = 1;
+    for (int b = 0; b < 3; ++b) c *= n[b] + (b == a ? 1 : 0);
+    return c;
+  }
+  Index face_offset(int a) const {
+    Index o = 0;
+    for (int b = 0; b < a; ++b) o += num_faces(b);
+    return o;
+  }
   Index num_faces() const { return face_offset(3); }
   double cell_volume() const { return h[0] * h[1] * h[2]; }
   double face_area(int a) const { return cell_volume() / h[a]; }
   Vec3 hi() const { return lo + Vec3(n[0] * h[0], n[1] * h[1], n[2] * h[2]); }
 
   Index cell(Index i, Index j, Index k) const { return i + n[0] * (j + n[1] * k); }
-  std::array<Index, 3> cell_ijk(Index c) const;
-  Vec3 cell_centre(Index c) const;
+  std::array<Index, 3> cell_ijk(Index c) const {
+    return {c % n[0], (c / n[0]) % n[1], c / (n[0] * n[1])};
+  }
+  Vec3 cell_centre(Index c) const {
+    const auto ijk = cell_ijk(c);
+    Vec3 x;
+    for (int a = 0; a < 3; ++a) x[a] = lo[a] + (static_cast<double>(ijk[a]) + 0.5) * h[a];
+    return x;
+  }
   /// Face (i, j, k) of axis a: (i, j, k) are x, y, z indices, the a-th in [0, n_a].
-  Index face(int a, Index i, Index j, Index k) const;
+  Index face(int a, Index i, Index j, Index k) const {
+    const Index d0 = n[0] + (a == 0), d1 = n[1] + (a == 1);
+    return face_offset(a) + i + d0 * (j + d1 * k);
+  }
   /// Axis and (i, j, k) of a global face.
-  int face_axis(Index f) const;
-  std::array<Index, 3> face_ijk(Index f) const;
-  Vec3 face_centre(Index f) const;
+  int face_axis(Index f) const { return f < face_offset(1) ? 0 : (f < face_offset(2) ? 1 : 2); }
+  std::array<Index, 3> face_ijk(Index f) const {
+    const int a = face_axis(f);
+    const Index l = f - face_offset(a);
+    const Index d0 = n[0] + (a == 0), d1 = n[1] + (a == 1);
+    return {l % d0, (l / d0) % d1, l / (d0 * d1)};
+  }
+  Vec3 face_centre(Index f) const { return face_centre(face_axis(f), face_ijk(f)); }
+  /// The centre of face (i, j, k) of axis a.
+  Vec3 face_centre(int a, const std::array<Index, 3>& ijk) const {
+    Vec3 x;
+    for (int b = 0; b < 3; ++b)
+      x[b] = lo[b] + (static_cast<double>(ijk[b]) + (b == a ? 0.0 : 0.5)) * h[b];
+    return x;
+  }
   /// The cells on the two sides of face f: (below along the axis, above); −1 outside the box.
-  std::array<Index, 2> face_cells(Index f) const;
+  std::array<Index, 2> face_cells(Index f) const {
+    const int a = face_axis(f);
+    auto ijk = face_ijk(f);
+    const Index i = ijk[a];
+    std::array<Index, 2> c{-1, -1};
+    if (i > 0) {
+      ijk[a] = i - 1;
+      c[0] = cell(ijk[0], ijk[1], ijk[2]);
+    }
+    if (i < n[a]) {
+      ijk[a] = i;
+      c[1] = cell(ijk[0], ijk[1], ijk[2]);
+    }
+    return c;
+  }
   /// The box side (0..5 = −x, +x, −y, +y, −z, +z) of a face on the box, −1 for inner faces.
   int face_side(Index f) const;
   /// The cell containing x (clamped to the box).
-  Index cell_at(const Vec3& x) const;
+  Index cell_at(const Vec3& x) const {
+    std::array<Index, 3> ijk{};
+    for (int a = 0; a < 3; ++a)
+      ijk[a] =
+          std::clamp<Index>(static_cast<Index>(std::floor((x[a] - lo[a]) / h[a])), 0, n[a] - 1);
+    return cell(ijk[0], ijk[1], ijk[2]);
+  }
 };
 
 /// A triangle crossing: body, triangle of its surface, barycentric weights of the point.
@@ -89,11 +141,42 @@ class GridSolids {
   /// trivially free).
   bool near(Index c) const { return !m_near.empty() && m_near[c] != 0; }
 
+  /// Many visibility queries from one point x: the triangles bucketed in the cells within
+  /// `reach` (0, 1 or 2) cells of x's cell, each once (lists kept per cell), and each query
+  /// tests only those. A query to a point outside that block falls back to first_crossing;
+  /// either way the answer is visible(x, b)'s.
+  class Probe {
+   public:
+    Probe(const GridSolids& solids, const Vec3& x, int reach);
+    bool visible(const Vec3& b) const;
+
+   private:
+    const GridSolids* m_solids;
+    Vec3 m_x;
+    Vec3 m_box_lo, m_box_hi;  ///< the block's box, unbounded where it reaches the grid's side
+    const Index* m_begin = nullptr;
+    const Index* m_end = nullptr;
+  };
+
  private:
+  /// A triangle as the segment test reads it: corner, edges, |e1| |e2|, bounding box.
+  struct Packed {
+    Vec3 p0, e1, e2, lo, hi;
+    double e12 = 0;
+    Index body = -1, tri = -1;
+  };
+  bool crosses(const Packed& T, const Vec3& a, const Vec3& d, double dn, double& s,
+               Vec3& bary) const;
+
   GridSpec m_grid;
   std::vector<mesh::SolidSurface> m_surfaces;
-  std::vector<std::vector<std::pair<Index, Index>>> m_bucket;  ///< per cell: (body, triangle)
+  std::vector<Packed> m_tris;
+  /// Per reach r = 0, 1, 2: the triangles whose box meets the cells within r cells of cell c
+  /// are m_items[r][m_start[r][c] .. m_start[r][c + 1]) (indices into m_tris, ascending).
+  std::array<std::vector<Index>, 3> m_start;
+  std::array<std::vector<Index>, 3> m_items;
   std::vector<std::uint8_t> m_near;
+  double m_margin = 0;  ///< bounding-box slack of the segment test (1e-9 of a cell)
 };
 
 /// The classification of the grid's cells and faces against the box patches and the solids.

@@ -10,8 +10,10 @@ namespace tetfsi::fluid {
 
 namespace {
 
-/// Side-aware trilinear interpolation of the faces of axis a at x.
-double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x) {
+/// Side-aware trilinear interpolation of the faces of axis a at x; `probe` (at x) when x is
+/// near a body.
+double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x,
+                         const GridSolids::Probe* probe) {
   const GridSpec& g = gc.grid;
   std::array<Index, 3> base{};
   Vec3 frac;
@@ -20,7 +22,6 @@ double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& 
     base[b] = static_cast<Index>(std::floor(s));
     frac[b] = s - static_cast<double>(base[b]);
   }
-  const bool near = gc.solids.near(g.cell_at(x));
   double sum = 0, value = 0;
   for (int corner = 0; corner < 8; ++corner) {
     std::array<Index, 3> ijk{};
@@ -30,10 +31,18 @@ double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& 
       ijk[b] = std::clamp<Index>(base[b] + up, 0, g.n[b] - (b == a ? 0 : 1));
       w *= up ? frac[b] : 1.0 - frac[b];
     }
+    if (w <= 0) continue;
+    // the face's two cells (g.face_cells) and centre from (i, j, k), not from the face index
+    const Index above = ijk[a] < g.n[a] ? g.cell(ijk[0], ijk[1], ijk[2]) : -1;
+    Index below = -1;
+    if (ijk[a] > 0) {
+      std::array<Index, 3> b = ijk;
+      --b[a];
+      below = g.cell(b[0], b[1], b[2]);
+    }
+    if (!gc.fluid(below) && !gc.fluid(above)) continue;
+    if (probe && !probe->visible(g.face_centre(a, ijk))) continue;
     const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
-    const auto c = g.face_cells(f);
-    if (w <= 0 || (!gc.fluid(c[0]) && !gc.fluid(c[1]))) continue;
-    if (near && !gc.solids.visible(x, g.face_centre(f))) continue;
     value += w * u[f];
     sum += w;
   }
@@ -57,11 +66,21 @@ Vec3 stop(const GridCells& gc, const Vec3& a, Vec3 b, bool& clamped) {
   return b;
 }
 
+double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x) {
+  if (!gc.solids.near(gc.grid.cell_at(x))) return face_component_at(gc, u, a, x, nullptr);
+  const GridSolids::Probe probe(gc.solids, x, 1);
+  return face_component_at(gc, u, a, x, &probe);
+}
+
 }  // namespace
 
 Vec3 grid_velocity_at(const GridCells& gc, const VecX& u, const Vec3& x) {
-  return Vec3(face_component_at(gc, u, 0, x), face_component_at(gc, u, 1, x),
-              face_component_at(gc, u, 2, x));
+  if (!gc.solids.near(gc.grid.cell_at(x)))
+    return Vec3(face_component_at(gc, u, 0, x, nullptr), face_component_at(gc, u, 1, x, nullptr),
+                face_component_at(gc, u, 2, x, nullptr));
+  const GridSolids::Probe probe(gc.solids, x, 1);
+  return Vec3(face_component_at(gc, u, 0, x, &probe), face_component_at(gc, u, 1, x, &probe),
+              face_component_at(gc, u, 2, x, &probe));
 }
 
 Vec3 grid_trace_back(const GridCells& gc, const VecX& u, const Vec3& x, double h, bool& clamped) {

@@ -79,7 +79,11 @@ SparseMatrix GridInterface::J_consistent() const {
   return SparseMatrix(VD1H.transpose());
 }
 
-std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
+namespace {
+
+/// grid_cell_stencil with the visibility queries through `probe` (at x; null: x not near).
+std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Vec3& x,
+                                                   const GridSolids::Probe* probe) {
   const GridSpec& g = gc.grid;
   std::array<Index, 3> base{};
   Vec3 frac;
@@ -88,7 +92,6 @@ std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, con
     base[a] = static_cast<Index>(std::floor(s));
     frac[a] = s - static_cast<double>(base[a]);
   }
-  const bool near = gc.solids.near(g.cell_at(x));
   std::vector<std::pair<Index, double>> st;
   double sum = 0;
   for (int corner = 0; corner < 8; ++corner) {
@@ -100,7 +103,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, con
       w *= up ? frac[a] : 1.0 - frac[a];
     }
     const Index c = g.cell(ijk[0], ijk[1], ijk[2]);
-    if (w <= 0 || !gc.fluid(c) || (near && !gc.solids.visible(x, g.cell_centre(c)))) continue;
+    if (w <= 0 || !gc.fluid(c) || (probe && !probe->visible(g.cell_centre(c)))) continue;
     st.emplace_back(c, w);
     sum += w;
   }
@@ -108,9 +111,19 @@ std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, con
   return st;
 }
 
+}  // namespace
+
+std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
+  if (!gc.solids.near(gc.grid.cell_at(x))) return cell_stencil(gc, x, nullptr);
+  const GridSolids::Probe probe(gc.solids, x, 1);
+  return cell_stencil(gc, x, &probe);
+}
+
 std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x) {
-  std::vector<std::pair<Index, double>> st = grid_cell_stencil(gc, x);
   const GridSpec& g = gc.grid;
+  const bool near = gc.solids.near(g.cell_at(x));
+  const GridSolids::Probe probe(gc.solids, x, 2);  // reaches the 4 × 4 × 4 block
+  std::vector<std::pair<Index, double>> st = cell_stencil(gc, x, near ? &probe : nullptr);
   std::array<Index, 3> base{};
   bool interior = true;
   for (int a = 0; a < 3; ++a) {
@@ -122,8 +135,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
   for (int corner = 0; corner < 8 && all_usable; ++corner) {
     const Index c = g.cell(base[0] + (corner & 1), base[1] + ((corner >> 1) & 1),
                            base[2] + ((corner >> 2) & 1));
-    all_usable =
-        gc.fluid(c) && (!gc.solids.near(g.cell_at(x)) || gc.solids.visible(x, g.cell_centre(c)));
+    all_usable = gc.fluid(c) && (!near || probe.visible(g.cell_centre(c)));
   }
   if (all_usable) return st;
   // Least squares over the usable cells of the 4 × 4 × 4 block: rows [1, (c − x)/h].
@@ -135,7 +147,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
       for (Index i = base[0] - 1; i <= base[0] + 2; ++i) {
         if (i < 0 || j < 0 || k < 0 || i >= g.n[0] || j >= g.n[1] || k >= g.n[2]) continue;
         const Index c = g.cell(i, j, k);
-        if (!gc.fluid(c) || !gc.solids.visible(x, g.cell_centre(c))) continue;
+        if (!gc.fluid(c) || !probe.visible(g.cell_centre(c))) continue;
         const Vec3 d = (g.cell_centre(c) - x).cwiseQuotient(g.h);
         cells.push_back(c);
         rows.emplace_back(1.0, d[0], d[1], d[2]);
