@@ -406,13 +406,15 @@ void GridPredicted::refuse_sealed_regions(const solid::SolidWorld& world,
 GridCoupledFluid::GridCoupledFluid(fluid::GridFluid& fluid, const mesh::FluidDomain& domain,
                                    const std::vector<BodySurface>& surfaces,
                                    const std::vector<std::string>& names,
-                                   std::vector<BodyInterface> bodies, GridPressureForces forces)
+                                   std::vector<BodyInterface> bodies, GridPressureForces forces,
+                                   GridForceCache* cache)
     : m_fluid(fluid),
       m_domain(domain),
       m_surfaces(surfaces),
       m_names(names),
       m_bodies(std::move(bodies)),
-      m_forces(forces) {}
+      m_forces(forces),
+      m_cache(cache) {}
 
 std::unique_ptr<PredictedFluid> GridCoupledFluid::predict(
     const std::vector<MatX3>& positions, const std::vector<fluid::SolidSurfaceMotion>& motions,
@@ -427,17 +429,44 @@ fluid::FluidStepReport GridCoupledFluid::commit(std::unique_ptr<PredictedFluid> 
                                                 CoupledSolution& sol) {
   auto* gp = dynamic_cast<GridPredicted*>(pred.get());
   TETFSI_CHECK(gp, "GridCoupledFluid::commit: a prediction of another fluid");
-  return m_fluid.commit(std::move(gp->prediction()), std::move(sol.u_face), std::move(sol.p));
+  if (m_cache) {
+    m_cache->valid = false;
+    gp->release_forces(m_cache->Jc, m_cache->Jp);
+  }
+  fluid::FluidStepReport r =
+      m_fluid.commit(std::move(gp->prediction()), std::move(sol.u_face), std::move(sol.p));
+  if (m_cache) {
+    m_cache->valid = true;
+    m_cache->time = m_fluid.time();
+  }
+  return r;
 }
 
 std::vector<VecX> GridCoupledFluid::current_forces(const std::vector<BodyInterface>& bodies) const {
-  const fluid::GridCells& gc = m_fluid.cells();
+  return grid_current_forces(m_fluid, bodies, m_forces, m_cache);
+}
+
+std::vector<VecX> grid_current_forces(const fluid::GridFluid& fluid,
+                                      const std::vector<BodyInterface>& bodies,
+                                      GridPressureForces forces, const GridForceCache* cache) {
+  const fluid::GridCells& gc = fluid.cells();
   const fluid::GridInterface iface(gc, bodies);
-  const SparseMatrix Jp = iface.J_paper();
-  const VecX ph = grid_hydrostatic_pressure(gc, fluid::grid_cell_density(gc, params()), params());
-  const VecX p_dyn = m_fluid.state().p - ph;  // J reads fluid cells only
-  return grid_fluid_forces(iface, m_forces == GridPressureForces::Paper ? Jp : iface.J_consistent(),
-                           p_dyn, &Jp, &ph);
+  const bool cached = cache && cache->valid && cache->time == fluid.time() &&
+                      cache->Jc.rows() == iface.num_dofs() &&
+                      cache->Jc.cols() == gc.grid.num_cells();
+  const bool need_paper =
+      forces == GridPressureForces::Paper || fluid.params().gravity.squaredNorm() > 0;
+  SparseMatrix Jc, Jp;
+  if (!cached || (need_paper && cache->Jp.size() == 0)) Jp = iface.J_paper();
+  if (!cached && forces == GridPressureForces::Consistent) Jc = iface.J_consistent();
+  const SparseMatrix& jp = Jp.size() || !cached ? Jp : cache->Jp;
+  const SparseMatrix& jc = Jc.size() || !cached ? Jc : cache->Jc;
+  const VecX ph =
+      grid_hydrostatic_pressure(gc, fluid::grid_cell_density(gc, fluid.params()), fluid.params());
+  const VecX p_dyn = fluid.state().p - ph;  // J reads fluid cells only
+  const bool hydro = fluid.params().gravity.squaredNorm() > 0;
+  return grid_fluid_forces(iface, forces == GridPressureForces::Paper ? jp : jc, p_dyn,
+                           hydro ? &jp : nullptr, hydro ? &ph : nullptr);
 }
 
 }  // namespace tetfsi::coupling

@@ -77,6 +77,11 @@ class GridPredicted final : public PredictedFluid {
   fluid::GridPrediction& prediction() { return m_pred; }
   const fluid::GridPrediction& prediction() const { return m_pred; }
   const fluid::GridInterface& interface() const { return m_iface; }
+  /// Move (V D1 H)ᵀ and the paper's J out (after the solve, for a GridForceCache).
+  void release_forces(SparseMatrix& Jc, SparseMatrix& Jp) {
+    Jc = std::move(m_Jc);
+    Jp = std::move(m_Jp);
+  }
 
  private:
   fluid::GridPrediction m_pred;
@@ -96,12 +101,29 @@ std::vector<VecX> grid_fluid_forces(const fluid::GridInterface& iface, const Spa
                                     const VecX& p_dyn, const SparseMatrix* Jh = nullptr,
                                     const VecX* p_hydro = nullptr);
 
+/// The pressure-force matrices of the grid the fluid last committed (a step's J, kept for the
+/// forces the output and the next step read on that same grid instead of rebuilding them).
+struct GridForceCache {
+  bool valid = false;
+  double time = 0;      ///< GridFluid::time() of the committed grid
+  SparseMatrix Jc, Jp;  ///< (V D1 H)ᵀ; the paper's J (empty if the step did not need it)
+};
+
+/// The fluid's nodal forces on the bodies on the fluid's current grid (3n per body, N): the
+/// dynamic pressure through the J of `forces`, the hydrostatic one through the paper's J; the
+/// matrices from `cache` when it holds this grid's.
+std::vector<VecX> grid_current_forces(const fluid::GridFluid& fluid,
+                                      const std::vector<BodyInterface>& bodies,
+                                      GridPressureForces forces, const GridForceCache* cache);
+
 class GridCoupledFluid final : public CoupledFluid {
  public:
   /// @param surfaces, names, bodies per body (body_surface, SolidBody::name, body_interfaces)
+  /// @param cache filled by commit, read by current_forces (may be null)
   GridCoupledFluid(fluid::GridFluid& fluid, const mesh::FluidDomain& domain,
                    const std::vector<BodySurface>& surfaces, const std::vector<std::string>& names,
-                   std::vector<BodyInterface> bodies, GridPressureForces forces);
+                   std::vector<BodyInterface> bodies, GridPressureForces forces,
+                   GridForceCache* cache = nullptr);
 
   const fluid::FluidParams& params() const override { return m_fluid.params(); }
   std::unique_ptr<PredictedFluid> predict(const std::vector<MatX3>& positions,
@@ -118,6 +140,7 @@ class GridCoupledFluid final : public CoupledFluid {
   const std::vector<std::string>& m_names;
   std::vector<BodyInterface> m_bodies;
   GridPressureForces m_forces;
+  GridForceCache* m_cache;
 };
 
 }  // namespace tetfsi::coupling

@@ -105,6 +105,7 @@ mesh::TetMesh FsiSimulation::build_mesh(const std::vector<MatX3>& positions, Pha
 void FsiSimulation::start(PhaseTimes& phases) {
   if (m_grid) {
     m_started = false;
+    m_grid_cache.valid = false;
     try {
       m_grid->initialize(grid_surfaces(current_positions(m_world)));
     } catch (const InputError& e) {  // classify_grid names bodies by index
@@ -120,6 +121,7 @@ void FsiSimulation::start(PhaseTimes& phases) {
 
 void FsiSimulation::rebuild_at_rest(PhaseTimes& phases) {
   if (m_grid) {
+    m_grid_cache.valid = false;
     m_grid->initialize(grid_surfaces(current_positions(m_world)));
     m_started = true;
   }
@@ -173,7 +175,7 @@ FsiStepReport FsiSimulation::step_two_way(double h, PhaseTimes& phases) {
   std::vector<BodyInterface> bodies = body_interfaces(m_world, m_policy->surfaces());
   if (m_grid) {
     GridCoupledFluid fluid(*m_grid, m_policy->domain(), m_policy->surfaces(), m_policy->names(),
-                           std::move(bodies), m_grid_forces);
+                           std::move(bodies), m_grid_forces, &m_grid_cache);
     r.coupled = m_stepper->step(m_world, fluid, h, sp);
   } else {
     const MeshBuilder build = [this, &phases](const std::vector<MatX3>& x) {
@@ -186,6 +188,12 @@ FsiStepReport FsiSimulation::step_two_way(double h, PhaseTimes& phases) {
   r.fluid_s =
       sp.get("transfer") + sp.get("forces") + sp.get("coupled_assembly") + sp.get("coupled_solve");
   return r;
+}
+
+std::vector<VecX> FsiSimulation::grid_fluid_forces() const {
+  TETFSI_CHECK(m_grid && m_started, "FsiSimulation::grid_fluid_forces: no started grid fluid");
+  return grid_current_forces(*m_grid, body_interfaces(m_world, m_policy->surfaces()), m_grid_forces,
+                             &m_grid_cache);
 }
 
 }  // namespace tetfsi::coupling

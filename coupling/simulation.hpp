@@ -131,6 +131,9 @@ class FsiSimulation {
   bool fluid_started() const { return m_started; }
   /// Grid scenes: the grid's pressure forces form.
   GridPressureForces grid_forces() const { return m_grid_forces; }
+  /// Grid scenes (started): the fluid's nodal forces on each body (3n, N) on the current grid
+  /// — the last step's J where the step built them (grid_current_forces).
+  std::vector<VecX> grid_fluid_forces() const;
   const RemeshPolicy* remesh_policy() const { return m_policy ? &*m_policy : nullptr; }
   /// Two-way runs: the scheme's parameters.
   const CouplingParams* coupling() const { return m_stepper ? &m_stepper->params() : nullptr; }
@@ -147,6 +150,7 @@ class FsiSimulation {
   std::optional<fluid::FluidSimulation> m_fluid;
   std::optional<fluid::GridFluid> m_grid;
   GridPressureForces m_grid_forces = GridPressureForces::Consistent;
+  GridForceCache m_grid_cache;  ///< the J of the grid the last two-way step committed
   std::optional<RemeshPolicy> m_policy;
   std::optional<CoupledStepper> m_stepper;
   MeshObserver m_observer;

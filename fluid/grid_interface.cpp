@@ -81,9 +81,10 @@ SparseMatrix GridInterface::J_consistent() const {
 
 namespace {
 
-/// grid_cell_stencil with the visibility queries through `probe` (at x; null: x not near).
+/// grid_cell_stencil with the visibility of a cell (i, j, k) from x given by `sees`.
+template <class Sees>
 std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Vec3& x,
-                                                   const GridSolids::Probe* probe) {
+                                                   Sees&& sees) {
   const GridSpec& g = gc.grid;
   std::array<Index, 3> base{};
   Vec3 frac;
@@ -103,7 +104,7 @@ std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Ve
       w *= up ? frac[a] : 1.0 - frac[a];
     }
     const Index c = g.cell(ijk[0], ijk[1], ijk[2]);
-    if (w <= 0 || !gc.fluid(c) || (probe && !probe->visible(g.cell_centre(c)))) continue;
+    if (w <= 0 || !gc.fluid(c) || !sees(ijk)) continue;
     st.emplace_back(c, w);
     sum += w;
   }
@@ -111,63 +112,101 @@ std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Ve
   return st;
 }
 
-}  // namespace
-
-std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
-  if (!gc.solids.near(gc.grid.cell_at(x))) return cell_stencil(gc, x, nullptr);
-  const GridSolids::Probe probe(gc.solids, x, 1);
-  return cell_stencil(gc, x, &probe);
-}
-
-std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x) {
-  const GridSpec& g = gc.grid;
-  const bool near = gc.solids.near(g.cell_at(x));
-  const GridSolids::Probe probe(gc.solids, x, 2);  // reaches the 4 × 4 × 4 block
-  std::vector<std::pair<Index, double>> st = cell_stencil(gc, x, near ? &probe : nullptr);
-  std::array<Index, 3> base{};
-  bool interior = true;
-  for (int a = 0; a < 3; ++a) {
-    base[a] = static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a] - 0.5));
-    interior = interior && base[a] >= 0 && base[a] + 1 < g.n[a];
+/// Every cell's visibility from x through a probe.
+struct ProbeSees {
+  const GridSpec* g;
+  const GridSolids::Probe* probe;
+  bool operator()(const std::array<Index, 3>& ijk) const {
+    return !probe || probe->visible(g->cell_centre(g->cell(ijk[0], ijk[1], ijk[2])));
   }
-  if (!interior) return st;
-  bool all_usable = true;
-  for (int corner = 0; corner < 8 && all_usable; ++corner) {
-    const Index c = g.cell(base[0] + (corner & 1), base[1] + ((corner >> 1) & 1),
-                           base[2] + ((corner >> 2) & 1));
-    all_usable = gc.fluid(c) && (!near || probe.visible(g.cell_centre(c)));
-  }
-  if (all_usable) return st;
-  // Least squares over the usable cells of the 4 × 4 × 4 block: rows [1, (c − x)/h].
+};
+
+/// The least-squares linear fit of grid_cell_stencil_linear over the usable cells of the
+/// 4 × 4 × 4 block from `first` (usable[l], l = i + 4 (j + 4 k) relative to `first`);
+/// empty if they do not span a volume.
+std::vector<std::pair<Index, double>> linear_fit(const GridSpec& g, const Vec3& x,
+                                                 const std::array<Index, 3>& first,
+                                                 const std::array<bool, 64>& usable) {
+  // Least squares over the usable cells: rows [1, (c − x)/h].
   std::vector<Index> cells;
   std::vector<Eigen::Vector4d> rows;
   std::vector<double> wts;
-  for (Index k = base[2] - 1; k <= base[2] + 2; ++k)
-    for (Index j = base[1] - 1; j <= base[1] + 2; ++j)
-      for (Index i = base[0] - 1; i <= base[0] + 2; ++i) {
-        if (i < 0 || j < 0 || k < 0 || i >= g.n[0] || j >= g.n[1] || k >= g.n[2]) continue;
-        const Index c = g.cell(i, j, k);
-        if (!gc.fluid(c) || !probe.visible(g.cell_centre(c))) continue;
-        const Vec3 d = (g.cell_centre(c) - x).cwiseQuotient(g.h);
-        cells.push_back(c);
-        rows.emplace_back(1.0, d[0], d[1], d[2]);
-        wts.push_back(1.0 / (1.0 + d.squaredNorm()));
-      }
-  if (cells.size() < 4) return st;
+  for (int l = 0; l < 64; ++l) {
+    if (!usable[l]) continue;
+    const Index c = g.cell(first[0] + l % 4, first[1] + (l / 4) % 4, first[2] + l / 16);
+    const Vec3 d = (g.cell_centre(c) - x).cwiseQuotient(g.h);
+    cells.push_back(c);
+    rows.emplace_back(1.0, d[0], d[1], d[2]);
+    wts.push_back(1.0 / (1.0 + d.squaredNorm()));
+  }
+  if (cells.size() < 4) return {};
   Eigen::Matrix4d N = Eigen::Matrix4d::Zero();
   for (size_t r = 0; r < rows.size(); ++r) N += wts[r] * rows[r] * rows[r].transpose();
   const Eigen::FullPivLU<Eigen::Matrix4d> lu(N);
-  if (lu.rank() < 4 || lu.rcond() < 1e-8) return st;
+  if (lu.rank() < 4 || lu.rcond() < 1e-8) return {};
   const Eigen::Vector4d e0 = lu.solve(Eigen::Vector4d::UnitX());  // a = e0ᵀ N⁻¹ Aᵀ W p
   std::vector<std::pair<Index, double>> fit;
   for (size_t r = 0; r < rows.size(); ++r) fit.emplace_back(cells[r], wts[r] * e0.dot(rows[r]));
   return fit;
 }
 
+}  // namespace
+
+std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
+  const GridSpec& g = gc.grid;
+  if (!gc.solids.near(g.cell_at(x))) return cell_stencil(gc, x, ProbeSees{&g, nullptr});
+  const GridSolids::Probe probe(gc.solids, x, 1);
+  return cell_stencil(gc, x, ProbeSees{&g, &probe});
+}
+
+std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x) {
+  const GridSpec& g = gc.grid;
+  const bool near = gc.solids.near(g.cell_at(x));
+  const GridSolids::Probe probe(gc.solids, x, 2);  // reaches the 4 × 4 × 4 block
+  std::array<Index, 3> first{};
+  bool interior = true;
+  for (int a = 0; a < 3; ++a) {
+    first[a] = static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a] - 0.5)) - 1;
+    interior = interior && first[a] + 1 >= 0 && first[a] + 2 < g.n[a];
+  }
+  if (!interior) return cell_stencil(gc, x, ProbeSees{&g, near ? &probe : nullptr});
+  // Which cells of the block x sees (each tested once): the 2 × 2 × 2 corners first.
+  std::array<signed char, 64> seen{};  // 0 unknown, 1 visible, −1 hidden or outside
+  const auto sees = [&](const std::array<Index, 3>& ijk) {
+    const int l =
+        static_cast<int>((ijk[0] - first[0]) + 4 * ((ijk[1] - first[1]) + 4 * (ijk[2] - first[2])));
+    if (seen[l] == 0)
+      seen[l] = probe.visible(g.cell_centre(g.cell(ijk[0], ijk[1], ijk[2]))) ? 1 : -1;
+    return seen[l] > 0;
+  };
+  const auto corner_sees = [&](const std::array<Index, 3>& ijk) { return !near || sees(ijk); };
+  std::vector<std::pair<Index, double>> st = cell_stencil(gc, x, corner_sees);
+  bool all_usable = true;
+  for (int corner = 0; corner < 8 && all_usable; ++corner) {
+    const std::array<Index, 3> ijk{first[0] + 1 + (corner & 1), first[1] + 1 + ((corner >> 1) & 1),
+                                   first[2] + 1 + ((corner >> 2) & 1)};
+    all_usable = gc.fluid(g.cell(ijk[0], ijk[1], ijk[2])) && corner_sees(ijk);
+  }
+  if (all_usable) return st;
+  std::array<bool, 64> usable{};
+  for (int l = 0; l < 64; ++l) {
+    const std::array<Index, 3> ijk{first[0] + l % 4, first[1] + (l / 4) % 4, first[2] + l / 16};
+    if (ijk[0] < 0 || ijk[1] < 0 || ijk[2] < 0 || ijk[0] >= g.n[0] || ijk[1] >= g.n[1] ||
+        ijk[2] >= g.n[2])
+      continue;
+    usable[l] = gc.fluid(g.cell(ijk[0], ijk[1], ijk[2])) && sees(ijk);
+  }
+  std::vector<std::pair<Index, double>> fit = linear_fit(g, x, first, usable);
+  return fit.empty() ? st : fit;
+}
+
 SparseMatrix GridInterface::J_paper(int per_cell) const {
   const GridSpec& g = m_gc->grid;
   const double hmin = g.h.minCoeff();
   Triplets t;
+  // per triangle: Σ over its samples of w_k w_c per cell c (slot[c] into acc, −1 if none)
+  std::vector<Index> slot(g.num_cells(), -1);
+  std::vector<std::pair<Index, Vec3>> acc;
   for (const mesh::SolidSurface& s : m_gc->solids.surfaces()) {
     const BodyInterface& bi = m_bodies[s.body];
     for (Index tri = 0; tri < s.triangles.rows(); ++tri) {
@@ -189,12 +228,22 @@ SparseMatrix GridInterface::J_paper(int per_cell) const {
             const Vec3 w((i + o) / m, (j + o) / m, 1.0 - (i + j + 2 * o) / m);
             const Vec3 xq = w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
             // [Chentanez06, §3.4] ∫ p n over the solid face, the pressure read on its own side
-            for (const auto& [c, wc] : grid_cell_stencil_linear(*m_gc, xq + 1e-6 * hmin * n))
-              for (int k = 0; k < 3; ++k) {
-                const Index dof = 3 * (m_offsets[s.body] + bi.surface_node[s.triangles(tri, k)]);
-                for (int d = 0; d < 3; ++d) t.emplace_back(dof + d, c, -w[k] * aq * wc * n[d]);
+            for (const auto& [c, wc] : grid_cell_stencil_linear(*m_gc, xq + 1e-6 * hmin * n)) {
+              if (slot[c] < 0) {
+                slot[c] = static_cast<Index>(acc.size());
+                acc.emplace_back(c, Vec3::Zero());
               }
+              acc[slot[c]].second += wc * w;
+            }
           }
+      for (const auto& [c, wk] : acc) {
+        slot[c] = -1;
+        for (int k = 0; k < 3; ++k) {
+          const Index dof = 3 * (m_offsets[s.body] + bi.surface_node[s.triangles(tri, k)]);
+          for (int d = 0; d < 3; ++d) t.emplace_back(dof + d, c, -aq * wk[k] * n[d]);
+        }
+      }
+      acc.clear();
     }
   }
   SparseMatrix J(num_dofs(), g.num_cells());

@@ -190,13 +190,7 @@ GridFrameFields grid_frame_fields(const coupling::FsiSimulation& sim) {
   // the bodies' boundary triangles and the fluid's nodal forces on them
   const solid::SolidWorld& world = sim.world();
   const std::vector<coupling::BodySurface>& surf = sim.remesh_policy()->surfaces();
-  const fluid::GridInterface iface(gc, coupling::body_interfaces(world, surf));
-  const SparseMatrix Jp = iface.J_paper();
-  const VecX ph =
-      coupling::grid_hydrostatic_pressure(gc, fluid::grid_cell_density(gc, g.params()), g.params());
-  const std::vector<VecX> force = coupling::grid_fluid_forces(
-      iface, sim.grid_forces() == coupling::GridPressureForces::Paper ? Jp : iface.J_consistent(),
-      st.p - ph, &Jp, &ph);
+  const std::vector<VecX> force = sim.grid_fluid_forces();
   Index np = 0, nt = 0;
   for (const auto& s : surf) {
     np += s.nodes.size();
