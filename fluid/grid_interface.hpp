@@ -58,8 +58,9 @@ class GridInterface {
   /// (V D1 H)ᵀ, 3N × #C.
   SparseMatrix J_consistent() const;
   /// The paper's J, 3N × #C: `per_cell` quadrature points per cell width along a triangle's
-  /// longest edge (at least one sub-triangle).
-  SparseMatrix J_paper(int per_cell = 2) const;
+  /// longest edge (at least one sub-triangle). One is converged: 2 moves the released
+  /// sphere's acceleration by 0.02 % of g at 20³–40³ and costs 4× the samples.
+  SparseMatrix J_paper(int per_cell = 1) const;
 
  private:
   const GridCells* m_gc = nullptr;
