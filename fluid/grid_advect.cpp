@@ -22,28 +22,31 @@ double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& 
     base[b] = static_cast<Index>(std::floor(s));
     frac[b] = s - static_cast<double>(base[b]);
   }
+  // per axis b: the two clamped indices and weights of the corners below and above x
+  std::array<std::array<Index, 2>, 3> idx{};
+  std::array<std::array<double, 2>, 3> wt{};
+  for (int b = 0; b < 3; ++b)
+    for (int up = 0; up < 2; ++up) {
+      idx[b][up] = std::clamp<Index>(base[b] + up, 0, g.n[b] - (b == a ? 0 : 1));
+      wt[b][up] = up ? frac[b] : 1.0 - frac[b];
+    }
+  // cell (i, j, k) = i + n0 (j + n1 k); face (i, j, k) of axis a = off + i + d0 (j + d1 k)
+  const Index n0 = g.n[0], n1 = g.n[1];
+  const Index stride_a = a == 0 ? 1 : (a == 1 ? n0 : n0 * n1);
+  const Index off = g.face_offset(a), d0 = n0 + (a == 0), d1 = n1 + (a == 1);
   double sum = 0, value = 0;
   for (int corner = 0; corner < 8; ++corner) {
-    std::array<Index, 3> ijk{};
-    double w = 1;
-    for (int b = 0; b < 3; ++b) {
-      const int up = (corner >> b) & 1;
-      ijk[b] = std::clamp<Index>(base[b] + up, 0, g.n[b] - (b == a ? 0 : 1));
-      w *= up ? frac[b] : 1.0 - frac[b];
-    }
+    const int u0 = corner & 1, u1 = (corner >> 1) & 1, u2 = (corner >> 2) & 1;
+    const double w = wt[0][u0] * wt[1][u1] * wt[2][u2];
     if (w <= 0) continue;
-    // the face's two cells (g.face_cells) and centre from (i, j, k), not from the face index
-    const Index above = ijk[a] < g.n[a] ? g.cell(ijk[0], ijk[1], ijk[2]) : -1;
-    Index below = -1;
-    if (ijk[a] > 0) {
-      std::array<Index, 3> b = ijk;
-      --b[a];
-      below = g.cell(b[0], b[1], b[2]);
-    }
+    const std::array<Index, 3> ijk{idx[0][u0], idx[1][u1], idx[2][u2]};
+    // the face's two cells (g.face_cells) from (i, j, k): the one above, and one stride below
+    const Index c = ijk[0] + n0 * (ijk[1] + n1 * ijk[2]);
+    const Index above = ijk[a] < g.n[a] ? c : -1;
+    const Index below = ijk[a] > 0 ? c - stride_a : -1;
     if (!gc.fluid(below) && !gc.fluid(above)) continue;
     if (probe && !probe->visible(g.face_centre(a, ijk))) continue;
-    const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
-    value += w * u[f];
+    value += w * u[off + ijk[0] + d0 * (ijk[1] + d1 * ijk[2])];
     sum += w;
   }
   return sum > 0 ? value / sum : 0.0;

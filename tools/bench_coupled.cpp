@@ -20,6 +20,7 @@
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
 #include "coupling/simulation.hpp"
+#include "fluid/grid_projection.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/integrator.hpp"
@@ -95,8 +96,154 @@ struct SolveFigures {
   bool converged = true;
 };
 
-/// (c): the next step's mesh around x* = x + h u after `warm` simultaneous steps at dt, v* on
-/// it, then solve_coupled (schur_amg, bodies free) against fluid::project, best of 3 each.
+/// The bodies of the next step as CoupledStepper::step sets them up (without floor
+/// contacts: the figures are the solves' seconds): surfaces at x* = x + h u with their
+/// velocities, each free body's trapezoidal system, the interfaces.
+struct NextStep {
+  std::vector<MatX3> positions;  ///< x* per body (all nodes)
+  std::vector<mesh::SolidSurface> solids;
+  std::vector<fluid::SolidSurfaceMotion> motion;
+  std::vector<coupling::CoupledBody> cb;
+  std::vector<coupling::BodyInterface> ifaces;
+  std::vector<VecX> velocity;  ///< per body, flat
+};
+
+NextStep next_step(solid::SolidWorld& world, double h) {
+  const size_t nb = world.bodies.size();
+  NextStep n;
+  n.positions.resize(nb);
+  n.solids.resize(nb);
+  n.motion.resize(nb);
+  n.cb.resize(nb);
+  n.ifaces.resize(nb);
+  n.velocity.resize(nb);
+  for (size_t b = 0; b < nb; ++b) {
+    solid::SolidBody& body = world.bodies[b];
+    if (body.is_kinematic()) body.set_kinematic_state(world.time + h);
+    const coupling::BodySurface s = coupling::body_surface(body);
+    const MatX3 x =
+        body.is_kinematic() ? body.positions() : MatX3(body.positions() + h * body.velocity);
+    n.positions[b] = x;
+    n.velocity[b] = flat(body.velocity);
+    n.solids[b].body = static_cast<int>(b);
+    n.solids[b].triangles = s.triangles;
+    n.solids[b].vertices.resize(s.nodes.size(), 3);
+    n.motion[b].triangles = s.triangles;
+    n.motion[b].velocity.resize(s.nodes.size(), 3);
+    for (Index k = 0; k < s.nodes.size(); ++k) {
+      n.solids[b].vertices.row(k) = x.row(s.nodes[k]);
+      n.motion[b].velocity.row(k) = body.velocity.row(s.nodes[k]);
+    }
+    n.ifaces[b] = {s.triangles, s.nodes, body.num_nodes()};
+    if (body.is_kinematic()) continue;
+    solid::TrapezoidalSystem sys =
+        solid::assemble_trapezoidal(body, h, body.external_forces(world.gravity), world.trapezoid);
+    coupling::CoupledBody& c = n.cb[b];
+    c.free = true;
+    c.A = std::move(sys.A);
+    c.b = std::move(sys.b);
+    c.fixed = body.fixed_dofs();
+    c.prescribed = VecX::Zero(body.num_dofs());
+    c.x = body.positions();
+    c.u = n.velocity[b];
+  }
+  return n;
+}
+
+/// The fluid-only solver of (c): the scene's fluid kind at the coupled solve's tolerance.
+std::unique_ptr<LinearSolver> fluid_only_solver(const fluid::FluidParams& fp,
+                                                const coupling::CoupledOptions& solve) {
+  SolverOptions o;
+  o.rel_tol = solve.rel_tol;
+  o.max_iterations = solve.max_iterations;
+  o.symmetric = true;
+  return make_linear_solver(fp.solver, o);
+}
+
+/// (c) on the tet mesh: the next step's mesh, v* on it, solve_coupled against fluid::project.
+SolveFigures time_tet_solves(const Scene& scene, coupling::FsiSimulation& fsi,
+                             const coupling::CoupledOptions& solve, double h) {
+  const fluid::FluidSimulation& sim = fsi.fluid();
+  solid::SolidWorld world = fsi.world();
+  const NextStep n = next_step(world, h);
+  PhaseTimes phases;
+  mesh::Sizing sizing = scene.fluid->sizing;
+  sizing.refine = sim.refinement_field();
+  const fluid::FluidPrediction pred =
+      sim.predict(mesh::remesh(scene.fluid->domain, n.solids, sizing), h, n.motion, phases);
+  const fluid::FluidParams& fp = sim.params();
+
+  // no volume targets: no enclosed-volume correction
+  const coupling::InterfaceOperators ops(pred.mesh, n.ifaces);
+  const coupling::CoupledInput in = coupling::make_input(pred, fp, ops, n.cb);
+  const VecX q_open = pred.p_open * (h / fp.density);
+  SolveFigures f;
+  f.cells = pred.mesh.num_tets();
+  for (int rep = 0; rep < 3; ++rep) {
+    const double t0 = now_seconds();
+    const coupling::CoupledSolution sol = coupling::solve_coupled(in, solve);
+    f.coupled_s = std::min(f.coupled_s, now_seconds() - t0);
+    f.coupled_iterations = sol.report.iterations;
+    f.pressure_unknowns = sol.report.pressure_unknowns;
+    f.solid_unknowns = sol.report.solid_unknowns;
+    f.converged = f.converged && sol.report.converged;
+
+    VecX u = pred.u_star, q;  // the Solid faces hold the bodies' velocities (`motion`)
+    const double t1 = now_seconds();
+    const auto solver = fluid_only_solver(fp, solve);
+    const fluid::ProjectionReport pr =
+        fluid::project(pred.mesh, fp.min_dual_fraction, q_open, u, q, *solver);
+    f.fluid_s = std::min(f.fluid_s, now_seconds() - t1);
+    f.fluid_iterations = pr.iterations;
+    f.groups = pr.groups;
+    f.converged = f.converged && pr.converged;
+  }
+  return f;
+}
+
+/// (c) on the grid: the next step's classified grid and v* (GridCoupledFluid::predict), the
+/// coupled solve on it against fluid::grid_project of the same v* with the bodies' faces
+/// holding their velocities (the bodies' motion, apply_H).
+SolveFigures time_grid_solves(coupling::FsiSimulation& fsi, const coupling::CoupledOptions& solve,
+                              double h) {
+  solid::SolidWorld world = fsi.world();
+  NextStep n = next_step(world, h);
+  const coupling::RemeshPolicy& policy = *fsi.remesh_policy();
+  coupling::GridCoupledFluid gf(*fsi.grid(), policy.domain(), policy.surfaces(), policy.names(),
+                                n.ifaces, fsi.grid_forces());
+  PhaseTimes phases;
+  const std::unique_ptr<coupling::PredictedFluid> pred =
+      gf.predict(n.positions, n.motion, h, phases);
+  const auto& gp = dynamic_cast<const coupling::GridPredicted&>(*pred);
+  const fluid::GridPrediction& g = gp.prediction();
+  const fluid::FluidParams& fp = gf.params();
+  SolveFigures f;
+  f.cells = g.cells.grid.num_cells();
+  for (int rep = 0; rep < 3; ++rep) {
+    const double t0 = now_seconds();
+    const coupling::CoupledSolution sol = pred->solve(n.cb, solve);
+    f.coupled_s = std::min(f.coupled_s, now_seconds() - t0);
+    f.coupled_iterations = sol.report.iterations;
+    f.pressure_unknowns = sol.report.pressure_unknowns;
+    f.solid_unknowns = sol.report.solid_unknowns;
+    f.converged = f.converged && sol.report.converged;
+
+    VecX u = g.u_star, q;
+    gp.apply_H(n.velocity, u);
+    const double t1 = now_seconds();
+    const auto solver = fluid_only_solver(fp, solve);
+    const fluid::ProjectionReport pr =
+        fluid::grid_project(g.cells, g.p_open * (h / fp.density), u, q, *solver);
+    f.fluid_s = std::min(f.fluid_s, now_seconds() - t1);
+    f.fluid_iterations = pr.iterations;
+    f.groups = pr.groups;
+    f.converged = f.converged && pr.converged;
+  }
+  return f;
+}
+
+/// (c): after `warm` simultaneous steps at dt, the next step's coupled solve (schur_amg,
+/// bodies free) against the fluid-only projection, best of 3 each.
 SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, int warm) {
   const double h = scene.time.dt;
   Scene sc = scene;
@@ -107,79 +254,7 @@ SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, in
   PhaseTimes phases;
   fsi.start(phases);
   for (int k = 0; k < warm; ++k) fsi.step(h, phases);
-  const fluid::FluidSimulation& sim = fsi.fluid();
-  solid::SolidWorld world = fsi.world();
-
-  // As CoupledStepper::step, without floor contacts (the figures are the solves' seconds).
-  const size_t nb = world.bodies.size();
-  std::vector<mesh::SolidSurface> solids(nb);
-  std::vector<fluid::SolidSurfaceMotion> motion(nb);
-  std::vector<coupling::CoupledBody> cb(nb);
-  std::vector<coupling::BodyInterface> ifaces(nb);
-  for (size_t b = 0; b < nb; ++b) {
-    solid::SolidBody& body = world.bodies[b];
-    if (body.is_kinematic()) body.set_kinematic_state(world.time + h);
-    const coupling::BodySurface s = coupling::body_surface(body);
-    const MatX3 x =
-        body.is_kinematic() ? body.positions() : MatX3(body.positions() + h * body.velocity);
-    solids[b].body = static_cast<int>(b);
-    solids[b].triangles = s.triangles;
-    solids[b].vertices.resize(s.nodes.size(), 3);
-    motion[b].triangles = s.triangles;
-    motion[b].velocity.resize(s.nodes.size(), 3);
-    for (Index k = 0; k < s.nodes.size(); ++k) {
-      solids[b].vertices.row(k) = x.row(s.nodes[k]);
-      motion[b].velocity.row(k) = body.velocity.row(s.nodes[k]);
-    }
-    ifaces[b] = {s.triangles, s.nodes, body.num_nodes()};
-    if (body.is_kinematic()) continue;
-    solid::TrapezoidalSystem sys =
-        solid::assemble_trapezoidal(body, h, body.external_forces(world.gravity), world.trapezoid);
-    cb[b].free = true;
-    cb[b].A = std::move(sys.A);
-    cb[b].b = std::move(sys.b);
-    cb[b].fixed = body.fixed_dofs();
-    cb[b].prescribed = VecX::Zero(body.num_dofs());
-    cb[b].x = body.positions();
-    cb[b].u = flat(body.velocity);
-  }
-  mesh::Sizing sizing = scene.fluid->sizing;
-  sizing.refine = sim.refinement_field();
-  const fluid::FluidPrediction pred =
-      sim.predict(mesh::remesh(scene.fluid->domain, solids, sizing), h, motion, phases);
-  const fluid::FluidParams& fp = sim.params();
-
-  // no volume targets: no enclosed-volume correction
-  const coupling::InterfaceOperators ops(pred.mesh, ifaces);
-  const coupling::CoupledInput in = coupling::make_input(pred, fp, ops, cb);
-
-  SolverOptions o;
-  o.rel_tol = p.solve.rel_tol;
-  o.max_iterations = p.solve.max_iterations;
-  o.symmetric = true;
-  const VecX q_open = pred.p_open * (h / fp.density);
-  SolveFigures f;
-  f.cells = pred.mesh.num_tets();
-  for (int rep = 0; rep < 3; ++rep) {
-    const double t0 = now_seconds();
-    const coupling::CoupledSolution sol = coupling::solve_coupled(in, p.solve);
-    f.coupled_s = std::min(f.coupled_s, now_seconds() - t0);
-    f.coupled_iterations = sol.report.iterations;
-    f.pressure_unknowns = sol.report.pressure_unknowns;
-    f.solid_unknowns = sol.report.solid_unknowns;
-    f.converged = f.converged && sol.report.converged;
-
-    VecX u = pred.u_star, q;  // the Solid faces hold the bodies' velocities (`motion`)
-    const double t1 = now_seconds();
-    const auto solver = make_linear_solver(fp.solver, o);
-    const fluid::ProjectionReport pr =
-        fluid::project(pred.mesh, fp.min_dual_fraction, q_open, u, q, *solver);
-    f.fluid_s = std::min(f.fluid_s, now_seconds() - t1);
-    f.fluid_iterations = pr.iterations;
-    f.groups = pr.groups;
-    f.converged = f.converged && pr.converged;
-  }
-  return f;
+  return fsi.grid() ? time_grid_solves(fsi, p.solve, h) : time_tet_solves(scene, fsi, p.solve, h);
 }
 
 nlohmann::json opt_json(const std::optional<double>& v) {
@@ -206,11 +281,6 @@ int bench_coupled(const std::filesystem::path& scene_file, const BenchCoupledOpt
                  "{}: bench coupled needs a fluid scene (no 'fluid' section)", name);
   TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic,
                  "{}: bench coupled needs a dynamic scene (mode is 'static')", name);
-  TETFSI_REQUIRE(InputError, !scene.fluid->grid_spec,
-                 "{}: bench coupled compares the schemes on the tet mesh; fluid.discretization "
-                 "\"grid\" is not benchmarked yet (run each scheme with `tetfsi run --set "
-                 "coupling.scheme=...`)",
-                 name);
   const solid::SolidWorld world0 = build_world(scene);
   TETFSI_REQUIRE(InputError,
                  std::any_of(world0.bodies.begin(), world0.bodies.end(),

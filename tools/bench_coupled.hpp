@@ -17,6 +17,9 @@
 ///      fluid-only projection (fluid::project of the same v* with the bodies' velocities
 ///      held, a fresh solver of the scene's fluid kind at the coupled solve's tolerance) on
 ///      the mesh of the step after a few simultaneous steps at dt: best of 3 wall seconds each.
+///      On the grid (fluid.discretization "grid") the same on the step's classified grid:
+///      the grid's coupled solve (GridPredicted::solve, the scene's J form) against
+///      fluid::grid_project — one AMG Poisson solve of the same grid.
 /// It prints the figures against the goals: simultaneous stable at dt where splitting is not;
 /// coupled solve ≤ 1.5 × the fluid-only one; simultaneous step ≤ 1.2 × a splitting step.
 #include <filesystem>

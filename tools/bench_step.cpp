@@ -20,10 +20,12 @@
 #include "core/log.hpp"
 #include "core/timer.hpp"
 #include "coupling/simulation.hpp"
+#include "fluid/grid_projection.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
 #include "tools/output.hpp"
 #include "tools/run.hpp"
+#include "tools/run_stats.hpp"
 #include "tools/scene.hpp"
 
 namespace tetfsi::tools {
@@ -174,6 +176,184 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
   return c;
 }
 
+// ---- grid scenes ---------------------------------------------------------------------
+
+/// The scene's grid with n_a / s cells per axis (at least 1).
+fluid::GridSpec scaled_grid(const fluid::GridSpec& g, double s) {
+  std::array<Index, 3> n{};
+  for (int a = 0; a < 3; ++a)
+    n[a] = std::max<Index>(1, std::llround(static_cast<double>(g.n[a]) / s));
+  return fluid::GridSpec::from_cells(g.lo, g.hi(), n);
+}
+
+/// One AMG Poisson solve (setup + solve) of the grid: fluid::grid_project of a random Interior
+/// face field (uniform in [−1, 1] m/s) with a fresh AMG solver at the scene's tolerance.
+double grid_poisson_floor(const fluid::GridCells& gc, const fluid::FluidParams& p, int& iterations,
+                          bool& converged, double& setup_s) {
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  VecX u = VecX::Zero(gc.grid.num_faces());
+  for (Index f = 0; f < u.size(); ++f)
+    if (gc.interior(f)) u[f] = uni(rng);
+  SolverOptions o;
+  o.rel_tol = p.solver_rel_tol;
+  o.max_iterations = p.solver_max_iterations;
+  o.symmetric = true;
+  const auto solver = make_linear_solver(SolverKind::Amg, o);
+  VecX q;
+  const fluid::ProjectionReport r = fluid::grid_project(gc, VecX(), u, q, *solver);
+  iterations = r.iterations;
+  converged = r.converged;
+  setup_s = r.setup_s;
+  return r.setup_s + r.solve_s;
+}
+
+/// A grid case: the one-way grid steps (solid, transfer, forces, pressure assembly and solve,
+/// one .vti frame) and the floor on the last grid.
+Case run_grid_case(const Scene& scene, double scale, int steps, const std::filesystem::path& dir) {
+  const fluid::GridSpec spec = scaled_grid(*scene.fluid->grid_spec, scale);
+  const Compression compression = parse_compression(scene.output.compression);
+  coupling::FsiSimulation sim(
+      build_world(scene),
+      coupling::FluidSetup{scene.fluid->domain, scene.fluid->sizing, scene.fluid->params,
+                           coupling::GridSetup{spec, scene.fluid->grid.pressure_forces}});
+  {
+    PhaseTimes unused;
+    sim.start(unused);
+  }
+  Case c;
+  c.scale = scale;
+  StepFigures& mean = c.mean;
+  const int timed = steps - 1;
+  for (int k = 0; k < steps; ++k) {
+    PhaseTimes ph;
+    const double t0 = now_seconds();
+    const coupling::FsiStepReport rep = sim.step(scene.time.dt, ph);
+    {
+      ScopedTimer timer(ph, "output");
+      write_grid_vti(dir / fmt::format("fluid_{:06d}.vti", k), grid_frame_fields(sim), compression);
+    }
+    const double step_s = now_seconds() - t0;
+    if (k == 0) {
+      c.warmup_s = step_s;
+      continue;
+    }
+    mean.step += step_s / timed;
+    mean.solid += rep.solid_s / timed;
+    mean.transfer += ph.get("transfer") / timed;
+    mean.forces += ph.get("forces") / timed;
+    mean.assembly += ph.get("pressure_assembly") / timed;
+    mean.solve += ph.get("pressure_solve") / timed;
+    mean.output += ph.get("output") / timed;
+    mean.iterations += static_cast<double>(rep.fluid->iterations) / timed;
+  }
+  const fluid::GridCells& gc = sim.grid()->cells();
+  c.vertices = spec.num_cells();  // (the grid's cells, solid ones included)
+  for (Index k = 0; k < spec.num_cells(); ++k) c.cells += gc.fluid(k) ? 1 : 0;
+  c.poisson_s = grid_poisson_floor(gc, scene.fluid->params, c.floor_iterations, c.floor_converged,
+                                   c.poisson_setup_s);
+  return c;
+}
+
+/// The JSON of a grid case and its tet counterpart.
+nlohmann::json grid_case_json(const Case& c, const Case& t) {
+  const StepFigures& f = c.mean;
+  return {{"scale", c.scale},
+          {"cells", c.cells},
+          {"grid_cells", c.vertices},
+          {"step_s", f.step},
+          {"floor_s", c.poisson_s},
+          {"ratio", f.step / c.poisson_s},
+          {"phases",
+           {{"transfer", f.transfer},
+            {"forces", f.forces},
+            {"assembly", f.assembly},
+            {"solve", f.solve},
+            {"output", f.output},
+            {"solid", f.solid},
+            {"other", f.other()}}},
+          {"iterations", f.iterations},
+          {"poisson_s", c.poisson_s},
+          {"poisson_setup_s", c.poisson_setup_s},
+          {"solve_ratio", f.solve / c.poisson_s},
+          {"floor_iterations", c.floor_iterations},
+          {"warmup_s", c.warmup_s},
+          {"tet", {{"scale", t.scale}, {"cells", t.cells}, {"step_s", t.mean.step}}},
+          {"grid_over_tet", f.step / t.mean.step}};
+}
+
+/// The tet mesh's scale for about `target` cells at t = 0: from cells ∝ scale⁻³, corrected by
+/// up to three remeshes (a mesh held by its bodies' surfaces does not scale exactly so).
+double tet_scale_for(const Scene& tet, Index cells_at_1, Index target) {
+  double s = std::cbrt(static_cast<double>(cells_at_1) / static_cast<double>(target));
+  for (int k = 0; k < 3; ++k) {
+    const Index n = cells_at_start(scaled(tet, s));
+    if (std::abs(static_cast<double>(n - target)) <= 0.05 * static_cast<double>(target)) break;
+    s *= std::cbrt(static_cast<double>(n) / static_cast<double>(target));
+  }
+  return s;
+}
+
+/// bench step on a grid scene: the grid cases, and per case the same scene on the tet mesh
+/// at about the grid's fluid cells, in the same run.
+int bench_step_grid(const std::filesystem::path& scene_file, const Scene& scene,
+                    const BenchStepOptions& opt, std::ostream& out) {
+  const fluid::GridSpec& g0 = *scene.fluid->grid_spec;
+  std::vector<double> scales = opt.scales;
+  if (scales.empty())
+    for (const double target : opt.target_cells)
+      scales.push_back(std::cbrt(static_cast<double>(g0.num_cells()) / target));
+  Scene tet = scene;
+  tet.fluid->grid_spec.reset();
+  const Index tet_base = cells_at_start(scaled(tet, 1.0));
+  TETFSI_REQUIRE(MeshError, tet_base > 0, "{}: the tet fluid mesh at t = 0 has no cells",
+                 scene_file.string());
+  fmt::print(out,
+             "tetfsi bench step: {} ('{}') on its {} x {} x {} grid, dt = {:.6g} s, {} steps per "
+             "case (the first is a warm-up; figures are means of the others)\n",
+             scene_file.string(), scene.name, g0.n[0], g0.n[1], g0.n[2], scene.time.dt, opt.steps);
+  fmt::print(out,
+             "grid step = solid + transfer + forces + pressure assembly + solve + output (one "
+             ".vti frame);\nfloor = one AMG Poisson solve (setup + solve) of the same grid; tet = "
+             "the same scene on the tet mesh\n(fluid.mesh sizes scaled to about the grid's fluid "
+             "cells; {} cells at scale 1), same run\n\n",
+             tet_base);
+  fmt::print(out,
+             "{:>6} {:>8} {:>8} {:>8} {:>6} | {:>6} {:>6} {:>6} {:>6} {:>6} {:>6} {:>6} | {:>5} "
+             "{:>5} | {:>8} {:>8} {:>6}\n",
+             "scale", "cells", "step_s", "floor_s", "ratio", "solid", "transf", "forces", "assem",
+             "solve", "output", "other", "iters", "s/fl", "tet_cell", "tet_s", "g/tet");
+  const ScratchDir dir;
+  nlohmann::json cases = nlohmann::json::array();
+  for (const double s : scales) {
+    const Case c = run_grid_case(scene, s, opt.steps, dir.path);
+    const double tet_scale = tet_scale_for(tet, tet_base, c.cells);
+    const Case t = run_case(tet, tet_scale, opt.steps, dir.path);
+    const StepFigures& f = c.mean;
+    fmt::print(out,
+               "{:>6.3f} {:>8} {:>8.3f} {:>8.3f} {:>6.2f} | {:>6.3f} {:>6.3f} {:>6.3f} {:>6.3f} "
+               "{:>6.3f} {:>6.3f} {:>6.3f} | {:>5.1f} {:>5.2f} | {:>8} {:>8.3f} {:>6.3f}\n",
+               c.scale, c.cells, f.step, c.poisson_s, f.step / c.poisson_s, f.solid, f.transfer,
+               f.forces, f.assembly, f.solve, f.output, f.other(), f.iterations,
+               f.solve / c.poisson_s, t.cells, t.mean.step, f.step / t.mean.step);
+    out.flush();
+    if (!c.floor_converged)
+      logger().warn("bench step: the floor's pressure solve at scale {:.4g} did not converge",
+                    c.scale);
+    cases.push_back(grid_case_json(c, t));
+  }
+  fmt::print(out,
+             "\ncells = fluid cells of the grid; ratio = step / floor; s/fl = the step's pressure "
+             "solve / the floor;\ntet_cell, tet_s = the tet mesh's cells and step (remesh "
+             "included); g/tet = grid step / tet step.\n");
+  if (!opt.json_path.empty()) {
+    const nlohmann::json j{
+        {"scene", scene.name}, {"discretization", "grid"}, {"steps", opt.steps}, {"cases", cases}};
+    write_text_file_atomic(opt.json_path, j.dump(2) + "\n");
+  }
+  return 0;
+}
+
 }  // namespace
 
 int bench_step(const std::filesystem::path& scene_file, const BenchStepOptions& opt,
@@ -183,10 +363,6 @@ int bench_step(const std::filesystem::path& scene_file, const BenchStepOptions& 
                  "{}: bench step needs a fluid scene (no 'fluid' section)", scene_file.string());
   TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic,
                  "{}: bench step needs a dynamic scene (mode is 'static')", scene_file.string());
-  TETFSI_REQUIRE(InputError, !scene.fluid->grid_spec,
-                 "{}: bench step times the tet mesh's steps; fluid.discretization \"grid\" is not "
-                 "benchmarked yet (time it with `tetfsi run`: stats.csv has the phases)",
-                 scene_file.string());
   TETFSI_REQUIRE(InputError, opt.steps >= 2,
                  "bench step: --steps must be at least 2 (the first is a warm-up), got {}",
                  opt.steps);
@@ -194,6 +370,7 @@ int bench_step(const std::filesystem::path& scene_file, const BenchStepOptions& 
     TETFSI_REQUIRE(InputError, std::isfinite(s) && s > 0,
                    "bench step: --sizes: every scale factor must be positive, got {}", s);
 
+  if (scene.fluid->grid_spec) return bench_step_grid(scene_file, scene, opt, out);
   std::vector<double> scales = opt.scales;
   Index base_cells = 0;
   if (scales.empty()) {

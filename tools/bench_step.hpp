@@ -4,6 +4,11 @@
 /// forces, pressure assembly and solve, one fluid frame) against its floor measured in the
 /// same run on the same mesh: the bare CGAL Delaunay of the mesh's vertices
 /// (mesh::delaunay_tets) plus one AMG-preconditioned pressure solve (setup + solve) on it.
+/// A grid scene (fluid.discretization "grid") is timed on its grid (scales divide the cells
+/// per axis), against one AMG Poisson solve of the same grid, and per case against the same
+/// scene on the tet mesh at about the grid's fluid cells, in the same run (the JSON then has
+/// "discretization": "grid" and per case "grid_cells", "solve_ratio", "tet": {"scale",
+/// "cells", "step_s"}, "grid_over_tet").
 #include <filesystem>
 #include <iosfwd>
 #include <vector>
@@ -20,9 +25,10 @@ struct BenchStepOptions {
   std::filesystem::path json_path;
   /// Steps per case (≥ 2); the first is a warm-up, the figures are means over the others.
   int steps = 3;
-  /// Factors applied to the scene's fluid.mesh surface_size, far_size and refine.size, one
-  /// case each, in this order. Empty: chosen from one remesh of the scene at scale 1 so the
-  /// fluid mesh has about `target_cells` cells (cells ∝ scale⁻³).
+  /// Factors applied to the scene's fluid.mesh surface_size, far_size and refine.size (grid
+  /// scenes: to the cell size), one case each, in this order. Empty: chosen from one remesh
+  /// of the scene at scale 1 (grid scenes: from its grid) so the fluid has about
+  /// `target_cells` cells (cells ∝ scale⁻³).
   std::vector<double> scales;
   std::vector<double> target_cells = {30000, 100000, 250000};
 };
