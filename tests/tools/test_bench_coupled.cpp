@@ -86,6 +86,30 @@ TEST_CASE("bench coupled: a coarse bar for 0.1 s, two halvings: every figure in 
   }
 }
 
+TEST_CASE("bench coupled: the bar on the grid: its coupled solve against the grid projection") {
+  TempDir dir("bench_coupled_grid");
+  const auto r = run_tetfsi(dir.path, "bench coupled '" + k_bar.string() +
+                                          "' --time 0.1 --steps-down 0 --timed-steps 4"
+                                          " --json coupled.json --set fluid.discretization=grid"
+                                          " --set fluid.grid.cell_size=0.08");
+  INFO(r.out);
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const nlohmann::json j = nlohmann::json::parse(read_text(dir.path / "coupled.json"));
+  INFO(j.dump(1));
+  CHECK(positive_finite(j["step_s"]["simultaneous"]));
+  for (const char* key : {"coupled_solve_s", "fluid_only_solve_s", "solve_ratio"}) {
+    INFO(key);
+    CHECK(positive_finite(j[key]));
+  }
+  // the grid's cells (the box at 0.08 m), fewer pressure unknowns (the bar's cells are solid)
+  const nlohmann::json& s = j["solve"];
+  CHECK(s["cells"].get<double>() > s["pressure_unknowns"].get<double>());
+  CHECK(positive_finite(s["pressure_unknowns"]));
+  CHECK(positive_finite(s["solid_unknowns"]));
+  CHECK(s["converged"] == true);
+}
+
 TEST_CASE("bench coupled: a missing scene and bad option values are one-line errors") {
   TempDir dir("bench_coupled_err");
   const auto missing = run_tetfsi(dir.path, "bench coupled no_such_scene.json");

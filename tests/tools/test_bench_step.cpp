@@ -103,3 +103,46 @@ TEST_CASE("bench step: a scene without fluid is a one-line error; --steps 1 is a
   CHECK(u.code != 1);  // CLI11's usage exit code, not a tetfsi error
   CHECK(u.err.find("--steps") != std::string::npos);
 }
+
+TEST_CASE("bench step: a grid scene is timed on two grids against its floor and the tet mesh") {
+  TempDir dir("bench_step_grid");
+  nlohmann::json j = nlohmann::json::parse(k_jet_scene);
+  j["fluid"]["discretization"] = "grid";
+  j["fluid"]["grid"] = {{"cells", {20, 20, 20}}};
+  write(dir.path / "grid.json", j.dump());
+  const auto r = run_tetfsi(dir.path, "bench step grid.json --sizes 2,1.25 --json step.json");
+  INFO(r.out);
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(r.out.find("g/tet") != std::string::npos);
+  const nlohmann::json out = nlohmann::json::parse(read_text(dir.path / "step.json"));
+  CHECK(out["discretization"] == "grid");
+  const nlohmann::json& cases = out["cases"];
+  REQUIRE(cases.size() == 2);
+  // 10³ and 16³ cells; the block (0.2 m of the 1 m box) is not fluid
+  CHECK(cases[0]["grid_cells"] == 1000);
+  CHECK(cases[1]["grid_cells"] == 4096);
+  for (const nlohmann::json& c : cases) {
+    INFO(c.dump());
+    CHECK(c["cells"].get<double>() < c["grid_cells"].get<double>());
+    CHECK(c["cells"].get<double>() > 0.95 * c["grid_cells"].get<double>());
+    for (const char* key : {"step_s", "floor_s", "poisson_s", "solve_ratio", "grid_over_tet"}) {
+      INFO(key);
+      CHECK(positive_finite(c[key]));
+    }
+    for (const char* key : {"transfer", "forces", "assembly", "solve", "output"}) {
+      INFO(key);
+      CHECK(positive_finite(c["phases"][key]));
+    }
+    CHECK(c["solve_ratio"].get<double>() ==
+          doctest::Approx(c["phases"]["solve"].get<double>() / c["poisson_s"].get<double>())
+              .epsilon(1e-9));
+    // the tet counterpart has about the grid's fluid cells (within the remesher's reach)
+    CHECK(positive_finite(c["tet"]["step_s"]));
+    CHECK(c["tet"]["cells"].get<double>() > 0.5 * c["cells"].get<double>());
+    CHECK(c["tet"]["cells"].get<double>() < 2.0 * c["cells"].get<double>());
+    CHECK(c["grid_over_tet"].get<double>() ==
+          doctest::Approx(c["step_s"].get<double>() / c["tet"]["step_s"].get<double>())
+              .epsilon(1e-9));
+  }
+}
