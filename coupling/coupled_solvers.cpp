@@ -7,6 +7,7 @@
 #include <memory>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 
 #include "core/error.hpp"
 #include "core/linear_solver.hpp"
@@ -124,6 +125,7 @@ struct SchurOperator {
   Index nz = 0;
   Eigen::MatrixXd Z, SZ, JZ;
   Eigen::LDLT<Eigen::MatrixXd> Einv;
+  Eigen::PartialPivLU<Eigen::MatrixXd> Elu;  ///< E of the non-symmetric S (the grid's paper J)
   mutable VecX tmp_u, tmp_f;
 
   SchurOperator(const CoupledSystem& s, const BodySolve& a, AmgPreconditioner* m)
@@ -145,7 +147,10 @@ struct SchurOperator {
       SZ.col(j) = sys.Jt * au;
     }
     const Eigen::MatrixXd E = Z.transpose() * SZ;
-    Einv.compute(E);
+    if (sys.symmetric)
+      Einv.compute(E);
+    else
+      Elu.compute(E);
   }
   void S(const VecX& x, VecX& y) const {
     y = sys.C * x;
@@ -168,6 +173,17 @@ struct SchurOperator {
     const VecX r1 = r - SZ * Einv.solve(Z.transpose() * r);
     amg->apply(r1, zy);
     za = Einv.solve(Z.transpose() * r - SZ.transpose() * zy);
+  }
+  /// The non-symmetric S: z = Z za + zy = Q r + M (r − S Q r), Q = Z E⁻¹ Zᵀ (deflation of
+  /// the region constants, a fixed linear preconditioner, as right preconditioning needs).
+  void precondition_nonsymmetric(const VecX& r, VecX& za, VecX& zy) const {
+    if (nz == 0) {
+      amg->apply(r, zy);
+      za = VecX();
+      return;
+    }
+    za = Elu.solve(Z.transpose() * r);
+    amg->apply(r - SZ * za, zy);
   }
   double dot_z(const VecX& v, const VecX& a, const VecX& y) const {
     return v.dot(y) + (nz ? (Z.transpose() * v).dot(a) : 0.0);
@@ -228,7 +244,9 @@ SolveReport schur_pcg(const SchurOperator& op, const CoupledOptions& opt, const 
 }
 
 /// Right-preconditioned BiCGSTAB on S x = rhs for the non-symmetric S = C + Jt A⁻¹ J of the
-/// grid's paper form, preconditioned by the AMG V-cycle, stopped on the true residual.
+/// grid's paper form, preconditioned by the AMG V-cycle with the region constants deflated
+/// (SchurOperator::precondition_nonsymmetric), stopped on the true residual. The iterates are
+/// kept as x = Z a + y, as in schur_pcg.
 SolveReport schur_bicgstab(const SchurOperator& op, const CoupledOptions& opt, const VecX& rhs,
                            VecX& x) {
   SolveReport sr{"schur_amg (bicgstab)", false, 0, 0.0, 0.0, 0.0};
@@ -239,35 +257,38 @@ SolveReport schur_bicgstab(const SchurOperator& op, const CoupledOptions& opt, c
     sr.converged = true;
     return sr;
   }
-  VecX r = rhs, rh = rhs, p = VecX::Zero(rhs.size()), v = p, ph, sh, t;
+  const Index nz = op.nz;
+  VecX r = rhs, rh = rhs, p = VecX::Zero(rhs.size()), v = p, t;
+  VecX xa = VecX::Zero(nz), xy = x, pha, phy, sha, shy;
   double rho = 1, alpha = 1, omega = 1;
-  // the AMG V-cycle alone (the balancing coarse space of op.precondition assumes symmetry)
-  const auto M = [&](const VecX& in, VecX& out) { op.amg->apply(in, out); };
   while (sr.iterations < opt.max_iterations && r.norm() > opt.rel_tol * bn) {
     const double rho1 = rh.dot(r);
     if (rho1 == 0.0) break;
     p = r + (rho1 / rho) * (alpha / omega) * (p - omega * v);
-    M(p, ph);
-    op.S(ph, v);
+    op.precondition_nonsymmetric(p, pha, phy);
+    op.S2(pha, phy, v);
     alpha = rho1 / rh.dot(v);
     const VecX sv = r - alpha * v;
     ++sr.iterations;
     if (sv.norm() <= opt.rel_tol * bn) {
-      x += alpha * ph;
+      xy += alpha * phy;
+      if (nz) xa += alpha * pha;
       r = sv;
       break;
     }
-    M(sv, sh);
-    op.S(sh, t);
+    op.precondition_nonsymmetric(sv, sha, shy);
+    op.S2(sha, shy, t);
     omega = t.dot(sv) / t.dot(t);
-    x += alpha * ph + omega * sh;
+    xy += alpha * phy + omega * shy;
+    if (nz) xa += alpha * pha + omega * sha;
     r = sv - omega * t;
     rho = rho1;
     if (!std::isfinite(omega) || omega == 0.0) break;
   }
-  op.S(x, t);
+  op.S2(xa, xy, t);
   sr.residual = (rhs - t).norm() / bn;  // the true residual
   sr.converged = sr.residual <= opt.rel_tol;
+  x = nz ? VecX(op.Z * xa + xy) : xy;
   sr.solve_s = now_seconds() - t1;
   return sr;
 }
