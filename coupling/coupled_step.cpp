@@ -15,6 +15,16 @@ struct Snapshot {
   explicit Snapshot(const solid::SolidWorld& w) : time(w.time) {
     for (const auto& b : w.bodies) state.emplace_back(b.displacement, b.velocity);
   }
+  /// Σ f_b · (d_b − d_bⁿ) over the free bodies: the work of the forces f (J).
+  double work(const solid::SolidWorld& w, const std::vector<VecX>& f) const {
+    double sum = 0.0;
+    for (size_t i = 0; i < state.size() && i < f.size(); ++i) {
+      const solid::SolidBody& b = w.bodies[i];
+      if (b.is_kinematic() || f[i].size() != 3 * b.num_nodes()) continue;
+      sum += f[i].dot(flat(b.displacement) - flat(state[i].first));
+    }
+    return sum;
+  }
   void restore(solid::SolidWorld& w) const {
     w.time = time;
     for (size_t i = 0; i < state.size(); ++i) {
@@ -46,6 +56,7 @@ CoupledStepReport CoupledStepper::step(solid::SolidWorld& world, CoupledFluid& f
     std::unique_ptr<PredictedFluid> pred;
     CoupledSolution sol = m_scheme->advance(ctx, pred, rep);
     rep.solve = sol.report;
+    rep.fluid_work = snap.work(world, sol.fluid_force);
     rep.fluid = fluid.commit(std::move(pred), sol);
   } catch (...) {
     snap.restore(world);

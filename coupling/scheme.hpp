@@ -86,6 +86,9 @@ struct CoupledStepReport {
   Index contacts = 0;          ///< nodes in contact with obstacles after the step
   bool predicted_mesh = true;  ///< the mesh was built around x* (else around xⁿ)
   double solid_kinetic_energy = 0.0, elastic_energy = 0.0;  ///< after the step (J)
+  /// Σ_b f_fluid,b · (dⁿ⁺¹ − dⁿ): the work of the fluid's forces of the solution on the free
+  /// bodies over the step (J; the divergence check's budget, tools/divergence.hpp)
+  double fluid_work = 0.0;
   /// fluid kinetic + solid kinetic + elastic (J), after the step
   double total_energy() const {
     return fluid.kinetic_energy + solid_kinetic_energy + elastic_energy;

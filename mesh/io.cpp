@@ -14,6 +14,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -69,6 +70,9 @@ class LineReader {
     require_file(path);
     m_in.open(path, std::ios::binary);
     if (!m_in) throw InputError(fmt::format("{}: cannot open the file for reading", m_path));
+    std::error_code ec;
+    m_bytes = static_cast<long long>(fs::file_size(path, ec));
+    if (ec) m_bytes = 0;
   }
 
   /// Read the next line (skipping blank and comment-only lines when `skip_blank`).
@@ -128,6 +132,22 @@ class LineReader {
     return v;
   }
 
+  /// Token i as a count of `items` announced by a header, each taking at least
+  /// `min_bytes` bytes of the file: a negative count, or one the file is too small to hold,
+  /// is an error naming the header (before anything is allocated for it).
+  long long count(std::size_t i, std::string_view what, std::string_view items,
+                  long long min_bytes) const {
+    const long long n = integer(i, what);
+    if (n < 0) fail_msg(fmt::format("{} is negative ({}); fix the header", what, n));
+    if (n > m_bytes / std::max(1LL, min_bytes)) {
+      fail_msg(fmt::format(
+          "{} announces {} {}, but the whole file is {} bytes (each takes at least {}); fix the "
+          "header",
+          what, n, items, m_bytes, min_bytes));
+    }
+    return n;
+  }
+
   double real(std::size_t i, std::string_view what) const {
     if (i >= m_tokens.size()) fail(what);
     const auto t = m_tokens[i];
@@ -159,6 +179,7 @@ class LineReader {
   std::string m_line;
   std::vector<std::string_view> m_tokens;
   int m_line_no = 0;
+  long long m_bytes = 0;  ///< the file's size
 };
 
 /// A volume mesh as read, with the file's own ids for messages.
@@ -223,8 +244,7 @@ void expect_end(LineReader& r, std::string_view end) {
 
 void read_gmsh_nodes_v2(LineReader& r, RawVolume& raw, IdMap& ids) {
   r.require_next("the number of nodes");
-  const long long n = r.integer(0, "the number of nodes");
-  if (n < 0) r.fail("a non-negative number of nodes");
+  const long long n = r.count(0, "the number of nodes", "nodes", 8);
   raw.points.reserve(static_cast<std::size_t>(n));
   ids.reserve(static_cast<std::size_t>(n));
   for (long long i = 0; i < n; ++i) {
@@ -241,8 +261,7 @@ void read_gmsh_nodes_v2(LineReader& r, RawVolume& raw, IdMap& ids) {
 
 void read_gmsh_elements_v2(LineReader& r, RawVolume& raw, const IdMap& ids) {
   r.require_next("the number of elements");
-  const long long n = r.integer(0, "the number of elements");
-  if (n < 0) r.fail("a non-negative number of elements");
+  const long long n = r.count(0, "the number of elements", "elements", 8);
   constexpr std::string_view what = "an element line 'tag type num-tags tags... nodes...'";
   for (long long i = 0; i < n; ++i) {
     r.require_next(what);
@@ -276,9 +295,8 @@ void read_gmsh_nodes_v4(LineReader& r, RawVolume& raw, IdMap& ids) {
   constexpr std::string_view head = "'numEntityBlocks numNodes minNodeTag maxNodeTag'";
   r.require_next(head);
   r.need(4, head);
-  const long long blocks = r.integer(0, head);
-  const long long total = r.integer(1, head);
-  if (blocks < 0 || total < 0) r.fail(head);
+  const long long blocks = r.count(0, "numEntityBlocks", "node blocks", 8);
+  const long long total = r.count(1, "numNodes", "nodes", 8);
   raw.points.reserve(static_cast<std::size_t>(total));
   ids.reserve(static_cast<std::size_t>(total));
   constexpr std::string_view bhead = "'entityDim entityTag parametric numNodesInBlock'";
@@ -288,8 +306,8 @@ void read_gmsh_nodes_v4(LineReader& r, RawVolume& raw, IdMap& ids) {
     r.need(4, bhead);
     const long long entity_dim = r.integer(0, bhead);
     const long long parametric = r.integer(2, bhead);
-    const long long n = r.integer(3, bhead);
-    if (n < 0 || parametric < 0 || parametric > 1) r.fail(bhead);
+    const long long n = r.count(3, "numNodesInBlock", "nodes", 8);
+    if (parametric < 0 || parametric > 1) r.fail(bhead);
     tags.clear();
     for (long long i = 0; i < n; ++i) {
       r.require_next("a node tag");
@@ -317,15 +335,13 @@ void read_gmsh_elements_v4(LineReader& r, RawVolume& raw, const IdMap& ids) {
   constexpr std::string_view head = "'numEntityBlocks numElements minElementTag maxElementTag'";
   r.require_next(head);
   r.need(4, head);
-  const long long blocks = r.integer(0, head);
-  if (blocks < 0) r.fail(head);
+  const long long blocks = r.count(0, "numEntityBlocks", "element blocks", 8);
   constexpr std::string_view bhead = "'entityDim entityTag elementType numElementsInBlock'";
   for (long long b = 0; b < blocks; ++b) {
     r.require_next(bhead);
     r.need(4, bhead);
     const long long type = r.integer(2, bhead);
-    const long long n = r.integer(3, bhead);
-    if (n < 0) r.fail(bhead);
+    const long long n = r.count(3, "numElementsInBlock", "elements", 4);
     const int nodes = gmsh_nodes_per_element(type);
     for (long long i = 0; i < n; ++i) {
       r.require_next("an element line 'tag nodes...'");
@@ -429,12 +445,12 @@ RawVolume read_tetgen(const fs::path& path) {
     constexpr std::string_view head =
         "a header '<#points> <dimension 3> <#attributes> <boundary markers 0/1>'";
     r.require_next(head);
-    const long long n = r.integer(0, head);
     const long long dim = r.size() > 1 ? r.integer(1, head) : 3;
+    if (dim != 3) r.fail_msg(fmt::format("expected dimension 3, got {}", dim));
+    const long long n = r.count(0, "the point count", "points", 8);
     const long long nattr = r.size() > 2 ? r.integer(2, head) : 0;
     const long long nmark = r.size() > 3 ? r.integer(3, head) : 0;
     if (n < 0 || nattr < 0 || nmark < 0 || nmark > 1) r.fail(head);
-    if (dim != 3) r.fail_msg(fmt::format("expected dimension 3, got {}", dim));
     raw.points.reserve(static_cast<std::size_t>(n));
     const std::size_t cols = static_cast<std::size_t>(4 + nattr + nmark);
     for (long long i = 0; i < n; ++i) {
@@ -455,7 +471,7 @@ RawVolume read_tetgen(const fs::path& path) {
     constexpr std::string_view head =
         "a header '<#tetrahedra> <nodes per tet 4 or 10> <#attributes>'";
     r.require_next(head);
-    const long long n = r.integer(0, head);
+    const long long n = r.count(0, "the tetrahedron count", "tetrahedra", 10);
     const long long per = r.size() > 1 ? r.integer(1, head) : 4;
     const long long nattr = r.size() > 2 ? r.integer(2, head) : 0;
     if (n < 0 || nattr < 0 || (per != 4 && per != 10)) r.fail(head);
@@ -495,8 +511,147 @@ class VtkErrorCatcher : public vtkCommand {
   std::string m_message;
 };
 
+/// The value of attribute `name` in the XML start tag `tag`, or nothing.
+std::optional<std::string> xml_attribute(std::string_view tag, std::string_view name) {
+  for (std::size_t at = tag.find(name); at != std::string_view::npos; at = tag.find(name, at + 1)) {
+    const std::size_t eq = at + name.size();
+    const bool word_start = at > 0 && std::isspace(static_cast<unsigned char>(tag[at - 1]));
+    if (!word_start || eq + 1 >= tag.size() || tag[eq] != '=') continue;
+    const char quote = tag[eq + 1];
+    if (quote != '"' && quote != '\'') continue;
+    const std::size_t end = tag.find(quote, eq + 2);
+    if (end == std::string_view::npos) return std::nullopt;
+    return std::string(tag.substr(eq + 2, end - eq - 2));
+  }
+  return std::nullopt;
+}
+
+/// The VTK XML header checks VTK's reader lacks: counts and component numbers it would loop
+/// over or allocate for without bound, and appended block headers beyond the file's end.
+class VtuHeaderCheck {
+ public:
+  VtuHeaderCheck(const fs::path& path, std::string bytes)
+      : m_path(path.string()), m_bytes(std::move(bytes)) {
+    // A count beyond this cannot be stored in the file, compressed or not (zlib's best
+    // ratio is about 1000:1).
+    m_limit = 1100ULL * std::max<std::size_t>(m_bytes.size(), 1);
+    const std::size_t appended = m_bytes.find("<AppendedData");
+    m_xml_end = appended == std::string::npos ? m_bytes.size() : appended;
+  }
+
+  void run() {
+    const std::string_view file_tag = tag_at(m_bytes.find("<VTKFile"));
+    m_word = xml_attribute(file_tag, "header_type").value_or("UInt32") == "UInt64" ? 8 : 4;
+    m_compressed = !xml_attribute(file_tag, "compressor").value_or("").empty();
+    m_little = xml_attribute(file_tag, "byte_order").value_or("LittleEndian") == "LittleEndian";
+    find_appended_data();
+    for (std::size_t at = m_bytes.find('<'); at < m_xml_end; at = m_bytes.find('<', at + 1)) {
+      const std::string_view tag = tag_at(at);
+      if (tag.rfind("<Piece", 0) == 0) {
+        count(tag, "NumberOfPoints");
+        count(tag, "NumberOfCells");
+      } else if (tag.rfind("<DataArray", 0) == 0) {
+        data_array(tag);
+      }
+    }
+  }
+
+ private:
+  std::string_view tag_at(std::size_t at) const {
+    if (at == std::string::npos || at >= m_bytes.size()) return {};
+    const std::size_t end = m_bytes.find('>', at);
+    return std::string_view(m_bytes).substr(
+        at, end == std::string::npos ? m_bytes.size() - at : end - at);
+  }
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError(
+        fmt::format("{}: {}; the file is damaged or not written by VTK", m_path, what));
+  }
+
+  std::uint64_t number(std::string_view tag, std::string_view name, const std::string& text) const {
+    std::uint64_t v = 0;
+    const auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+    if (ec != std::errc() || p != text.data() + text.size())
+      fail(fmt::format("{} {}=\"{}\" is not a non-negative integer", tag.substr(0, tag.find(' ')),
+                       name, text));
+    return v;
+  }
+
+  void count(std::string_view tag, std::string_view name) const {
+    const auto text = xml_attribute(tag, name);
+    if (!text) return;
+    const std::uint64_t n = number(tag, name, *text);
+    if (n > m_limit)
+      fail(fmt::format("<Piece {}=\"{}\"> is more than a {}-byte file can hold", name, n,
+                       m_bytes.size()));
+  }
+
+  void data_array(std::string_view tag) const {
+    const std::string name = xml_attribute(tag, "Name").value_or("(unnamed)");
+    if (const auto k = xml_attribute(tag, "NumberOfComponents")) {
+      const std::uint64_t n = number(tag, "NumberOfComponents", *k);
+      if (n < 1 || n > 4096)
+        fail(fmt::format("DataArray '{}' has NumberOfComponents=\"{}\", expected 1 to 4096", name,
+                         n));
+    }
+    if (xml_attribute(tag, "format").value_or("") != "appended" || m_data == std::string::npos)
+      return;
+    const auto offset = xml_attribute(tag, "offset");
+    if (!offset) fail(fmt::format("appended DataArray '{}' has no offset", name));
+    block_header(name, m_data + number(tag, "offset", *offset));
+  }
+
+  /// The appended data starts after the '_' that follows <AppendedData encoding="raw">.
+  void find_appended_data() {
+    if (m_xml_end == m_bytes.size()) return;
+    const std::string_view tag = tag_at(m_xml_end);
+    if (xml_attribute(tag, "encoding").value_or("") != "raw" || !m_little) return;
+    const std::size_t underscore = m_bytes.find('_', m_xml_end + tag.size());
+    if (underscore != std::string::npos) m_data = underscore + 1;
+  }
+
+  std::uint64_t word(std::size_t at) const {
+    std::uint64_t v = 0;
+    std::memcpy(&v, m_bytes.data() + at, m_word);  // little-endian host and file
+    return v;
+  }
+
+  /// [size] raw, or [#blocks, block size, last block size, compressed sizes...] compressed.
+  void block_header(const std::string& name, std::uint64_t at) const {
+    const std::uint64_t size = m_bytes.size();
+    const auto need = [&](std::uint64_t end, const char* what) {
+      if (end > size || end < at)
+        fail(fmt::format("the appended data of DataArray '{}' ({}) runs past the end of the file",
+                         name, what));
+    };
+    need(at + m_word, "its header");
+    if (!m_compressed) {
+      need(at + m_word + word(at), "its byte count");
+      return;
+    }
+    const std::uint64_t blocks = word(at);
+    if (blocks > size / m_word) need(size + 1, "its block count");
+    const std::uint64_t head = at + m_word * (3 + blocks);
+    need(head, "its block count");
+    std::uint64_t total = 0;
+    for (std::uint64_t b = 0; b < blocks; ++b) {
+      total += word(at + m_word * (3 + b));
+      if (total > size) need(size + 1, "its compressed block sizes");
+    }
+    need(head + total, "its compressed block sizes");
+    if (blocks > 0 && word(at + m_word) > m_limit) need(size + 1, "its block size");
+  }
+
+  std::string m_path, m_bytes;
+  std::uint64_t m_limit = 0;
+  std::size_t m_xml_end = 0, m_data = std::string::npos, m_word = 4;
+  bool m_compressed = false, m_little = true;
+};
+
 RawVolume read_vtu(const fs::path& path) {
   require_file(path);
+  check_vtk_xml_header(path);
   const VtkMessageCapture capture;  // VTK's messages off stderr, first one kept
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   vtkNew<VtkErrorCatcher> catcher;
@@ -507,7 +662,12 @@ RawVolume read_vtu(const fs::path& path) {
         path.string()));
   }
   reader->SetFileName(path.string().c_str());
-  reader->Update();
+  try {
+    reader->Update();
+  } catch (const std::exception& e) {  // e.g. a length_error on corrupt compressed data
+    throw InputError(fmt::format("{}: VTK could not read the file ({}): its data is corrupt",
+                                 path.string(), e.what()));
+  }
   vtkUnstructuredGrid* grid = reader->GetOutput();
   if (!catcher->message().empty() || !capture.first_message().empty() || grid == nullptr) {
     // The parser's own message (line, column) is the useful one; the reader's comes second.
@@ -579,9 +739,8 @@ RawSurface read_off(const fs::path& path) {
     base = 0;
   }
   r.need(base + 2, "'#vertices #faces #edges'");
-  const long long nv = r.integer(base, "'#vertices #faces #edges'");
-  const long long nf = r.integer(base + 1, "'#vertices #faces #edges'");
-  if (nv < 0 || nf < 0) r.fail("non-negative counts '#vertices #faces #edges'");
+  const long long nv = r.count(base, "#vertices", "vertices", 6);
+  const long long nf = r.count(base + 1, "#faces", "faces", 8);
   s.points.reserve(static_cast<std::size_t>(nv));
   for (long long i = 0; i < nv; ++i) {
     r.require_next("a vertex line 'x y z'");
@@ -770,6 +929,14 @@ RawSurface read_stl(const fs::path& path) {
 // ---------------------------------------------------------------------------------------
 // Public entry points
 // ---------------------------------------------------------------------------------------
+
+void check_vtk_xml_header(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open the file for reading", path.string()));
+  VtuHeaderCheck(
+      path, std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()))
+      .run();
+}
 
 VolumeMesh read_volume_mesh(const fs::path& path) {
   const std::string ext = lower_extension(path);

@@ -32,6 +32,11 @@ VolumeMesh read_volume_mesh(const std::filesystem::path& path);
 /// (STL). Does not check closedness: see validate_closed_surface.
 SurfaceMesh read_surface_mesh(const std::filesystem::path& path);
 
+/// Check a VTK XML file's header before VTK reads it: piece counts the file cannot hold,
+/// component numbers outside 1..4096, appended (raw) block headers past the end of the file.
+/// VTK's reader loops or allocates without bound on those. @throws InputError naming the file
+void check_vtk_xml_header(const std::filesystem::path& path);
+
 /// Write a tet mesh as Gmsh ASCII v2.2 (for tests and for users converting meshes).
 void write_msh(const VolumeMesh& m, const std::filesystem::path& path);
 

@@ -12,6 +12,7 @@
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_triangulation_3.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Polyhedral_mesh_domain_with_features_3.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/exceptions.h>
@@ -60,6 +61,22 @@ CgalSurface to_cgal(const SurfaceMesh& s, const std::string& source) {
   return sm;
 }
 
+/// A surface that passes through itself has no inside: Mesh_3 crashes or grows without bound
+/// on one. Names the first pair of triangles that intersect.
+void require_no_self_intersection(const CgalSurface& sm, const std::string& source) {
+  namespace PMP = CGAL::Polygon_mesh_processing;
+  if (!PMP::does_self_intersect(sm)) return;
+  using Face = CgalSurface::Face_index;
+  std::vector<std::pair<Face, Face>> pairs;
+  PMP::self_intersections(sm, std::back_inserter(pairs));
+  const auto [a, b] = pairs.empty() ? std::pair<Face, Face>() : pairs.front();
+  throw MeshError(fmt::format(
+      "{}: the surface intersects itself ({} pair{} of triangles, e.g. triangles {} and {}); "
+      "repair it (e.g. in MeshLab or Blender) before meshing",
+      source, pairs.size(), pairs.size() == 1 ? "" : "s", static_cast<std::size_t>(a),
+      static_cast<std::size_t>(b)));
+}
+
 template <class... Options>
 C3t3 run_mesher(const Domain& domain, const Criteria& criteria, Options... options) {
   return CGAL::make_mesh_3<C3t3>(domain, criteria, options...);
@@ -85,6 +102,7 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
 
   const double t0 = now_seconds();
   const CgalSurface sm = to_cgal(surface, source);
+  require_no_self_intersection(sm, source);
   Domain domain(sm);
   domain.detect_features(kFeatureAngleDeg);
 

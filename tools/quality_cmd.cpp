@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "mesh/io.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "mesh/vtk_messages.hpp"
 #include "tools/output.hpp"
@@ -389,8 +390,14 @@ VtuTets read_vtu_tets(const fs::path& path) {
         "{}: not a VTK XML unstructured grid (.vtu); expected '<VTKFile type=\"UnstructuredGrid\"'",
         name));
   }
+  mesh::check_vtk_xml_header(path);
   reader->SetFileName(path.c_str());
-  reader->Update();
+  try {
+    reader->Update();
+  } catch (const std::exception& e) {  // e.g. a length_error on corrupt compressed data
+    throw InputError(
+        fmt::format("{}: VTK could not read the file ({}): its data is corrupt", name, e.what()));
+  }
   vtkUnstructuredGrid* grid = reader->GetOutput();
   const std::string vtk_message = !capture.first_message().empty()
                                       ? capture.first_message()

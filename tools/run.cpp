@@ -16,6 +16,7 @@
 #include "mesh/quality.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/static_solve.hpp"
+#include "tools/divergence.hpp"
 #include "tools/output.hpp"
 
 namespace tetfsi::tools {
@@ -203,6 +204,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
   Progress progress(opt.progress, n);
   StepStats row;
   StateSnapshot last_good;
+  DivergenceGuard guard(world, divergence_scales(scene));
   int last_frame = 0;  // step of the last frame written (frame 0 is written by the caller)
   // When the run stops early, also write the last completed step as a frame if it is not one
   // yet, so that the collection ends where the run did (best effort: the stop is reported).
@@ -229,9 +231,11 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
     row.phases.reset();
     const double t0 = now_seconds();
     last_good.save(world);
+    guard.before_step(world);
     int fluid_solves = 0;  // iterated coupling schemes
     try {
       const coupling::FsiStepReport rep = sim.step(dt, row.phases);
+      if (const auto diverged = guard.after_step(world, rep, dt)) throw SolverError(*diverged);
       if (fluid) {
         fluid->record(rep, sim);
         row.fluid = fluid->stats();

@@ -882,6 +882,37 @@ Scene parse_scene(const json& j, const fs::path& file) {
 
 namespace {
 
+/// Scenes nest a few levels deep (bodies[0].mesh.box.lo); deeper input is not a scene, and
+/// nlohmann's DOM of a deeply nested text takes time and memory out of all proportion.
+constexpr int k_max_json_depth = 64;
+
+/// Reject nesting deeper than k_max_json_depth before parsing, naming the line.
+void check_nesting(const std::string& text, const std::string& where) {
+  int depth = 0, line = 1;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (c == '\n') ++line;
+    if (in_string) {
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
+      continue;
+    }
+    if (c == '"')
+      in_string = true;
+    else if (c == ']' || c == '}')
+      --depth;
+    else if ((c == '[' || c == '{') && ++depth > k_max_json_depth) {
+      throw InputError(
+          fmt::format("{}: line {}: JSON nested more than {} levels deep; a scene needs a handful",
+                      where, line, k_max_json_depth));
+    }
+  }
+}
+
 /// Set `root[path] = value` for a dotted path; numeric components index arrays.
 void apply_override(json& root, const std::string& text, const std::string& scene_name) {
   auto bad = [&](const std::string& why) {
@@ -908,6 +939,9 @@ void apply_override(json& root, const std::string& text, const std::string& scen
     if (cur->is_array()) {
       if (!numeric)
         bad(fmt::format("'{}' is an array: index it with a number, not '{}'", walked, part));
+      if (part.size() > 9)
+        bad(fmt::format("index {} is out of range ('{}' has {} element{})", part, walked,
+                        cur->size(), cur->size() == 1 ? "" : "s"));
       const std::size_t idx = std::stoul(part);
       if (idx >= cur->size()) {
         bad(fmt::format("index {} is out of range ('{}' has {} element{})", idx, walked,
@@ -921,6 +955,7 @@ void apply_override(json& root, const std::string& text, const std::string& scen
     }
     walked += (walked.empty() ? "" : ".") + part;
   }
+  check_nesting(value_text, fmt::format("{}: --set '{}'", scene_name, key));
   json value = json::parse(value_text, nullptr, /*allow_exceptions=*/false);
   if (value.is_discarded()) value = value_text;
   *cur = std::move(value);
@@ -989,6 +1024,7 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
   buffer << in.rdbuf();
   const std::string text = buffer.str();
 
+  check_nesting(text, name);
   json j;
   try {
     j = json::parse(text, duplicate_key_check(name));

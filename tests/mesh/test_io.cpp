@@ -193,6 +193,31 @@ TEST_CASE("syntax errors name path:line and what was expected") {
   CHECK(contains(message_of<InputError>([&] { read_surface_mesh(stl); }), "not an STL file"));
 }
 
+TEST_CASE("hostile header counts: negative or beyond the file's size, before any allocation") {
+  // [issue 21 item 4] A count the file cannot hold must not reserve gigabytes or loop for
+  // hours: it is a one-line error naming the file, the line and the header.
+  const fs::path neg_off = write_text("neg.off", "OFF\n-3 1 0\n0 0 0\n");
+  CHECK(message_of<InputError>([&] { read_surface_mesh(neg_off); }) ==
+        neg_off.string() + ":2: #vertices is negative (-3); fix the header");
+  const fs::path huge_off = write_text("huge.off", "OFF\n3 4000000000000 0\n0 0 0\n");
+  const std::string off_msg = message_of<InputError>([&] { read_surface_mesh(huge_off); });
+  CHECK(off_msg.rfind(huge_off.string() + ":2: #faces announces 4000000000000 faces", 0) == 0);
+  CHECK(contains(off_msg, "fix the header"));
+
+  const fs::path huge_msh = write_text(
+      "huge.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n9223372036854775807\n1 0 0 0\n");
+  const std::string msh_msg = message_of<InputError>([&] { read_volume_mesh(huge_msh); });
+  CHECK(msh_msg.rfind(huge_msh.string() + ":5: the number of nodes announces", 0) == 0);
+  const fs::path neg_msh4 =
+      write_text("neg4.msh", "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 -4 1 4\n");
+  CHECK(contains(message_of<InputError>([&] { read_volume_mesh(neg_msh4); }),
+                 ":5: numNodes is negative (-4)"));
+  // Beyond long long altogether: not a number the header can mean.
+  const fs::path over = write_text("over.node", "99999999999999999999999 3 0 0\n");
+  write_text("over.ele", "0 4 0\n");
+  CHECK(contains(message_of<InputError>([&] { read_volume_mesh(over); }), over.string() + ":1:"));
+}
+
 TEST_CASE("surface readers: OFF icosphere, OBJ and STL cubes") {
   const SurfaceMesh ico = read_surface_mesh(kData / "icosphere.off");
   CHECK(ico.num_vertices() == 162);
