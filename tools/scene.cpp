@@ -218,14 +218,23 @@ class Parser {
     if (k.check) {
       const std::string problem = k.check(v);
       if (!problem.empty()) fail(n.path, problem);
-    } else if (v.is_number() && !k.range.contains(v.get<double>())) {
-      const std::string note = k.note.empty() ? k.unit : k.note;
-      const std::string got = k.type == KeyType::Integer ? fmt::format("{}", v.get<int>())
-                                                         : fmt::format("{}", v.get<double>());
-      fail(n.path, fmt::format("must be {}{}, got {}", k.range.text(k.type == KeyType::Integer),
-                               note.empty() ? "" : " (" + note + ")", got));
+    } else if (v.is_number()) {
+      check_range(n.path, k, v);
+    } else if (v.is_array() && (k.type == KeyType::Vec2 || k.type == KeyType::Vec3)) {
+      for (size_t a = 0; a < v.size(); ++a) check_range(index_path(n.path, a), k, v[a]);
     }
     return v;
+  }
+
+  /// A number within the row's limits (its range within what its unit allows).
+  void check_range(const std::string& path, const KeySpec& k, const json& v) const {
+    const Range r = k.limits();
+    if (r.contains(v.get<double>())) return;
+    const std::string note = k.note.empty() ? k.unit : k.note;
+    const std::string got = k.type == KeyType::Integer ? fmt::format("{}", v.get<int>())
+                                                       : fmt::format("{}", v.get<double>());
+    fail(path, fmt::format("must be {}{}, got {}", r.text(k.type == KeyType::Integer),
+                           note.empty() ? "" : " (" + note + ")", got));
   }
 
   double number(const Node& n) const {

@@ -55,15 +55,70 @@ bool Range::contains(double v) const {
   return above && below;
 }
 
+namespace {
+/// 1e-08 -> 1e-8, 1000000 -> 1e6: the shorter of fmt's shortest and %g forms.
+std::string bound_text(double v) {
+  std::string s = fmt::format("{}", v);
+  const std::string g = fmt::format("{:g}", v), x = fmt::format("{:.0e}", v);
+  if (g.size() < s.size() && std::stod(g) == v) s = g;
+  if (std::isfinite(v) && std::abs(v) >= 1e4 && std::stod(x) == v) s = x;  // 100000 -> 1e5
+  const auto e = s.find('e');
+  if (e == std::string::npos) return s;
+  std::string mantissa = s.substr(0, e), exponent = s.substr(e + 1), sign;
+  if (!exponent.empty() && (exponent[0] == '-' || exponent[0] == '+')) {
+    if (exponent[0] == '-') sign = "-";
+    exponent = exponent.substr(1);
+  }
+  exponent.erase(0, std::min(exponent.find_first_not_of('0'), exponent.size() - 1));
+  return mantissa + "e" + sign + exponent;
+}
+}  // namespace
+
 std::string Range::text(bool integer) const {
   const bool has_lo = std::isfinite(lo), has_hi = std::isfinite(hi);
+  const std::string l = integer ? fmt::format("{}", lo) : bound_text(lo);
+  const std::string h = integer ? fmt::format("{}", hi) : bound_text(hi);
   if (has_lo && has_hi) {
-    if (integer && !lo_open && !hi_open) return fmt::format("{}..{}", lo, hi);
-    return fmt::format("in {}{}, {}{}", lo_open ? "(" : "[", lo, hi, hi_open ? ")" : "]");
+    if (integer && !lo_open && !hi_open) return fmt::format("{}..{}", l, h);
+    return fmt::format("in {}{}, {}{}", lo_open ? "(" : "[", l, h, hi_open ? ")" : "]");
   }
-  if (has_lo) return fmt::format("{} {}", lo_open ? ">" : ">=", lo);
-  if (has_hi) return fmt::format("{} {}", hi_open ? "<" : "<=", hi);
+  if (has_lo) return fmt::format("{} {}", lo_open ? ">" : ">=", l);
+  if (has_hi) return fmt::format("{} {}", hi_open ? "<" : "<=", h);
   return "";
+}
+
+namespace {
+
+/// The largest magnitude a value of each unit may have (a positive one: at least 1e-15 of it):
+/// beyond it no scene a user could mean (1000 km, 1e5 m/s, 1e13 Pa is ten times diamond's modulus),
+/// and the solvers' arithmetic would overflow or the meshes exhaust memory long before.
+/// Temperatures are absolute.
+struct UnitLimit {
+  const char* unit;
+  double max;
+  bool non_negative;
+};
+constexpr UnitLimit k_unit_limits[] = {
+    {"m", 1e6, false},         {"m/s", 1e5, false},    {"m/s^2", 1e4, false},
+    {"K", 1e6, true},          {"kg/m^3", 1e5, false}, {"Pa", 1e13, false},
+    {"s", 1e6, false},         {"1/s", 1e6, false},    {"N", 1e15, false},
+    {"deg", 1e6, false},       {"deg/s", 1e8, false},  {"m^4/(kg s^2)", 1e6, false},
+    {"m/(s^2 K)", 1e6, false},
+};
+
+}  // namespace
+
+Range KeySpec::limits() const {
+  Range r = range;
+  for (const UnitLimit& u : k_unit_limits) {
+    if (unit != u.unit) continue;
+    if (r.hi > u.max) r.hi = u.max, r.hi_open = false;
+    const double lo = u.non_negative ? 0.0 : -u.max;
+    if (r.lo < lo) r.lo = lo, r.lo_open = false;
+    // A positive quantity spans at most 15 decades below its largest value.
+    if (r.lo == 0.0 && r.lo_open) r.lo = u.max * 1e-15, r.lo_open = false;
+  }
+  return r;
 }
 
 namespace {
@@ -575,7 +630,7 @@ const Section<TransformSpec>& transform_keys() {
       {bind<TransformSpec>({.key = "scale",
                             .type = KeyType::Number,
                             .doc = "uniform scale, first",
-                            .range = k_positive},
+                            .range = between(1e-6, 1e6)},
                            TETFSI_AT(scale)),
        bind<TransformSpec>({.key = "rotate_deg",
                             .type = KeyType::Vec3,
@@ -748,7 +803,7 @@ Section<solid::Obstacle> obstacle_section(const char* type,
   rows.push_back(bind<O>({.key = "friction",
                           .type = KeyType::Number,
                           .doc = "Coulomb coefficient",
-                          .range = k_non_negative},
+                          .range = between(0, 100)},
                          TETFSI_AT(friction)));
   return {"obstacles[]", "", std::move(rows), type};
 }
@@ -831,7 +886,7 @@ const Section<FluidSpec>& fluid_keys() {
            {.key = "vorticity_confinement",
             .type = KeyType::Number,
             .doc = "epsilon [Fedkiw01, Eq. (11)], dimensionless; 0: off",
-            .range = k_non_negative},
+            .range = between(0, 1000)},
            [fp](auto& t) -> auto& { return fp(t).vorticity_confinement; }),
        sub<FluidSpec>({.key = "decay", .type = KeyType::Object, .doc = "dissipation rates"}),
        bind_enum<FluidSpec>(
@@ -1194,17 +1249,7 @@ namespace {
 
 /// 1e-08 -> 1e-8, 1e+05 -> 1e5.
 std::string format_number(double v) {
-  std::string s = fmt::format("{}", v);
-  const auto e = s.find('e');
-  if (e == std::string::npos) return s;
-  std::string mantissa = s.substr(0, e), exponent = s.substr(e + 1);
-  std::string sign;
-  if (!exponent.empty() && (exponent[0] == '-' || exponent[0] == '+')) {
-    if (exponent[0] == '-') sign = "-";
-    exponent = exponent.substr(1);
-  }
-  exponent.erase(0, std::min(exponent.find_first_not_of('0'), exponent.size() - 1));
-  return mantissa + "e" + sign + exponent;
+  return bound_text(v);
 }
 
 std::string range_text(const KeySpec& k) {
@@ -1216,7 +1261,9 @@ std::string range_text(const KeySpec& k) {
   if (k.type == KeyType::Cells) return ">= 1 each";
   if (k.type == KeyType::Nodes) return ">= 0 each";
   if (k.non_empty) return "not empty";
-  return k.range.text(k.type == KeyType::Integer);
+  const std::string r = k.limits().text(k.type == KeyType::Integer);
+  if (!r.empty() && (k.type == KeyType::Vec2 || k.type == KeyType::Vec3)) return r + " each";
+  return r;
 }
 
 template <class T>

@@ -83,6 +83,10 @@ struct KeySpec {
   /// An extra check of a valid-typed value: a problem, or "" if fine. It replaces the range
   /// check's message (the range is still shown).
   std::function<std::string(const nlohmann::json&)> check;
+  /// The range checked and shown: `range` within what a user could mean in `unit` (every
+  /// coordinate and length within 1e6 m, speeds within 1e5 m/s, absolute temperatures
+  /// 0..1e6 K, ...; see k_unit_limits in scene_keys.cpp). Vec2 / Vec3 rows: each component.
+  Range limits() const;
 };
 
 /// A row of a section whose values live in a T: `get` gives the resolved value (null: not

@@ -352,10 +352,10 @@ TEST_CASE("tetfsi run: a bad fluid key from --set is a one-line error naming it"
     std::vector<std::string> parts;
   };
   const std::vector<Case> cases = {
-      {"fluid.buoyancy.alpha=-1", {"fluid.buoyancy.alpha", "must be >= 0"}},
+      {"fluid.buoyancy.alpha=-1", {"fluid.buoyancy.alpha", "must be in [0, 1e6]"}},
       {"fluid.vorticity_confinment=0.3",
        {"fluid.vorticity_confinment", "unknown key", "vorticity_confinement"}},
-      {"fluid.mesh.far_size=0", {"fluid.mesh.far_size", "must be > 0"}},
+      {"fluid.mesh.far_size=0", {"fluid.mesh.far_size", "must be in [1e-9, 1e6]"}},
   };
   for (const Case& c : cases) {
     CAPTURE(c.set);

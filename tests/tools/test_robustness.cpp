@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -139,4 +140,30 @@ TEST_CASE("deeply nested JSON, in a scene or a --set value, is refused at once")
   CHECK(f.code == 1);
   CHECK_FALSE(contains(f.err, "nested"));
   CHECK(contains(f.err, "extra"));
+}
+
+TEST_CASE("nonsense physical values are refused with the range named (item 6)") {
+  TempDir dir("ranges");
+  const std::string plume = (fs::path(TETFSI_SOURCE_DIR) / "data/scenes/smoke_plume.json").string();
+  const std::string toy = (fs::path(TETFSI_SOURCE_DIR) / "data/scenes/toy.json").string();
+  const std::tuple<std::string, std::string, std::string> cases[] = {
+      {plume, "fluid.domain.hi=[1e308,1,1]", "fluid.domain.hi[0]: must be in [-1e6, 1e6] (m)"},
+      {plume, "fluid.domain.hi=[9.2e18,1,1]", "fluid.domain.hi[0]: must be in [-1e6, 1e6] (m)"},
+      {plume, "fluid.buoyancy.ambient_temperature=-1",
+       "fluid.buoyancy.ambient_temperature: must be in [0, 1e6] (K), got -1"},
+      {plume, "fluid.sources.0.temperature=-100", "fluid.sources[0].temperature: must be in [0"},
+      {plume, "time.dt=1e308", "time.dt: must be in [1e-9, 1e6] (s)"},
+      {plume, "gravity=[0,0,-1e9]", "gravity[2]: must be in [-1e4, 1e4] (m/s^2)"},
+      {toy, "bodies.0.material.density=1e-300", "bodies[0].material.density: must be in [1e-10"},
+      {toy, "bodies.0.material.youngs_modulus=1e-300",
+       "bodies[0].material.youngs_modulus: must be in [0.01, 1e13] (Pa)"},
+      {toy, "obstacles.0.friction=1e18", "obstacles[0].friction: must be in [0, 100], got 1e+18"},
+  };
+  for (const auto& [scene, set, what] : cases) {
+    const Result r = run_cli(dir.path, fmt::format("validate '{}' --set '{}'", scene, set));
+    INFO(set, ": ", r.err);
+    CHECK(r.code == 1);
+    REQUIRE(r.err_lines().size() == 1);
+    CHECK(contains(r.err_lines()[0], what));
+  }
 }

@@ -169,7 +169,7 @@ TEST_CASE("the tables' defaults are what the parser fills in") {
 }
 
 TEST_CASE("every key's typo is caught with a suggestion, every bound is checked") {
-  int typos = 0, bounds = 0;
+  int typos = 0, bounds = 0, upper = 0;
   for (const KeySection& sec : scene_key_sections()) {
     if (!k_fixed.count(sec.path)) continue;
     for (const KeyRow& r : sec.rows) {
@@ -185,9 +185,19 @@ TEST_CASE("every key's typo is caught with a suggestion, every bound is checked"
       CHECK(parse_error(j) ==
             fmt::format("scene.json: {}: unknown key (did you mean '{}'?)", prefix, r.spec.key));
       ++typos;
-      // Just outside the lower bound.
-      const Range& range = r.spec.range;
+      // Just outside the upper bound (the row's range within its unit's limits).
+      const Range range = r.spec.limits();
       const bool numeric = r.spec.type == KeyType::Number || r.spec.type == KeyType::Integer;
+      if (numeric && std::isfinite(range.hi) && r.spec.type == KeyType::Number) {
+        json k = fluid_scene();
+        const double above = range.hi_open ? range.hi : range.hi * 1.5 + 1;
+        (sec.path.empty() ? k : *at_path(k, sec.path))[r.spec.key] = above;
+        const std::string message = parse_error(k);
+        CHECK(message.rfind(fmt::format("scene.json: {}: must be", full), 0) == 0);
+        CHECK(message.find(range.text(false)) != std::string::npos);
+        ++upper;
+      }
+      // Just outside the lower bound.
       if (!numeric || !std::isfinite(range.lo)) continue;
       json k = fluid_scene();
       const double below = range.lo_open ? range.lo : range.lo - 1;
@@ -200,4 +210,5 @@ TEST_CASE("every key's typo is caught with a suggestion, every bound is checked"
   }
   CHECK(typos >= 60);
   CHECK(bounds >= 25);
+  CHECK(upper >= 15);
 }
