@@ -450,7 +450,7 @@ RawVolume read_tetgen(const fs::path& path) {
     const long long n = r.count(0, "the point count", "points", 8);
     const long long nattr = r.size() > 2 ? r.integer(2, head) : 0;
     const long long nmark = r.size() > 3 ? r.integer(3, head) : 0;
-    if (n < 0 || nattr < 0 || nmark < 0 || nmark > 1) r.fail(head);
+    if (nattr < 0 || nmark < 0 || nmark > 1) r.fail(head);
     raw.points.reserve(static_cast<std::size_t>(n));
     const std::size_t cols = static_cast<std::size_t>(4 + nattr + nmark);
     for (long long i = 0; i < n; ++i) {
@@ -474,7 +474,7 @@ RawVolume read_tetgen(const fs::path& path) {
     const long long n = r.count(0, "the tetrahedron count", "tetrahedra", 10);
     const long long per = r.size() > 1 ? r.integer(1, head) : 4;
     const long long nattr = r.size() > 2 ? r.integer(2, head) : 0;
-    if (n < 0 || nattr < 0 || (per != 4 && per != 10)) r.fail(head);
+    if (nattr < 0 || (per != 4 && per != 10)) r.fail(head);
     const std::size_t cols = static_cast<std::size_t>(1 + per + nattr);
     for (long long i = 0; i < n; ++i) {
       r.require_next("a tet line '<index> <n1> <n2> <n3> <n4> ...'");

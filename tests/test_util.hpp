@@ -86,6 +86,11 @@ inline std::map<std::string, std::vector<double>> read_csv_columns(const std::fi
   return cols;
 }
 
+/// Whether `s` contains `part`.
+inline bool contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
+
 /// What a CLI run left: exit code (−1 if it did not exit normally), stdout, stderr.
 struct CliResult {
   int code = -1;

@@ -47,7 +47,6 @@ double box_volume(const solid::SolidBody& b) {
 DivergenceScales divergence_scales(const Scene& scene) {
   DivergenceScales s;
   s.gravity = scene.gravity;
-  s.two_way = scene.two_way();
   if (!scene.fluid) return s;
   const fluid::FluidParams& p = scene.fluid->params;
   const double a = scene.gravity.norm() + p.gravity.norm() + buoyancy_acceleration(p);
@@ -109,12 +108,10 @@ void DivergenceGuard::before_step(const solid::SolidWorld& world) {
   for (const solid::SolidBody& b : world.bodies) m_before.push_back(b.displacement);
 }
 
-std::optional<std::string> DivergenceGuard::check_fluid(const solid::SolidWorld& world,
-                                                        const coupling::FsiStepReport& rep) const {
+std::optional<std::string> DivergenceGuard::check_fluid(const coupling::FsiStepReport& rep) const {
   const fluid::FluidStepReport* f =
       rep.coupled ? &rep.coupled->fluid : (rep.fluid ? &*rep.fluid : nullptr);
   if (!f) return std::nullopt;
-  (void)world;
   // The fluid keeps the motion the bodies gave it after they slow down (a swing's turning
   // point): the bodies' peak speed so far, and the speed of the bodies' whole energy budget.
   const double budget_speed = m_mass > 0.0 ? std::sqrt(2.0 * budget() / m_mass) : 0.0;
@@ -130,9 +127,7 @@ std::optional<std::string> DivergenceGuard::check_fluid(const solid::SolidWorld&
 }
 
 std::optional<std::string> DivergenceGuard::after_step(const solid::SolidWorld& world,
-                                                       const coupling::FsiStepReport& rep,
-                                                       double h) {
-  (void)h;
+                                                       const coupling::FsiStepReport& rep) {
   double w = 0.0;  // the loads' work over the step, f · Δd
   for (size_t i = 0; i < world.bodies.size() && i < m_before.size(); ++i) {
     const solid::SolidBody& b = world.bodies[i];
@@ -146,7 +141,7 @@ std::optional<std::string> DivergenceGuard::after_step(const solid::SolidWorld& 
   for (const solid::SolidBody& b : world.bodies)
     if (b.num_nodes() > 0)
       m_body_speed = std::max(m_body_speed, b.velocity.rowwise().norm().maxCoeff());
-  if (auto fluid = check_fluid(world, rep)) return fluid;
+  if (auto fluid = check_fluid(rep)) return fluid;
   const double e = mechanical_energy(world);
   const double limit = kFactor * budget() + m_floor;
   if (std::isfinite(e) && e <= limit) return std::nullopt;

@@ -29,7 +29,6 @@ struct DivergenceScales {
   double fluid_speed = 0.0;
   double fluid_density = 0.0;  ///< the densest fluid (kg/m³) around or inside the bodies
   Vec3 gravity = Vec3::Zero();
-  bool two_way = false;
 };
 
 DivergenceScales divergence_scales(const Scene& scene);
@@ -41,8 +40,8 @@ DivergenceScales divergence_scales(const Scene& scene);
 /// the most the displaced fluid's weight can do (ρ_f V |g| |Δz|). A consistent integrator
 /// keeps the energy below the budget (the implicit ones dissipate); a step beyond
 /// `factor` × budget + floor (floor = 1e-4 Σ E V, the strain energy of about 1 % strain)
-/// has diverged. The fluid: its largest face speed beyond `factor` × the scene's speed scale
-/// (and the bodies' current speeds).
+/// has diverged. The fluid: its largest face speed beyond `factor`² × the largest of the
+/// scene's speed scale, the bodies' peak node speed so far and √(2 budget / their mass).
 class DivergenceGuard {
  public:
   static constexpr double kFactor = 10.0;
@@ -52,7 +51,7 @@ class DivergenceGuard {
   void before_step(const solid::SolidWorld& world);
   /// Call after each step: the one-line reason it diverged, or nothing.
   std::optional<std::string> after_step(const solid::SolidWorld& world,
-                                        const coupling::FsiStepReport& rep, double h);
+                                        const coupling::FsiStepReport& rep);
 
   double budget() const;  ///< the current budget (J)
 
@@ -60,8 +59,7 @@ class DivergenceGuard {
   double mechanical_energy(const solid::SolidWorld& world) const;
   double gravity_potential(const solid::SolidWorld& world) const;
   double buoyancy_work(const solid::SolidWorld& world) const;
-  std::optional<std::string> check_fluid(const solid::SolidWorld& world,
-                                         const coupling::FsiStepReport& rep) const;
+  std::optional<std::string> check_fluid(const coupling::FsiStepReport& rep) const;
 
   DivergenceScales m_scales;
   double m_energy0 = 0.0, m_potential0 = 0.0, m_floor = 0.0;

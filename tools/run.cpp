@@ -235,7 +235,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
     int fluid_solves = 0;  // iterated coupling schemes
     try {
       const coupling::FsiStepReport rep = sim.step(dt, row.phases);
-      if (const auto diverged = guard.after_step(world, rep, dt)) throw SolverError(*diverged);
+      if (const auto diverged = guard.after_step(world, rep)) throw SolverError(*diverged);
       if (fluid) {
         fluid->record(rep, sim);
         row.fluid = fluid->stats();

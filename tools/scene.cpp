@@ -948,12 +948,10 @@ void apply_override(json& root, const std::string& text, const std::string& scen
     if (cur->is_array()) {
       if (!numeric)
         bad(fmt::format("'{}' is an array: index it with a number, not '{}'", walked, part));
-      if (part.size() > 9)
-        bad(fmt::format("index {} is out of range ('{}' has {} element{})", part, walked,
-                        cur->size(), cur->size() == 1 ? "" : "s"));
-      const std::size_t idx = std::stoul(part);
+      // More than 9 digits is beyond any array here (and beyond stoul's range at 20).
+      const std::size_t idx = part.size() > 9 ? cur->size() : std::stoul(part);
       if (idx >= cur->size()) {
-        bad(fmt::format("index {} is out of range ('{}' has {} element{})", idx, walked,
+        bad(fmt::format("index {} is out of range ('{}' has {} element{})", part, walked,
                         cur->size(), cur->size() == 1 ? "" : "s"));
       }
       cur = &(*cur)[idx];

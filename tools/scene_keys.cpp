@@ -1247,11 +1247,6 @@ const Section<CouplingSpec>& coupling_keys() {
 
 namespace {
 
-/// 1e-08 -> 1e-8, 1e+05 -> 1e5.
-std::string format_number(double v) {
-  return bound_text(v);
-}
-
 std::string range_text(const KeySpec& k) {
   if (!k.choices.empty()) {
     std::string out;
@@ -1304,7 +1299,7 @@ std::string key_value_text(const json& v) {
       return out + "]";
     }
     case json::value_t::number_float:
-      return format_number(v.get<double>());
+      return bound_text(v.get<double>());
     default:
       return v.dump();
   }

@@ -13,6 +13,7 @@
 #include "mesh/volume_mesh.hpp"
 #include "tests/test_util.hpp"
 
+using tetfsi::test::contains;
 using tetfsi::test::message_of;
 using namespace tetfsi;
 using namespace tetfsi::mesh;
@@ -33,10 +34,6 @@ fs::path write_text(const std::string& name, const std::string& text) {
   const fs::path p = scratch_dir() / name;
   std::ofstream(p, std::ios::binary) << text;
   return p;
-}
-
-bool contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
 }
 
 /// Volume enclosed by a closed outward surface: Σ a·(b×c)/6.

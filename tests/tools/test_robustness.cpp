@@ -17,27 +17,21 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using tetfsi::test::contains;
 using tetfsi::test::lines_of;
 using tetfsi::test::read_text;
 using tetfsi::test::TempDir;
 using Result = tetfsi::test::CliResult;
+using tetfsi::test::run_tetfsi;
 
 const fs::path k_scenes = fs::path(TETFSI_SOURCE_DIR) / "tests" / "tools" / "scenes" / "robustness";
-
-Result run_cli(const fs::path& cwd, const std::string& args, const std::string& limits = "") {
-  return ::tetfsi::test::run_tetfsi(cwd, args, limits);
-}
-
-bool contains(const std::string& s, const std::string& part) {
-  return s.find(part) != std::string::npos;
-}
 
 }  // namespace
 
 TEST_CASE("divergence: the midpoint cantilever stops at the step it diverges, non-zero exit") {
   TempDir dir("diverge");
   const std::string scene = (k_scenes / "diverging_cantilever.json").string();
-  const Result r = run_cli(dir.path, fmt::format("run '{}' --out o --progress off", scene));
+  const Result r = run_tetfsi(dir.path, fmt::format("run '{}' --out o --progress off", scene));
   CHECK(r.code != 0);
   const auto lines = r.err_lines();
   REQUIRE(!lines.empty());
@@ -57,7 +51,7 @@ TEST_CASE("divergence: the midpoint cantilever stops at the step it diverges, no
   CHECK(lines_of(read_text(dir.path / "o" / "stats.csv")).size() == 1 + static_cast<size_t>(steps));
 
   // The paper's (damping) linearisation of the same scene never trips the check.
-  const Result ok = run_cli(
+  const Result ok = run_tetfsi(
       dir.path, fmt::format("run '{}' --out p --progress off --set solid.trapezoid=paper", scene));
   CHECK(ok.code == 0);
   CHECK(!contains(ok.err, "error"));
@@ -76,7 +70,7 @@ TEST_CASE("damaged VTU files: one line naming the file, no allocation the file c
   };
   for (const auto& [file, what] : cases) {
     const std::string path = (k_scenes / file).string();
-    const Result r = run_cli(dir.path, fmt::format("quality '{}'", path), "ulimit -v 4000000;");
+    const Result r = run_tetfsi(dir.path, fmt::format("quality '{}'", path), "ulimit -v 4000000;");
     INFO(file, ": ", r.err);
     CHECK(r.code == 1);
     const auto lines = r.err_lines();
@@ -90,7 +84,7 @@ TEST_CASE("a self-intersecting body surface is a one-line error before meshing")
   TempDir dir("selfx");
   const std::string scene = (k_scenes / "self_intersecting_body.json").string();
   for (const char* cmd : {"validate", "run --out o"}) {
-    const Result r = run_cli(dir.path, fmt::format("{} '{}' --log-level warn", cmd, scene));
+    const Result r = run_tetfsi(dir.path, fmt::format("{} '{}' --log-level warn", cmd, scene));
     INFO(cmd, ": ", r.err);
     CHECK(r.code == 1);
     const auto lines = r.err_lines();
@@ -106,7 +100,7 @@ TEST_CASE("--set with an array index beyond any integer names the index, not a c
   const std::string scene = (k_scenes / "diverging_cantilever.json").string();
   for (const char* idx : {"99999999999999999999", "1", "18446744073709551616"}) {
     const Result r =
-        run_cli(dir.path, fmt::format("validate '{}' --set bodies.{}.name=x", scene, idx));
+        run_tetfsi(dir.path, fmt::format("validate '{}' --set bodies.{}.name=x", scene, idx));
     INFO(idx, ": ", r.err);
     CHECK(r.code == 1);
     const auto lines = r.err_lines();
@@ -122,21 +116,21 @@ TEST_CASE("deeply nested JSON, in a scene or a --set value, is refused at once")
   const std::string deep = std::string(30000, '[') + std::string(30000, ']');
   const fs::path scene = dir.path / "deep.json";
   std::ofstream(scene) << "{\n  \"name\": \"deep\",\n  \"bodies\": " << deep << "\n}\n";
-  const Result r = run_cli(dir.path, "validate deep.json");
+  const Result r = run_tetfsi(dir.path, "validate deep.json");
   CHECK(r.code == 1);
   REQUIRE(r.err_lines().size() == 1);
   CHECK(contains(r.err_lines()[0], "deep.json: line 3: JSON nested more than 64 levels deep"));
 
   const std::string ok_scene = (k_scenes / "diverging_cantilever.json").string();
   const Result s =
-      run_cli(dir.path, fmt::format("validate '{}' --set 'bodies.0.extra={}'", ok_scene, deep));
+      run_tetfsi(dir.path, fmt::format("validate '{}' --set 'bodies.0.extra={}'", ok_scene, deep));
   CHECK(s.code == 1);
   REQUIRE(s.err_lines().size() == 1);
   CHECK(contains(s.err_lines()[0], "--set 'bodies.0.extra': line 1: JSON nested more than 64"));
   // 64 levels are allowed by the nesting check (and then refused as an unknown key).
   const std::string fine = std::string(60, '[') + std::string(60, ']');
   const Result f =
-      run_cli(dir.path, fmt::format("validate '{}' --set 'bodies.0.extra={}'", ok_scene, fine));
+      run_tetfsi(dir.path, fmt::format("validate '{}' --set 'bodies.0.extra={}'", ok_scene, fine));
   CHECK(f.code == 1);
   CHECK_FALSE(contains(f.err, "nested"));
   CHECK(contains(f.err, "extra"));
@@ -160,7 +154,7 @@ TEST_CASE("nonsense physical values are refused with the range named (item 6)") 
       {toy, "obstacles.0.friction=1e18", "obstacles[0].friction: must be in [0, 100], got 1e+18"},
   };
   for (const auto& [scene, set, what] : cases) {
-    const Result r = run_cli(dir.path, fmt::format("validate '{}' --set '{}'", scene, set));
+    const Result r = run_tetfsi(dir.path, fmt::format("validate '{}' --set '{}'", scene, set));
     INFO(set, ": ", r.err);
     CHECK(r.code == 1);
     REQUIRE(r.err_lines().size() == 1);
