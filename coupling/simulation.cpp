@@ -106,9 +106,12 @@ void FsiSimulation::start(PhaseTimes& phases) {
   if (m_grid) {
     m_started = false;
     m_grid_cache.valid = false;
+    std::vector<mesh::SolidSurface> surfaces = grid_surfaces(current_positions(m_world));
     try {
-      m_grid->initialize(grid_surfaces(current_positions(m_world)));
-    } catch (const InputError& e) {  // classify_grid names bodies by index
+      // The remesher's checks (intersections, nesting) at t = 0: the grid would take them.
+      mesh::check_solid_surfaces(m_policy->domain(), surfaces, "fluid grid");
+      m_grid->initialize(std::move(surfaces));
+    } catch (const Error& e) {  // classify_grid and the checks name bodies by index
       throw InputError(fmt::format("{} ({})", e.what(), m_policy->legend()));
     }
     m_started = true;

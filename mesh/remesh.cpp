@@ -63,13 +63,14 @@ void check_domain(const FluidDomain& d) {
 
 /// Validate the solids (closed, inside the box, no intersections, no nesting) and gather
 /// their triangles.
-SolidSet gather_solids(const FluidDomain& domain, const std::vector<SolidSurface>& solids) {
+SolidSet gather_solids(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+                       const std::string& stage = "remesh") {
   SolidSet set;
   set.solids = &solids;
   set.tri_offset.push_back(0);
   for (std::size_t b = 0; b < solids.size(); ++b) {
     const SolidSurface& s = solids[b];
-    const std::string who = fmt::format("remesh: body {}", s.body);
+    const std::string who = fmt::format("{}: body {}", stage, s.body);
     validate_closed_surface(SurfaceMesh{s.vertices, s.triangles}, who);
     Vec3 lo = Vec3::Constant(kInf), hi = Vec3::Constant(-kInf);
     for (Index t = 0; t < s.triangles.rows(); ++t) {
@@ -115,14 +116,14 @@ SolidSet gather_solids(const FluidDomain& domain, const std::vector<SolidSurface
     const int bg = set.tri_body[g], bh = set.tri_body[h];
     if (bg == bh) {
       throw MeshError(fmt::format(
-          "remesh: body {}: its surface intersects itself (triangles {} and {}): fix the solid "
+          "{}: body {}: its surface intersects itself (triangles {} and {}): fix the solid "
           "(a fold or an inverted element) or take a smaller time step",
-          solids[bg].body, set.local(g), set.local(h)));
+          stage, solids[bg].body, set.local(g), set.local(h)));
     }
     throw MeshError(fmt::format(
-        "remesh: bodies {} and {} overlap: triangle {} of body {} intersects triangle {} of body "
+        "{}: bodies {} and {} overlap: triangle {} of body {} intersects triangle {} of body "
         "{}; separate them (or add collisions between the bodies)",
-        solids[bg].body, solids[bh].body, set.local(g), solids[bg].body, set.local(h),
+        stage, solids[bg].body, solids[bh].body, set.local(g), solids[bg].body, set.local(h),
         solids[bh].body));
   }
   // Nesting without intersection: one body wholly inside another.
@@ -134,9 +135,9 @@ SolidSet gather_solids(const FluidDomain& domain, const std::vector<SolidSurface
         continue;
       if (winding_number(p, solids[c].vertices, solids[c].triangles) > 0.5) {
         throw MeshError(fmt::format(
-            "remesh: body {} lies inside body {} (vertex {} is enclosed by it): bodies may not "
+            "{}: body {} lies inside body {} (vertex {} is enclosed by it): bodies may not "
             "overlap; move it out (a body inside another's fluid-filled cavity is fine)",
-            solids[b].body, solids[c].body, solids[b].triangles(0, 0)));
+            stage, solids[b].body, solids[c].body, solids[b].triangles(0, 0)));
       }
     }
   }
@@ -156,6 +157,11 @@ void RemeshContext::build_delaunay() {
 }
 
 }  // namespace detail
+
+void check_solid_surfaces(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+                          const std::string& stage) {
+  detail::gather_solids(domain, solids, stage);
+}
 
 // ---------------------------------------------------------------------------------------
 // remesh

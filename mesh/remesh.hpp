@@ -111,6 +111,13 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
                const Sizing& sizing, RemeshReport* report = nullptr,
                const RemeshOptions& options = {});
 
+/// The checks remesh() makes on the solids before it meshes, for a fluid that is not meshed
+/// (the grid): each surface closed and strictly inside the box, no surface intersecting
+/// itself or another, no body inside another. Messages start with `stage`.
+/// @throws MeshError naming the body (by SolidSurface::body) and the triangles.
+void check_solid_surfaces(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+                          const std::string& stage);
+
 /// The bare CGAL Delaunay tetrahedralisation of a point set (finite cells, positively
 /// oriented): the floor `tetfsi bench remesh` compares the remesher against.
 MatX4i delaunay_tets(const MatX3& points);

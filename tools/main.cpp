@@ -158,14 +158,14 @@ Command add_validate(CLI::App& app) {
     std::vector<std::string> sets;
   };
   auto o = std::make_shared<Opt>();
-  CLI::App* validate =
-      app.add_subcommand("validate", "check a scene: parse it, build its bodies, print a summary");
+  CLI::App* validate = app.add_subcommand("validate",
+                                          "check a scene as run would before its first step "
+                                          "(bodies, t = 0 fluid mesh); print a summary");
   validate->add_option("SCENE", o->scene_file, "scene file (JSON)")->required()->type_name("FILE");
   add_set_option(validate, o->sets, "override a scene value (repeatable)");
   return {validate, [o] {
             const tools::Scene scene = tools::load_scene(o->scene_file, o->sets);
-            const solid::SolidWorld world = tools::build_world(scene);
-            tools::print_world_summary(scene, world, std::cout);
+            tools::validate_scene(scene, std::cout);
             std::cout << "ok\n";
             return 0;
           }};

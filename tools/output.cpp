@@ -761,40 +761,48 @@ fs::path prepare_out_dir(const fs::path& out) {
 
 }  // namespace
 
-OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
-                           const solid::SolidWorld& world)
-    : m_out(prepare_out_dir(out_dir)),
-      m_compression(parse_compression(scene.output.compression)),
-      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way()) {
-  write_text_file_atomic(
-      m_out / "scene.resolved.json",
-      (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
+std::vector<std::string> output_file_names(const Scene& scene, const solid::SolidWorld& world) {
+  std::vector<std::string> names;
   for (const solid::SolidBody& b : world.bodies) {
     std::string name = file_safe_name(b.name());
-    for (const std::string& other : m_file_names) {
+    for (const std::string& other : names) {
       if (other == name)
         throw InputError(
             fmt::format("bodies '{}' and another body share the output file name '{}': rename one",
                         b.name(), name));
     }
+    if (scene.fluid) {
+      for (const char* stream : {"fluid", "interface"}) {
+        if (name == stream)
+          throw InputError(fmt::format(
+              "body '{}' would be written to '{}.pvd', which holds the {} mesh in a scene with "
+              "a fluid: rename the body",
+              b.name(), stream, stream));
+      }
+    }
+    names.push_back(std::move(name));
+  }
+  return names;
+}
+
+OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
+                           const solid::SolidWorld& world)
+    : m_file_names(output_file_names(scene, world)),
+      m_out(prepare_out_dir(out_dir)),
+      m_compression(parse_compression(scene.output.compression)),
+      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way()) {
+  write_text_file_atomic(
+      m_out / "scene.resolved.json",
+      (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
+  for (const std::string& name : m_file_names) {
     std::error_code ec;
     fs::create_directories(m_out / name, ec);
     if (ec)
       throw InputError(fmt::format("cannot create output folder '{}': {}", (m_out / name).string(),
                                    ec.message()));
     m_pvd.emplace_back(m_out / (name + ".pvd"));
-    m_file_names.push_back(std::move(name));
   }
   if (scene.fluid) {
-    for (size_t i = 0; i < m_file_names.size(); ++i) {
-      for (const char* stream : {"fluid", "interface"}) {
-        if (m_file_names[i] == stream)
-          throw InputError(fmt::format(
-              "body '{}' would be written to '{}.pvd', which holds the {} mesh in a scene with "
-              "a fluid: rename the body",
-              world.bodies[i].name(), stream, stream));
-      }
-    }
     for (const char* stream : {"fluid", "interface"}) {
       std::error_code ec;
       fs::create_directories(m_out / stream, ec);

@@ -387,9 +387,9 @@ class OutputWriter {
   bool has_fluid() const { return m_fluid_pvd.has_value(); }
 
  private:
+  std::vector<std::string> m_file_names;  ///< per body: file-system safe name (checked first)
   std::filesystem::path m_out;
   Compression m_compression;
-  std::vector<std::string> m_file_names;     ///< per body: file-system safe name
   std::vector<PvdWriter> m_pvd;              ///< per body
   std::optional<PvdWriter> m_fluid_pvd;      ///< fluid scenes: OUT/fluid.pvd
   std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
@@ -402,6 +402,12 @@ class OutputWriter {
   /// Add the frame to every body's `.pvd`.
   void add_bodies_to_pvds(const std::vector<std::string>& rel, double time);
 };
+
+/// The output file name of each body (file_safe_name), in body order, checked as
+/// OutputWriter does before it creates anything, so that `tetfsi validate` can say it.
+/// @throws InputError if two body names map to the same file name, or a body's file name is
+///   "fluid" or "interface" in a scene with a fluid.
+std::vector<std::string> output_file_names(const Scene& scene, const solid::SolidWorld& world);
 
 /// A body name made safe for file names: characters other than [A-Za-z0-9_.-] become '_'
 /// (an empty name becomes "body").

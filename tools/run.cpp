@@ -609,6 +609,30 @@ void print_summary(const RunResult& r, std::ostream& out) {
                        r.unconverged_steps);
 }
 
+void validate_scene(const Scene& scene, std::ostream& out) {
+  solid::SolidWorld world = build_world(scene);
+  output_file_names(scene, world);  // the checks OutputWriter makes before writing anything
+  print_world_summary(scene, world, out);
+  coupling::FsiSimulation sim = make_simulation(scene, std::move(world));
+  if (!sim.has_fluid()) return;
+  PhaseTimes phases;
+  const double t = now_seconds();
+  try {
+    sim.start(phases);  // the t = 0 fluid mesh or grid: every check run makes at step 0
+  } catch (const Error& e) {
+    throw InputError(one_line(fmt::format("step 0 (t = 0 s) failed: {}", e.what())));
+  }
+  if (const mesh::TetMesh* m = sim.mesh()) {
+    out << fmt::format("fluid mesh at t = 0: {} tets, {} vertices, {} faces, built in {:.3g} s\n",
+                       m->num_tets(), m->num_vertices(), m->num_faces(), now_seconds() - t);
+  } else if (const fluid::GridFluid* g = sim.grid()) {
+    const VecXi& body = g->cells().cell_body;
+    const Index fluid_cells = (body.array() < 0).count();
+    out << fmt::format("fluid grid at t = 0: {} of {} cells fluid, classified in {:.3g} s\n",
+                       fluid_cells, body.size(), now_seconds() - t);
+  }
+}
+
 void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out) {
   out << fmt::format("scene '{}' ({}): ", scene.name,
                      scene.mode == Mode::Static ? "static" : "dynamic");

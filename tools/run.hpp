@@ -134,5 +134,11 @@ void print_summary(const RunResult& r, std::ostream& out);
 /// "bodies: none" without any), the obstacle count and, for a fluid scene, its box, mesh and
 /// physics, for `tetfsi validate`.
 void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out);
+/// `tetfsi validate`: every check `run` makes before its first time step, without writing
+/// anything: builds the bodies, checks their output file names, prints the summary
+/// (print_world_summary), and in a fluid scene builds the t = 0 fluid mesh (or classifies
+/// the grid) and prints its size: so "ok" means the run starts.
+/// @throws InputError as `run` reports it ("step 0 (t = 0 s) failed: ..." for the fluid).
+void validate_scene(const Scene& scene, std::ostream& out);
 
 }  // namespace tetfsi::tools

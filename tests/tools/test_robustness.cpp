@@ -3,10 +3,12 @@
 // written so far intact.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -92,6 +94,54 @@ TEST_CASE("a self-intersecting body surface is a one-line error before meshing")
     CHECK(contains(lines[0], "bodies[0] 'cube'"));
     CHECK(contains(lines[0], "self_intersecting_cube.obj: the surface intersects itself (7 pairs"));
     CHECK(contains(lines[0], "repair it"));
+  }
+}
+
+TEST_CASE("validate makes run's step-0 checks: the same one-line error, nothing written (item 7)") {
+  TempDir dir("validate0");
+  const std::string scene = (k_scenes / "two_boxes_in_water.json").string();
+  for (const char* disc : {"tet", "grid"}) {
+    const std::string base =
+        fmt::format("'{}' --log-level warn --set fluid.discretization={}", scene, disc);
+    const Result good = run_tetfsi(dir.path, "validate " + base);
+    INFO(disc, ": ", good.err);
+    CHECK(good.code == 0);
+    CHECK(good.err.empty());
+    CHECK(contains(good.out,
+                   std::string(disc) == "tet" ? "fluid mesh at t = 0: " : "fluid grid at t = 0: "));
+    const std::tuple<const char*, const char*> cases[] = {
+        {"bodies.1.name=fluid", "body 'fluid' would be written to 'fluid.pvd'"},
+        {"bodies.0.name=interface", "body 'interface' would be written to 'interface.pvd'"},
+        {"bodies.1.mesh.box.hi=[1.0,0.6,0.55]",  // touching the wall
+         "body 'right' (bodies[1]) is not strictly inside the fluid box"},
+        {"bodies.1.mesh.box.hi=[1.3,0.6,0.55]",  // through it
+         "body 'right' (bodies[1]) is not strictly inside the fluid box"},
+        {"bodies.1.mesh.box.lo=[0.3,0.45,0.4]", "bodies 0 and 1 overlap: triangle"},
+        {"bodies.1.mesh.box.lo=[0.25,0.45,0.4] --set bodies.1.mesh.box.hi=[0.35,0.55,0.5]",
+         "body 1 lies inside body 0"}};
+    int i = 0;
+    for (const auto& [set, want] : cases) {
+      const std::string out = fmt::format("o_{}_{}", disc, i++);
+      const Result v = run_tetfsi(dir.path, fmt::format("validate {} --set {}", base, set));
+      const Result r =
+          run_tetfsi(dir.path, fmt::format("run {} --set {} --out {}", base, set, out));
+      INFO(set, "\nvalidate: ", v.err, "\nrun: ", r.err);
+      CHECK(v.code == 1);
+      CHECK(r.code == 1);
+      const auto vl = v.err_lines(), rl = r.err_lines();
+      REQUIRE(vl.size() == 1);
+      REQUIRE(!rl.empty());
+      CHECK(contains(vl[0], want));
+      CHECK(vl[0] == rl.back());  // "ok" from validate means run starts
+      CHECK(!contains(v.out, "\nok"));
+      // run refuses a body's name before it creates anything; a step-0 failure keeps frame 0.
+      CHECK(fs::exists(dir.path / out) == (i > 2));
+    }
+  }
+  // validate writes nothing: the folder holds the CLI captures and run's folders only.
+  for (const auto& e : fs::directory_iterator(dir.path)) {
+    const std::string name = e.path().filename().string();
+    CHECK((name.rfind("cli_std", 0) == 0 || name.rfind("o_", 0) == 0));
   }
 }
 
