@@ -69,6 +69,12 @@ struct SolveReport {
   double residual = 0.0;   ///< true relative residual ||b − A x|| / ||b|| (0 if b = 0)
   double setup_s = 0.0;    ///< seconds of the last setup() (factorization / preconditioner)
   double solve_s = 0.0;    ///< seconds of this solve
+  /// The round-off floor of the true relative residual, measured when an iterative solve
+  /// stops above rel_tol (0 otherwise): what evaluating the operator adds to any residual.
+  double floor = 0.0;
+  /// The iteration stopped because the true residual no longer decreased (not because it
+  /// ran out of iterations).
+  bool stagnated = false;
 };
 
 /// A solver for A x = b with A fixed between `setup` and any number of `solve` calls.

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <memory>
 
 #include <Eigen/Cholesky>
@@ -24,6 +25,9 @@ void merge(const SolveReport& s, CoupledReport& rep) {
   rep.residual = std::max(rep.residual, s.residual);
   rep.converged = rep.converged && s.converged;
   rep.solve_s += s.solve_s;
+  rep.floor = std::max(rep.floor, s.floor);
+  if (s.converged && s.floor > 0) ++rep.solves_at_floor;
+  if (!s.converged && s.stagnated) rep.stagnated = true;
 }
 
 /// K = [A −J; −Jᵀ·s −C·s] with s the row scale of the second block (1/V_g: the paper's
@@ -188,7 +192,36 @@ struct SchurOperator {
   double dot_z(const VecX& v, const VecX& a, const VecX& y) const {
     return v.dot(y) + (nz ? (Z.transpose() * v).dot(a) : 0.0);
   }
+  /// The round-off noise of evaluating S at x = Z a + y, given Sx = S2(a, y): split x into
+  /// x₁ = 0.3 x and x₂ = x − x₁, equal in exact arithmetic to x₁ + x₂ = x, so that
+  /// ‖S x₁ + S x₂ − S x‖ measures what the products (C, J, Jᵀ, the bodies' A⁻¹ solves, S Z a)
+  /// add to any computed residual: the floor no iteration can go below.
+  double noise(const VecX& a, const VecX& y, const VecX& Sx) const {
+    const VecX a1 = 0.3 * a, y1 = 0.3 * y;
+    VecX s1, s2;
+    S2(a1, y1, s1);
+    S2(a - a1, y - y1, s2);
+    return (s1 + s2 - Sx).norm();
+  }
 };
+
+/// The rule the Schur iterations stop by: converged if the true relative residual reached
+/// rel_tol, or, when the iteration stagnated above it, if it lies within k_floor_factor of
+/// the round-off floor measured for this system (SchurOperator::noise): a tolerance below
+/// what round-off allows is then met as well as it can be, not "not converged".
+constexpr double k_floor_factor = 10.0;
+
+void judge_convergence(const SchurOperator& op, const CoupledOptions& opt, const VecX& a,
+                       const VecX& y, const VecX& Sx, double bn, SolveReport& sr) {
+  sr.converged = sr.residual <= opt.rel_tol;
+  if (sr.converged) return;
+  sr.floor = op.noise(a, y, Sx) / bn;
+  if (sr.stagnated && sr.residual <= k_floor_factor * sr.floor) sr.converged = true;
+  logger().debug(
+      "coupled solve: stopped at residual {:.3g} after {} iterations ({}), round-off "
+      "floor {:.3g}",
+      sr.residual, sr.iterations, sr.stagnated ? "stagnated" : "iteration limit", sr.floor);
+}
 
 /// Preconditioned CG on S x = rhs, x = Z xa + xy, stopped on the true residual (up to 4
 /// restarts). Sets `breakdown` if dᵀ S d ≤ 0 (S not positive definite along d).
@@ -208,6 +241,7 @@ SolveReport schur_pcg(const SchurOperator& op, const CoupledOptions& opt, const 
   VecX r, q, za, zy, da, dy;
   op.S2(xa, xy, q);
   r = rhs - q;
+  double last_true = std::numeric_limits<double>::infinity();
   for (int restart = 0; restart < 4; ++restart) {
     op.precondition(r, za, zy);
     da = za;
@@ -236,9 +270,13 @@ SolveReport schur_pcg(const SchurOperator& op, const CoupledOptions& opt, const 
     op.S2(xa, xy, q);
     r = rhs - q;  // the true residual
     sr.residual = r.norm() / bn;
-    if (sr.residual <= opt.rel_tol || sr.iterations >= opt.max_iterations) break;
+    if (sr.residual <= opt.rel_tol || sr.iterations >= opt.max_iterations || breakdown) break;
+    // A restart that does not halve the true residual: round-off, not the iteration, bounds it.
+    sr.stagnated = sr.residual > 0.5 * last_true;
+    if (sr.stagnated) break;
+    last_true = sr.residual;
   }
-  sr.converged = sr.residual <= opt.rel_tol;
+  judge_convergence(op, opt, xa, xy, q, bn, sr);
   sr.solve_s = now_seconds() - t1;
   return sr;
 }
@@ -415,6 +453,9 @@ CoupledSolves solve_schur_amg(const CoupledSystem& sys, const CoupledOptions& op
   rep.backend = "schur_amg+symmetric_umfpack";
   rep.iterations = 0;
   rep.residual = 0.0;
+  rep.floor = 0.0;
+  rep.solves_at_floor = 0;
+  rep.stagnated = false;
   rep.converged = true;
   CoupledSolves lu = solve_assembled(sys, CoupledSolverKind::SymmetricUmfpack, opt, rep);
   lu.Pa.assign(nrhs, VecX());

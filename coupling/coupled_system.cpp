@@ -74,9 +74,11 @@ std::pair<CoupledSolves, VecX> solve_system(const CoupledSystem& sys, const Coup
     TETFSI_REQUIRE(SolverError, x.U[k].allFinite() && x.P[k].allFinite(),
                    "{} ({}) returned non-finite values after {} iterations; reduce time.dt", what,
                    rep.backend, rep.iterations);
-  if (!rep.converged)
-    logger().warn("{} ({}) did not converge: {} iterations, residual {:.3g}", what, rep.backend,
-                  rep.iterations, rep.residual);
+  if (!rep.converged)  // the run's recorder warns, with the time and the remedy
+    logger().debug("{} ({}) did not converge: {} iterations, residual {:.3g}{}", what, rep.backend,
+                   rep.iterations, rep.residual,
+                   rep.stagnated ? fmt::format(" (stagnated; round-off floor {:.3g})", rep.floor)
+                                 : std::string());
   VecX c = sys.enclosed.empty() ? VecX() : solve_enclosed_volumes(sys, x, *targets, rep);
   return {std::move(x), std::move(c)};
 }

@@ -154,6 +154,13 @@ struct CoupledReport {
   bool converged = false;
   int iterations = 0;     ///< Krylov iterations (1 for LU), summed over right-hand sides
   double residual = 0.0;  ///< worst relative residual of the solves
+  /// Largest round-off floor measured (SolveReport::floor): 0 unless a solve stopped above
+  /// rel_tol.
+  double floor = 0.0;
+  /// Solves that stopped above rel_tol but within a small factor of their round-off floor,
+  /// counted as converged: rel_tol is below what round-off allows for this system.
+  int solves_at_floor = 0;
+  bool stagnated = false;  ///< an unconverged solve stopped by stagnation, not its limit
   Index solid_unknowns = 0, pressure_unknowns = 0;
   /// pᵀ Jᵀ uⁿ⁺¹ = pᵀ V D1 H uⁿ⁺¹: the power of the dynamic pressure on the free bodies (W).
   double interface_power = 0.0;

@@ -510,6 +510,8 @@ std::string summary_json(const RunResult& r) {
                      {"coupled_iterations", c.iterations},
                      {"max_residual", c.max_residual},
                      {"unconverged_solves", c.unconverged_solves},
+                     {"steps_at_round_off_floor", c.steps_at_floor},
+                     {"max_round_off_floor", c.max_floor},
                      {"max_interface_power", c.max_interface_power},
                      {"max_interface_imbalance", c.max_interface_imbalance},
                      {"max_enclosed_regions", c.max_enclosed_regions},
@@ -591,6 +593,10 @@ void print_summary(const RunResult& r, std::ostream& out) {
       out << fmt::format("; {} step(s) meshed around t^n (x* not meshable)", c.unpredicted_meshes);
     if (c.unconverged_solves > 0)
       out << fmt::format("; {} unconverged coupled solves", c.unconverged_solves);
+    if (c.steps_at_floor > 0)
+      out << fmt::format(
+          "; {} step(s) solved to their round-off floor (up to {:.3g}), above coupling.rel_tol",
+          c.steps_at_floor, c.max_floor);
     out << "\n";
   }
   if (r.equilibrium) {

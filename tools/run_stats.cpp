@@ -122,12 +122,22 @@ void RunRecorder::record_coupled_step(const coupling::CoupledStepReport& rep, do
   s.coupled_steps += 1;
   s.iterations += rep.solve.iterations;
   s.max_residual = std::max(s.max_residual, rep.solve.residual);
+  if (rep.solve.solves_at_floor > 0) {
+    ++s.steps_at_floor;
+    s.max_floor = std::max(s.max_floor, rep.solve.floor);
+  }
   if (!rep.solve.converged) {
     ++s.unconverged_solves;
-    logger().warn(
-        "coupled solve ({}) did not converge at t = {:.6g} s: residual {:.3g} after {} "
-        "iterations; raise coupling.max_iterations or try coupling.solver = umfpack",
-        rep.solve.backend, time, rep.solve.residual, rep.solve.iterations);
+    if (rep.solve.stagnated)
+      logger().warn(
+          "coupled solve ({}) did not converge at t = {:.6g} s: its residual stagnated at {:.3g} "
+          "after {} iterations, above its round-off floor {:.3g}; try coupling.solver = umfpack",
+          rep.solve.backend, time, rep.solve.residual, rep.solve.iterations, rep.solve.floor);
+    else
+      logger().warn(
+          "coupled solve ({}) did not converge at t = {:.6g} s: residual {:.3g} after {} "
+          "iterations; raise coupling.max_iterations or try coupling.solver = umfpack",
+          rep.solve.backend, time, rep.solve.residual, rep.solve.iterations);
   }
   s.max_interface_power = std::max(s.max_interface_power, std::abs(rep.solve.interface_power));
   s.max_interface_imbalance =

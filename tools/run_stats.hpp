@@ -38,9 +38,13 @@ struct CouplingSummary {
   std::string scheme;  ///< coupling::to_string of the scheme
   std::string solver;  ///< coupling::to_string(CoupledSolverKind)
   int coupled_steps = 0;
-  long long iterations = 0;          ///< of the coupled solves, summed
-  double max_residual = 0.0;         ///< worst relative residual of any coupled solve
-  int unconverged_solves = 0;        ///< coupled solves that reported converged = false
+  long long iterations = 0;    ///< of the coupled solves, summed
+  double max_residual = 0.0;   ///< worst relative residual of any coupled solve
+  int unconverged_solves = 0;  ///< coupled solves that reported converged = false
+  /// Steps whose coupled solve stopped at its round-off floor above coupling.rel_tol
+  /// (CoupledReport::solves_at_floor), and the largest such floor.
+  int steps_at_floor = 0;
+  double max_floor = 0.0;
   double max_interface_power = 0.0;  ///< max over steps of |pᵀ Jᵀ u| (W)
   /// max over steps of |pᵀ Jᵀ u − pᵀ V D1 H u| (W): 0 but for round-off unless the grid's
   /// paper J

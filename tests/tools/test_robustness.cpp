@@ -145,6 +145,38 @@ TEST_CASE("validate makes run's step-0 checks: the same one-line error, nothing 
   }
 }
 
+TEST_CASE("a tolerance below round-off is met at the floor; a real failure still warns (item 8)") {
+  TempDir dir("floor");
+  const std::string scene = (k_scenes / "water_shell_in_water.json").string();
+  // coupling.rel_tol 1e-13 lies below this system's round-off floor (~1e-12).
+  const Result r = run_tetfsi(dir.path, fmt::format("run '{}' --out o --progress off", scene));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK(!contains(r.err, "did not converge"));
+  CHECK(!contains(r.err, "warning"));
+  CHECK(contains(r.out, "solved to their round-off floor"));
+  const auto c = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"))["coupling"];
+  CHECK(c["unconverged_solves"] == 0);
+  CHECK(c["steps_at_round_off_floor"].get<int>() >= 1);
+  const double res = c["max_residual"].get<double>(), floor = c["max_round_off_floor"];
+  CHECK(res > 1e-13);        // above the tolerance: the case is real
+  CHECK(res < 1e-10);        // and a fine solve all the same
+  CHECK(floor > 1e-14);      // the measured floor is
+  CHECK(res <= 10 * floor);  // what bounds the residual
+
+  // An iteration limit is not round-off: it warns, naming the key to raise.
+  const Result lim = run_tetfsi(
+      dir.path,
+      fmt::format("run '{}' --out p --progress off --set coupling.max_iterations=3", scene));
+  INFO(lim.err);
+  CHECK(lim.code == 0);
+  CHECK(contains(lim.err, "did not converge at t = 0.01 s"));
+  CHECK(contains(lim.err, "raise coupling.max_iterations"));
+  const auto cl = nlohmann::json::parse(read_text(dir.path / "p" / "summary.json"))["coupling"];
+  CHECK(cl["unconverged_solves"] == 3);
+  CHECK(cl["steps_at_round_off_floor"] == 0);
+}
+
 TEST_CASE("--set with an array index beyond any integer names the index, not a crash") {
   TempDir dir("setidx");
   const std::string scene = (k_scenes / "diverging_cantilever.json").string();
