@@ -3,12 +3,20 @@
 #   make test       build and run the unit/validation tests (skips the "long" label)
 #   make test-long  the long cases only
 #   make bench      the solver benchmark
+#   make sanitize   an ASan + UBSan build in build-sanitize/ and its test run (skips "long")
 BUILD ?= build
 JOBS ?= $(shell nproc)
 SCENE ?= data/scenes/smoke_sheets.json
 OUT ?= out/smoke_sheets
 
-.PHONY: setup configure build run test test-long test-all bench format clean
+SAN_BUILD ?= build-sanitize
+# Leaks that PETSc / Open MPI / hwloc make at start-up are suppressed (scripts/lsan.supp);
+# huge allocations must throw std::bad_alloc (the hostile-input tests), not abort.
+SAN_ENV = ASAN_OPTIONS=allocator_may_return_null=1:detect_leaks=1:abort_on_error=0 \
+  LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0 \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+
+.PHONY: setup configure build run test test-long test-all bench sanitize format clean
 
 setup:
 	@bash scripts/setup.sh
@@ -35,6 +43,13 @@ test-all: build
 
 bench: build
 	$(BUILD)/tools/tetfsi bench solvers --n 250000
+
+sanitize: setup
+	@if [ ! -f $(SAN_BUILD)/CMakeCache.txt ]; then \
+	  gen=""; command -v ninja >/dev/null && gen="-G Ninja"; \
+	  cmake -S . -B $(SAN_BUILD) $$gen -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTETFSI_SANITIZE=ON; fi
+	@cmake --build $(SAN_BUILD) -j $(JOBS)
+	cd $(SAN_BUILD) && $(SAN_ENV) ctest --output-on-failure --no-tests=error -j $(JOBS) -LE long
 
 format:
 	@clang-format -i $$(git ls-files '*.cpp' '*.hpp')

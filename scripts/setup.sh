@@ -7,7 +7,7 @@ packages=(
   build-essential cmake ninja-build ccache pkg-config clang-format
   libeigen3-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   libsuitesparse-dev libopenblas0-pthread libopenblas-dev
-  libvtk9-dev python3-vtk9
+  libvtk9-dev python3-vtk9 zlib1g-dev liblz4-dev
   doctest-dev libtbb-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   libpetsc-real-dev libhypre-dev
 )

@@ -20,8 +20,10 @@
 #include <csignal>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <functional>
 #include <iostream>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <vector>
@@ -32,6 +34,7 @@
 #include "core/log.hpp"
 #include "tools/bench_bfgs.hpp"
 #include "tools/bench_coupled.hpp"
+#include "tools/bench_integrators.hpp"
 #include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/bench_step.hpp"
@@ -61,9 +64,8 @@ extern "C" void on_stop_signal(int sig) {
 }
 
 /// Print `error: <message>` as exactly one line on stderr.
-int report_error(std::string message) {
-  for (char& c : message)
-    if (c == '\n' || c == '\r') c = ' ';
+int report_error(const std::string& what) {
+  const std::string message = tetfsi::tools::one_line(what);
   std::fflush(stdout);
   std::fprintf(stderr, "error: %s\n", message.c_str());
   return 1;
@@ -327,6 +329,30 @@ Command add_bench_bfgs(CLI::App& bench) {
           }};
 }
 
+Command add_bench_integrators(CLI::App& bench) {
+  struct Opt {
+    std::vector<std::string> scenes{std::begin(tetfsi::tools::k_bench_integrator_scenes),
+                                    std::end(tetfsi::tools::k_bench_integrator_scenes)};
+    tetfsi::tools::BenchIntegratorsOptions bench;
+    std::string json;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "integrators",
+      "the solid integrators on undamped swings at dt and 2 dt: amplitude after the last "
+      "period, energy drift, cost per step");
+  cmd->add_option("SCENES", o->scenes, "dynamic solid-only scene files (JSON)")
+      ->type_name("FILE ...")
+      ->capture_default_str();
+  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
+  add_set_option(cmd, o->bench.overrides, "override a scene value in every scene (repeatable)");
+  return {cmd, [o] {
+            o->bench.json_path = o->json;
+            std::vector<std::filesystem::path> files(o->scenes.begin(), o->scenes.end());
+            return tetfsi::tools::bench_integrators(files, o->bench, std::cout);
+          }};
+}
+
 Command add_quality(CLI::App& app) {
   struct Opt {
     std::string file, json, png;
@@ -386,8 +412,8 @@ int main(int argc, char** argv) {
   std::vector<Command> commands = {add_run(app), add_validate(app)};
   CLI::App* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
-  for (auto add :
-       {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_coupled, add_bench_bfgs})
+  for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_coupled,
+                   add_bench_bfgs, add_bench_integrators})
     commands.push_back(add(*bench));
   commands.push_back(add_quality(app));
   commands.push_back(add_scene(app));

@@ -263,7 +263,23 @@ std::string file_safe_name(const std::string& name) {
 std::string one_line(std::string s) {
   for (char& c : s)
     if (c == '\n' || c == '\r') c = ' ';
-  return s;
+  // A run of more than 240 characters without a space (a pasted value, a path of 5000
+  // 'a's) keeps its first 160 and last 40, so that the line stays readable.
+  std::string out;
+  std::size_t start = 0;
+  while (start < s.size()) {
+    std::size_t end = s.find(' ', start);
+    if (end == std::string::npos) end = s.size();
+    const std::size_t n = end - start;
+    if (n > 240)
+      out += fmt::format("{}...({} characters)...{}", s.substr(start, 160), n - 200,
+                         s.substr(end - 40, 40));
+    else
+      out.append(s, start, n);
+    if (end < s.size()) out += ' ';
+    start = end + 1;
+  }
+  return out;
 }
 
 void write_text_file_atomic(const fs::path& path, const std::string& text) {

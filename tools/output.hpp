@@ -186,7 +186,9 @@ void write_grid_vti(const std::filesystem::path& path, const GridFrameFields& g,
 void write_grid_interface_vtp(const std::filesystem::path& path, const GridFrameFields& g,
                               Compression compression);
 
-/// `s` with its line breaks turned into spaces: the CLI prints messages as single lines.
+/// `s` with its line breaks turned into spaces, and any run of more than 240 characters
+/// without a space shortened to its first 160 and last 40: the CLI prints messages as
+/// single readable lines.
 std::string one_line(std::string s);
 
 /// Write `text` to `path` atomically: `<path>.tmp`, flush, close, rename over `path`.
