@@ -36,7 +36,8 @@ SurfaceMesh read_surface_mesh(const std::filesystem::path& path);
 /// hold, component numbers outside 1..4096, appended (raw) block headers past the end of the
 /// file, and every appended array of a known type decoded (raw, zlib, LZ4) to exactly the
 /// bytes its Piece announces, the cells' offsets non-decreasing and their connectivity within
-/// the points. VTK's reader loops, allocates without bound or reads out of bounds on those. @throws InputError naming the file
+/// the points. VTK's reader loops, allocates without bound or reads out of bounds on those. @throws
+/// InputError naming the file
 void check_vtk_xml_header(const std::filesystem::path& path);
 
 /// Write a tet mesh as Gmsh ASCII v2.2 (for tests and for users converting meshes).

@@ -405,7 +405,10 @@ const Section<SolidSpec>& solid_keys() {
            {.key = "integrator",
             .doc = "solid-only or one-way scenes: `linearized` [Chentanez06, Eqs. (4)-(5)], or "
                    "the nonlinear trapezoidal rule iterated by `newton`, `modified_newton`, "
-                   "`bfgs`; in a two-way scene it must equal coupling.scheme"},
+                   "`bfgs`; in a two-way scene it must equal coupling.scheme. Default: `newton` "
+                   "in solid-only and one-way dynamic scenes (README \"Solid integrators\"), "
+                   "`linearized` in two-way scenes or when solid.trapezoid is given",
+            .default_text = "by scene"},
            solid::k_integrator_names, TETFSI_AT(integrator)),
        bind<SolidSpec>(one_of({.key = "trapezoid",
                                .doc = "the linearized integrator's variant (an error with "

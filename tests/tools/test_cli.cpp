@@ -286,8 +286,9 @@ TEST_CASE("tetfsi run: solid.integrator bfgs fills the equilibrium columns and s
   CHECK(e["evaluations_per_step"].get<double>() == doctest::Approx(evals / 4));
   CHECK(r.out.find("equilibrium: bfgs (solid.integrator)") != std::string::npos);
 
-  // The linearized integrator (the default): the columns are there and 0, no block.
-  const Result lin = run_cli(dir.path, "run tiny.json --out l --progress off");
+  // The linearized integrator: the columns are there and 0, no block.
+  const Result lin =
+      run_cli(dir.path, "run tiny.json --out l --progress off --set solid.integrator=linearized");
   REQUIRE(lin.code == 0);
   const auto lcols = tetfsi::test::read_csv_columns(dir.path / "l" / "stats.csv");
   REQUIRE(lcols.count("equilibrium_iterations") == 1);

@@ -515,6 +515,6 @@ TEST_CASE("fuzz: a short seeded sample of mutated scenes and mesh files, one-lin
   fuzz("fuzz_short", 20261203, 40, 40, 4);
 }
 
-TEST_CASE("fuzz: 2,500 mutated scenes and 1,000 mutated mesh files" * doctest::test_suite("long")) {
+TEST_CASE("fuzz: 2500 mutated scenes and 1000 mutated mesh files" * doctest::test_suite("long")) {
   fuzz("fuzz_long", 1, 2500, 1000, 10);
 }

@@ -176,7 +176,7 @@ TEST_CASE("defaults are filled in, in the scene and in the resolved JSON") {
   CHECK(r["output"]["compression"] == "lz4");
   CHECK(r["solver"]["linear"] == "cholmod");
   CHECK(r["static"]["max_iterations"] == 60);
-  CHECK(r["solid"]["trapezoid"] == "paper");
+  CHECK(r["solid"]["integrator"] == "newton");  // trapezoid: linearized only
   CHECK(r["bodies"][0]["material"]["density"] == defaults.density);
   CHECK(r["bodies"][0]["material"]["poisson_ratio"] == defaults.poisson_ratio);
   CHECK(r["bodies"][0]["mesh"]["box"]["cells"] == json::array({1, 1, 1}));
@@ -1165,10 +1165,11 @@ TEST_CASE("coupling and enclosed_density errors name the JSON path and the probl
 }
 
 TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolved scene") {
-  // Defaults: the linearized integrator, core/equilibrium.hpp's options.
+  // Defaults: the Newton-iterated trapezoid in a solid-only dynamic scene (chosen by
+  // `tetfsi bench integrators`), core/equilibrium.hpp's options.
   const Scene d = parse_scene(minimal_json(), "scene.json");
   const EquilibriumOptions defaults;
-  CHECK(d.solid.integrator == solid::Integrator::Linearized);
+  CHECK(d.solid.integrator == solid::Integrator::Newton);
   CHECK(d.solid.equilibrium.rtol == 1e-3);
   CHECK(d.solid.equilibrium.etol == 1e-5);
   CHECK(d.solid.equilibrium.stol == 0.5);
@@ -1176,11 +1177,21 @@ TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolv
   CHECK(d.solid.equilibrium.max_updates == 20);
   CHECK(d.solid.equilibrium.line_search);
   CHECK_FALSE(d.solid.equilibrium.keep_matrix);
-  CHECK(d.resolved["solid"] == json::parse(R"({ "integrator": "linearized", "trapezoid": "paper",
+  CHECK(d.resolved["solid"] == json::parse(R"({ "integrator": "newton",
       "rtol": 1e-3, "etol": 1e-5, "stol": 0.5, "max_iterations": 30, "max_updates": 20,
       "line_search": true, "reform": "step" })"));
   const solid::SolidWorld dw = build_world(d);
-  CHECK(dw.integrator == solid::Integrator::Linearized);
+  CHECK(dw.integrator == solid::Integrator::Newton);
+  // A given solid.trapezoid asks for the linearized rule; so does a static scene (unused).
+  json tz = minimal_json();
+  tz["solid"] = {{"trapezoid", "midpoint"}};
+  const Scene t = parse_scene(tz, "scene.json");
+  CHECK(t.solid.integrator == solid::Integrator::Linearized);
+  CHECK(t.resolved["solid"]["integrator"] == "linearized");
+  CHECK(t.resolved["solid"]["trapezoid"] == "midpoint");
+  json st = minimal_json();
+  st["mode"] = "static";
+  CHECK(parse_scene(st, "scene.json").solid.integrator == solid::Integrator::Linearized);
   CHECK(dw.equilibrium.rtol == defaults.rtol);
   CHECK(dw.equilibrium.max_iterations == defaults.max_iterations);
   CHECK(dw.equilibrium.max_line_search == defaults.max_line_search);  // not a scene key
