@@ -12,8 +12,11 @@ OUT ?= out/smoke_sheets
 SAN_BUILD ?= build-sanitize
 # Leaks that PETSc / Open MPI / hwloc make at start-up are suppressed (scripts/lsan.supp);
 # huge allocations must throw std::bad_alloc (the hostile-input tests), not abort.
-SAN_ENV = ASAN_OPTIONS=allocator_may_return_null=1:detect_leaks=1:abort_on_error=0 \
-  LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0 \
+# Open MPI unloads its components at MPI_Finalize, which leaves their frames unnamed: keep
+# them loaded, and unwind mallocs fully so that the PetscInitialize / MPI_Init frames match.
+SAN_ENV = OMPI_MCA_mca_base_component_disable_dlclose=1 \
+  ASAN_OPTIONS=allocator_may_return_null=1:detect_leaks=1:abort_on_error=0:fast_unwind_on_malloc=0 \
+  LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0:fast_unwind_on_malloc=0 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 
 .PHONY: setup configure build run test test-long test-all bench sanitize format clean
