@@ -71,7 +71,8 @@ enum class Section { Other, Points, PointData, CellData, Cells };
 struct ArrayTag {
   std::string name, type;
   std::uint64_t components = 1;
-  std::uint64_t at = 0;  ///< byte of its appended data in the file
+  bool appended = false;  ///< format="appended": its data is decoded and checked
+  std::uint64_t at = 0;   ///< byte of its appended data in the file
   Section section = Section::Other;
   int piece = 0;
   std::uint64_t points = 0, cells = 0;  ///< of its Piece
@@ -171,23 +172,24 @@ class VtuCheck {
     a.section = section;
     a.points = points;
     a.cells = cells;
-    for (const ArrayTag& b : m_seen) {
+    for (const ArrayTag& b : m_arrays) {
       if (b.piece == piece && b.section == section && b.name == a.name && section != Section::Other)
         fail(fmt::format("piece {} has two DataArrays named '{}' in one section", piece, a.name));
     }
-    m_seen.push_back(a);
     if (const auto k = xml_attribute(tag, "NumberOfComponents")) {
       a.components = number(tag, "NumberOfComponents", *k);
       if (a.components < 1 || a.components > 4096)
         fail(fmt::format("DataArray '{}' has NumberOfComponents=\"{}\", expected 1 to 4096", a.name,
                          a.components));
     }
-    if (xml_attribute(tag, "format").value_or("") != "appended" || m_data == std::string::npos)
-      return;
-    const auto offset = xml_attribute(tag, "offset");
-    if (!offset) fail(fmt::format("appended DataArray '{}' has no offset", a.name));
-    a.at = m_data + number(tag, "offset", *offset);
-    block_header(a.name, a.at);
+    a.appended =
+        xml_attribute(tag, "format").value_or("") == "appended" && m_data != std::string::npos;
+    if (a.appended) {
+      const auto offset = xml_attribute(tag, "offset");
+      if (!offset) fail(fmt::format("appended DataArray '{}' has no offset", a.name));
+      a.at = m_data + number(tag, "offset", *offset);
+      block_header(a.name, a.at);
+    }
     m_arrays.push_back(std::move(a));
   }
 
@@ -297,7 +299,7 @@ class VtuCheck {
     const std::optional<std::uint64_t> values = expected_values(a);
     const bool decodable = m_compressor.empty() || m_compressor == "vtkZLibDataCompressor" ||
                            m_compressor == "vtkLZ4DataCompressor";
-    if (size == 0 || !values || !decodable) return;  // headers checked; VTK reads the rest
+    if (!a.appended || size == 0 || !values || !decodable) return;  // VTK reads the rest
     const std::string data = decode(a, *values * size);
     if (a.section != Section::Cells || a.name == "types") return;
     const bool is_integer = a.type.find("Int") != std::string::npos;
@@ -324,8 +326,9 @@ class VtuCheck {
   std::uint64_t m_limit = 0, m_last_offset = 0;
   std::size_t m_xml_end = 0, m_data = std::string::npos, m_word = 4;
   bool m_little = true;
-  std::vector<ArrayTag> m_arrays;  ///< appended arrays, to decode
-  std::vector<ArrayTag> m_seen;    ///< every DataArray (VTK's reader crashes on a name twice)
+  /// Every DataArray: the appended ones are decoded; a name twice in a section is refused
+  /// (VTK's reader crashes on it).
+  std::vector<ArrayTag> m_arrays;
 };
 
 }  // namespace

@@ -78,18 +78,8 @@ struct Run {
 
 /// Probe A (closest to (lo.x, c.y, c.z)) or B (closest to (hi.x, c.y, c.z)) of `rest`.
 Probe find_probe(const MatX3& rest, bool high) {
-  const Vec3 lo = rest.colwise().minCoeff().transpose();
-  const Vec3 hi = rest.colwise().maxCoeff().transpose();
-  const Vec3 target(high ? hi.x() : lo.x(), 0.5 * (lo.y() + hi.y()), 0.5 * (lo.z() + hi.z()));
   Probe p;
-  double best = std::numeric_limits<double>::infinity();
-  for (Index v = 0; v < rest.rows(); ++v) {
-    const double d = (rest.row(v).transpose() - target).squaredNorm();
-    if (d < best) {
-      best = d;
-      p.node = v;
-    }
-  }
+  p.node = end_node(rest, high);
   p.rest = rest.row(p.node).transpose();
   return p;
 }
@@ -232,9 +222,7 @@ int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& 
   TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic,
                  "{}: bench bfgs needs a dynamic scene (mode is 'static')", name);
   const solid::SolidWorld world0 = build_world(scene);
-  size_t body = world0.bodies.size();
-  for (size_t b = 0; b < world0.bodies.size() && body == world0.bodies.size(); ++b)
-    if (!world0.bodies[b].is_kinematic()) body = b;
+  const size_t body = first_deformable_body(world0);
   TETFSI_REQUIRE(InputError, body < world0.bodies.size(),
                  "{}: bench bfgs needs a deformable (non-kinematic) body to probe", name);
   const bool coupled = scene.two_way();

@@ -147,18 +147,11 @@ json bench_scene(const std::filesystem::path& file, const BenchIntegratorsOption
   TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic && !scene.fluid,
                  "{}: bench integrators needs a dynamic scene without a fluid", name);
   const solid::SolidWorld world0 = build_world(scene);
-  size_t body = world0.bodies.size();
-  for (size_t b = 0; b < world0.bodies.size() && body == world0.bodies.size(); ++b)
-    if (!world0.bodies[b].is_kinematic()) body = b;
+  const size_t body = first_deformable_body(world0);
   TETFSI_REQUIRE(InputError, body < world0.bodies.size(),
                  "{}: bench integrators needs a deformable body", name);
   const MatX3& rest = world0.bodies[body].rest_positions();
-  const Vec3 lo = rest.colwise().minCoeff().transpose(), hi = rest.colwise().maxCoeff().transpose();
-  const Vec3 target(hi.x(), 0.5 * (lo.y() + hi.y()), 0.5 * (lo.z() + hi.z()));
-  Index tip = 0;
-  for (Index v = 1; v < rest.rows(); ++v)
-    if ((rest.row(v).transpose() - target).norm() < (rest.row(tip).transpose() - target).norm())
-      tip = v;
+  const Index tip = end_node(rest, true);
   const double dt = scene.time.dt;
   const double end = scene.time.end_time.value_or(scene.time.num_steps() * dt);
 

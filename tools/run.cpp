@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <ostream>
 
 #include <nlohmann/json.hpp>
@@ -613,6 +614,28 @@ void print_summary(const RunResult& r, std::ostream& out) {
   if (r.unconverged_steps > 0)
     out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",
                        r.unconverged_steps);
+}
+
+size_t first_deformable_body(const solid::SolidWorld& world) {
+  for (size_t b = 0; b < world.bodies.size(); ++b)
+    if (!world.bodies[b].is_kinematic()) return b;
+  return world.bodies.size();
+}
+
+Index end_node(const MatX3& rest, bool high) {
+  const Vec3 lo = rest.colwise().minCoeff().transpose();
+  const Vec3 hi = rest.colwise().maxCoeff().transpose();
+  const Vec3 target(high ? hi.x() : lo.x(), 0.5 * (lo.y() + hi.y()), 0.5 * (lo.z() + hi.z()));
+  Index node = 0;
+  double best = std::numeric_limits<double>::infinity();
+  for (Index v = 0; v < rest.rows(); ++v) {
+    const double d = (rest.row(v).transpose() - target).squaredNorm();
+    if (d < best) {
+      best = d;
+      node = v;
+    }
+  }
+  return node;
 }
 
 void validate_scene(const Scene& scene, std::ostream& out) {

@@ -134,6 +134,15 @@ void print_summary(const RunResult& r, std::ostream& out);
 /// "bodies: none" without any), the obstacle count and, for a fluid scene, its box, mesh and
 /// physics, for `tetfsi validate`.
 void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out);
+/// The first deformable (non-kinematic) body of `world`, or world.bodies.size() if none: the
+/// body the benchmarks probe.
+size_t first_deformable_body(const solid::SolidWorld& world);
+
+/// The rest node closest to (lo.x, c.y, c.z) (`high`: (hi.x, c.y, c.z)) of the bounding box
+/// lo..hi, centre c, of `rest`: a bar's or cantilever's end, the benchmarks' probe (the first
+/// such node on a tie).
+Index end_node(const MatX3& rest, bool high);
+
 /// `tetfsi validate`: every check `run` makes before its first time step, without writing
 /// anything: builds the bodies, checks their output file names, prints the summary
 /// (print_world_summary), and in a fluid scene builds the t = 0 fluid mesh (or classifies
