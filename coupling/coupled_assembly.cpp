@@ -109,6 +109,57 @@ void assemble_J(const CoupledInput& in, CoupledSystem& sys, VecX& hydro, VecX& r
   sys.Jt = sys.J.transpose();
 }
 
+/// The interface half cells' mass (coupled_system.hpp): sys.half_mass, sys.A per free body
+/// with M_I/h added, and M_I u⁰/h (u⁰ = in.u_ref on the Solid faces) added to `forces`; the
+/// DOFs a body fixes keep their eliminated rows and move their columns into `forces`.
+void add_interface_mass(const CoupledInput& in, CoupledSystem& sys, VecX& forces) {
+  const TetMesh& m = *in.mesh;
+  const std::vector<CoupledBody>& bodies = *in.bodies;
+  const VecX& u_ref = in.u_ref ? *in.u_ref : *in.u_star;
+  sys.half_mass = VecX::Zero(m.num_faces());
+  for (Index f = 0; f < m.num_faces(); ++f)
+    if (m.face_kind[f] == FaceKind::Solid)
+      sys.half_mass[f] = (*in.rho)[m.face_tets(f, 0)] * sys.d_eff[f] / m.face_areas[f];
+  std::vector<Triplets> added(sys.nb);
+  struct Entry {
+    Index body, l;
+    double w;
+  };
+  std::vector<Entry> face;  // the J entries of one face: 3 nodes × 3 components
+  Index last = -1;
+  const auto flush = [&] {
+    if (face.empty()) return;
+    const double c = sys.half_mass[last] / in.h;
+    for (const Entry& i : face) {
+      const CoupledBody& cb = bodies[i.body];
+      if (!cb.free || cb.fixed[i.l]) continue;
+      const Index dof = sys.dof0[i.body] + i.l;
+      forces[dof] += c * i.w * m.face_areas[last] * u_ref[last];
+      for (const Entry& j : face) {
+        const double a = c * i.w * j.w;
+        if (!cb.fixed[j.l])
+          added[i.body].emplace_back(i.l, j.l, a);
+        else if (cb.prescribed.size())
+          forces[dof] -= a * cb.prescribed[j.l];
+      }
+    }
+    face.clear();
+  };
+  in.interface->for_each_J_entry([&](Index f, Index, Index b, Index l, Index, double w) {
+    if (f != last) flush();
+    last = f;
+    if (w != 0.0) face.push_back({b, l, w});
+  });
+  flush();
+  sys.A.assign(sys.nb, SparseMatrix());
+  for (Index b = 0; b < sys.nb; ++b) {
+    if (!bodies[b].free) continue;
+    SparseMatrix MI(bodies[b].A.rows(), bodies[b].A.cols());
+    MI.setFromTriplets(added[b].begin(), added[b].end());
+    sys.A[b] = bodies[b].A + MI;
+  }
+}
+
 /// The step's second block row r = V D2 v* − (h/ρ) Σ_open (A/d̃) p_open (v* without the
 /// faces of free bodies: their velocity is H u, the unknown), the net flux of pinned regions
 /// removed (fluid::project).
@@ -184,6 +235,7 @@ CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt
   rep.pressure_unknowns = sys.ng;
   VecX hydro, r_prescribed;
   assemble_J(in, sys, hydro, r_prescribed);
+  if (opt.interface_mass) add_interface_mass(in, sys, hydro);
 
   // [Chentanez06, Eq. (7)] in the symmetric form: A per body, J (above), and the pressure
   // block C = diag(h/ρ_g) L, pins only where nothing fixes the level

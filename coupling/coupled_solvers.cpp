@@ -38,7 +38,7 @@ SparseMatrix assemble_K(const CoupledSystem& sys, const VecX& rowscale) {
   Triplets kt;
   for (Index b = 0; b < sys.nb; ++b) {
     if (!bodies[b].free) continue;
-    const SparseMatrix& A = bodies[b].A;
+    const SparseMatrix& A = sys.body_A(b);
     for (Index c = 0; c < A.outerSize(); ++c)
       for (SparseMatrix::InnerIterator it(A, c); it; ++it)
         kt.emplace_back(sys.dof0[b] + it.row(), sys.dof0[b] + it.col(), it.value());
@@ -66,7 +66,7 @@ class BodySolve {
   explicit BodySolve(const CoupledSystem& sys) : m_sys(sys), m_fac(sys.nb) {
     const std::vector<CoupledBody>& bodies = *sys.bodies;
     for (Index b = 0; b < sys.nb; ++b)
-      if (bodies[b].free) m_fac[b] = factor_symmetric(bodies[b].A);
+      if (bodies[b].free) m_fac[b] = factor_symmetric(sys.body_A(b));
   }
   void operator()(const VecX& rhs, VecX& x) const {
     x.resize(m_sys.ns);
@@ -98,7 +98,7 @@ AmgPreconditioner* amg_for(const CoupledSystem& sys, const CoupledOptions& opt,
   for (Index b = 0; b < sys.nb; ++b)
     if (bodies[b].free)
       dinv.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) =
-          bodies[b].A.diagonal().cwiseInverse();
+          sys.body_A(b).diagonal().cwiseInverse();
   // (the grid's paper form: P from the second row's operator on both sides, symmetric)
   const SparseMatrix Pm =
       sys.symmetric ? SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() * sys.J))

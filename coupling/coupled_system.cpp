@@ -32,6 +32,7 @@ CoupledInput make_input(const fluid::FluidPrediction& pred, const fluid::FluidPa
   CoupledInput in;
   in.mesh = &pred.mesh;
   in.u_star = &pred.u_star;
+  in.u_ref = &pred.u_star;
   in.rho = &pred.rho;
   in.p_open = &pred.p_open;
   in.h = pred.h;
@@ -109,6 +110,16 @@ std::vector<VecX> body_velocities(const CoupledSystem& sys, const VecX& u) {
   return ub_all;
 }
 
+void add_half_cell_forces(const CoupledSystem& sys, const VecX& u_face, std::vector<VecX>& force) {
+  const CoupledInput& in = *sys.in;
+  const TetMesh& m = *in.mesh;
+  const VecX& u_ref = in.u_ref ? *in.u_ref : *in.u_star;
+  // −ρ_t A_f δ_f (u_f − u_f⁰)/h H_fᵀ, H_f = w_f / A_f (coupled_system.hpp, half cells)
+  in.interface->for_each_J_entry([&](Index f, Index, Index b, Index l, Index, double w) {
+    force[b][l] -= sys.half_mass[f] * m.face_areas[f] * (u_face[f] - u_ref[f]) / in.h * w;
+  });
+}
+
 void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX& c,
                     CoupledSolution& sol) {
   const double t0 = now_seconds();
@@ -142,6 +153,7 @@ void finish_coupled(const CoupledSystem& sys, const CoupledSolves& x, const VecX
          : 0.0;
   // The fluid's forces on every body (J p + hydrostatic), for reports and time splitting.
   sol.fluid_force = fluid_forces(*in.interface, sol.p, *in.rho, in.gravity, in.hydrostatic_origin);
+  if (sys.half_mass.size()) add_half_cell_forces(sys, sol.u_face, sol.fluid_force);
   rep.assembly_s += now_seconds() - t0;
 }
 

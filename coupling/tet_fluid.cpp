@@ -20,6 +20,7 @@ CoupledSolution TetPrediction::solve(const std::vector<CoupledBody>& bodies,
   if (v.homogeneous) {
     zero_f = VecX::Zero(m_pred.mesh.num_faces());
     in.u_star = &zero_f;
+    in.u_ref = &zero_f;
     in.p_open = &zero_f;
     in.gravity = Vec3::Zero();
   }

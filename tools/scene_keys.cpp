@@ -1239,7 +1239,14 @@ const Section<CouplingSpec>& coupling_keys() {
          .type = KeyType::Boolean,
          .doc = "enclosed liquids keep their volume exactly"},
         [](const C& c) { return json(c.params.solve.conserve_volume); },
-        [](C& c, const json& v) { c.params.solve.conserve_volume = v.get<bool>(); }}}};
+        [](C& c, const json& v) { c.params.solve.conserve_volume = v.get<bool>(); }},
+       {{.key = "interface_mass",
+         .type = KeyType::Boolean,
+         .doc = "tet fluid: the fluid between a body and the first circumcentres moves with the "
+                "body (its kinetic energy counted: the added mass unbiased); false: the "
+                "paper's form"},
+        [](const C& c) { return json(c.params.solve.interface_mass); },
+        [](C& c, const json& v) { c.params.solve.interface_mass = v.get<bool>(); }}}};
   return s;
 }
 

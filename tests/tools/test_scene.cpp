@@ -1041,7 +1041,7 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   CHECK(s.resolved["fluid"]["enclosed_density"] == 0.0);
   CHECK(s.resolved["coupling"] == json::parse(R"({ "scheme": "simultaneous",
       "solver": "schur_amg", "rel_tol": 1e-10, "max_iterations": 500,
-      "conserve_volume": true })"));
+      "conserve_volume": true, "interface_mass": true })"));
 
   // Only kinematic bodies (or none): one-way; a static scene: one-way too.
   json k = fluid_json();
@@ -1070,7 +1070,8 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   j["fluid"]["density"] = 1.2;
   j["fluid"]["enclosed_density"] = 1000;
   j["coupling"] = json::parse(R"({ "scheme": "splitting", "solver": "bicgstab_ilut",
-      "rel_tol": 1e-9, "max_iterations": 80, "conserve_volume": false })");
+      "rel_tol": 1e-9, "max_iterations": 80, "conserve_volume": false,
+      "interface_mass": false })");
   const Scene c = parse_scene(j, "scene.json");
   CHECK(c.fluid->params.enclosed_density == 1000.0);
   CHECK(c.coupling->two_way);
@@ -1079,6 +1080,7 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   CHECK(c.coupling->params.solve.rel_tol == 1e-9);
   CHECK(c.coupling->params.solve.max_iterations == 80);
   CHECK_FALSE(c.coupling->params.solve.conserve_volume);
+  CHECK_FALSE(c.coupling->params.solve.interface_mass);
   CHECK(c.resolved["coupling"] == j["coupling"]);
   CHECK(c.resolved["fluid"]["enclosed_density"] == 1000.0);
   const Scene back = parse_scene(c.resolved, "scene.json");
