@@ -81,6 +81,10 @@ struct EquilibriumOptions {
   /// learnt, e.g. the fluid's added mass left out of Eq. (15)) until `max_updates`, when the
   /// matrix is re-formed at the current point and the updates dropped.
   bool keep_matrix = false;
+  /// Coupled iterations (modified Newton, BFGS): add to Eq. (15)'s bodies-only matrix a
+  /// lumped estimate of the fluid's added mass (coupling/scheme_iterated.cpp), the incompressible
+  /// analogue of the seed keeping the fluid's lumped mass in M.
+  bool added_mass_start = false;
 };
 
 /// cond₂(I + v wᵀ), exactly: its singular values are 1 (n − 2 times) and the two roots of

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <memory>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 
 #include "core/error.hpp"
@@ -233,14 +234,59 @@ class IteratedStep {
     };
   }
 
+  /// The fluid's added mass lumped on each deformable body's nodes (3n × 3n, kg, one 3×3
+  /// block per free node): the fluid-only solve's nodal forces F respond to the bodies' face
+  /// velocities as −M_a/h (M_a = h J C⁻¹ Jᵀ, the Schur complement's fluid part, plus the half
+  /// cells). Three more solves per body give M_a t_k for the body's unit translations t_k;
+  /// node a's block is [M_a t_1, M_a t_2, M_a t_3]_a (row-sum lumping: exact on uniform
+  /// translations, so the blocks sum to the body's translational added mass), symmetrised and
+  /// clipped to be positive semi-definite.
+  std::vector<SparseMatrix> lumped_added_mass(const VecX& x) {
+    const CoupledSolution s0 = m_last_x.size() == x.size() && m_last_x == x ? m_last : fluid_at(x);
+    std::vector<SparseMatrix> out(m_nb);
+    for (Index b = 0; b < m_nb; ++b) {
+      if (!m_eq[b]) continue;
+      const solid::SolidBody& body = m_ctx.world.bodies[b];
+      const Index n = body.num_nodes();
+      Eigen::MatrixXd Mt(3 * n, 3);  // M_a t_k
+      for (int k = 0; k < 3; ++k) {
+        VecX xk = x;
+        for (Index a = 0; a < n; ++a) xk[m_off[b] + 3 * a + k] += 1.0;
+        const CoupledSolution sk = fluid_at(xk);
+        Mt.col(k) = -m_ctx.h * (sk.fluid_force[b] - s0.fluid_force[b]);
+      }
+      Triplets tr;
+      for (Index a = 0; a < n; ++a) {
+        const Eigen::Matrix3d B = Mt.middleRows<3>(3 * a);
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(0.5 * (B + B.transpose()));
+        const Eigen::Matrix3d P = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() *
+                                  es.eigenvectors().transpose();
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c)
+            if (!body.is_fixed(3 * a + r) && !body.is_fixed(3 * a + c) && P(r, c) != 0.0)
+              tr.emplace_back(3 * a + r, 3 * a + c, P(r, c));
+      }
+      out[b] = SparseMatrix(3 * n, 3 * n);
+      out[b].setFromTriplets(tr.begin(), tr.end());
+    }
+    return out;
+  }
+
   /// bfgs, modified_newton: [BatheSonnad80, Eq. (15)], the bodies' own (h/4) K̂, block
-  /// diagonal, no fluid.
+  /// diagonal, no fluid (solid.starting_matrix "added_mass": plus lumped_added_mass / h).
   InverseOperator body_inverse(const VecX& x) {
     ScopedTimer timer(m_ctx.phases, "solid");
-    // the bodies' own tangents, no fluid: [BatheSonnad80, Eq. (15)]
+    // the bodies' own tangents, no fluid: [BatheSonnad80, Eq. (15)]; with
+    // solid.starting_matrix "added_mass" plus the fluid's lumped added mass / h
+    std::vector<SparseMatrix> added;
+    if (m_ctx.world.equilibrium.added_mass_start) added = lumped_added_mass(x);
     std::vector<InverseOperator> inv(m_nb);
-    for (Index b = 0; b < m_nb; ++b)
-      if (m_eq[b]) inv[b] = solid::factor_inverse(m_eq[b]->tangent(part(x, b)));
+    for (Index b = 0; b < m_nb; ++b) {
+      if (!m_eq[b]) continue;
+      SparseMatrix K = m_eq[b]->tangent(part(x, b));
+      if (!added.empty()) K += added[b] / m_ctx.h;
+      inv[b] = solid::factor_inverse(K);
+    }
     return [inv, off = m_off, nb = m_nb](const VecX& r) -> VecX {
       VecX dx = VecX::Zero(r.size());
       for (Index b = 0; b < nb; ++b)

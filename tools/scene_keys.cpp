@@ -461,7 +461,14 @@ const Section<SolidSpec>& solid_keys() {
            {.key = "reform",
             .doc = "`run`: modified Newton and BFGS form their starting matrix once, at the "
                    "first step, and BFGS carries its updates until `max_updates`"},
-           k_reform_names, [eq](auto& t) -> auto& { return eq(t).keep_matrix; })}};
+           k_reform_names, [eq](auto& t) -> auto& { return eq(t).keep_matrix; }),
+       bind_enum<SolidSpec>(
+           {.key = "starting_matrix",
+            .doc = "coupling.scheme `bfgs` or `modified_newton`: `bodies`, Eq. (15) (the "
+                   "bodies' stiffness and inertia, no fluid), or `added_mass`: plus a lumped "
+                   "estimate of the fluid's added mass per node (three more fluid solves when the "
+                   "matrix is formed)"},
+           k_starting_matrix_names, [eq](auto& t) -> auto& { return eq(t).added_mass_start; })}};
   return s;
 }
 
