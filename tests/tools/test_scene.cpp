@@ -1181,7 +1181,7 @@ TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolv
   CHECK_FALSE(d.solid.equilibrium.keep_matrix);
   CHECK(d.resolved["solid"] == json::parse(R"({ "integrator": "newton",
       "rtol": 1e-3, "etol": 1e-5, "stol": 0.5, "max_iterations": 30, "max_updates": 20,
-      "line_search": true, "reform": "step" })"));
+      "line_search": true, "reform": "step", "starting_matrix": "bodies" })"));
   const solid::SolidWorld dw = build_world(d);
   CHECK(dw.integrator == solid::Integrator::Newton);
   // A given solid.trapezoid asks for the linearized rule; so does a static scene (unused).
@@ -1202,7 +1202,8 @@ TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolv
   json j = minimal_json();
   j["solid"] = json::parse(R"({ "integrator": "bfgs", "rtol": 1e-4, "etol": 1e-6,
       "stol": 0.25, "max_iterations": 12, "max_updates": 7, "line_search": false,
-      "reform": "run" })");
+      "reform": "run",
+      "starting_matrix": "added_mass" })");
   const Scene s = parse_scene(j, "scene.json");
   CHECK(s.solid.integrator == solid::Integrator::Bfgs);
   CHECK(s.resolved["solid"] == j["solid"]);
