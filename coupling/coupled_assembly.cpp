@@ -115,10 +115,10 @@ void assemble_J(const CoupledInput& in, CoupledSystem& sys, VecX& hydro, VecX& r
 void add_interface_mass(const CoupledInput& in, CoupledSystem& sys, VecX& forces) {
   const TetMesh& m = *in.mesh;
   const std::vector<CoupledBody>& bodies = *in.bodies;
-  const VecX& u_ref = in.u_ref ? *in.u_ref : *in.u_star;
+  const VecX& u_ref = in.half_cell_u0();
   sys.half_mass = VecX::Zero(m.num_faces());
-  for (Index f = 0; f < m.num_faces(); ++f)
-    if (m.face_kind[f] == FaceKind::Solid)
+  for (Index f = 0; f < m.num_faces(); ++f)  // (a face of zero area has no half cell)
+    if (m.face_kind[f] == FaceKind::Solid && m.face_areas[f] > 0)
       sys.half_mass[f] = (*in.rho)[m.face_tets(f, 0)] * sys.d_eff[f] / m.face_areas[f];
   std::vector<Triplets> added(sys.nb);
   struct Entry {

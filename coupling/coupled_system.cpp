@@ -113,7 +113,7 @@ std::vector<VecX> body_velocities(const CoupledSystem& sys, const VecX& u) {
 void add_half_cell_forces(const CoupledSystem& sys, const VecX& u_face, std::vector<VecX>& force) {
   const CoupledInput& in = *sys.in;
   const TetMesh& m = *in.mesh;
-  const VecX& u_ref = in.u_ref ? *in.u_ref : *in.u_star;
+  const VecX& u_ref = in.half_cell_u0();
   // −ρ_t A_f δ_f (u_f − u_f⁰)/h H_fᵀ, H_f = w_f / A_f (coupled_system.hpp, half cells)
   in.interface->for_each_J_entry([&](Index f, Index, Index b, Index l, Index, double w) {
     force[b][l] -= sys.half_mass[f] * m.face_areas[f] * (u_face[f] - u_ref[f]) / in.h * w;

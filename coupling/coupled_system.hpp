@@ -138,6 +138,8 @@ struct CoupledInput {
   /// #F the half cells' normal velocity at tⁿ on Solid faces (the prediction's v*, which an
   /// iterated scheme's u_star overrides with its iterate); null: u_star
   const VecX* u_ref = nullptr;
+  /// u_ref, or u_star where it is not given.
+  const VecX& half_cell_u0() const { return u_ref ? *u_ref : *u_star; }
   const VecX* rho = nullptr;     ///< #T fluid density per cell
   const VecX* p_open = nullptr;  ///< #F dynamic pressure on Open faces (Pa)
   double h = 0.0;
