@@ -119,7 +119,8 @@ void add_interface_mass(const CoupledInput& in, CoupledSystem& sys, VecX& forces
   sys.half_mass = VecX::Zero(m.num_faces());
   for (Index f = 0; f < m.num_faces(); ++f)  // (a face of zero area has no half cell)
     if (m.face_kind[f] == FaceKind::Solid && m.face_areas[f] > 0)
-      sys.half_mass[f] = (*in.rho)[m.face_tets(f, 0)] * sys.d_eff[f] / m.face_areas[f];
+      sys.half_mass[f] =
+          (*in.rho)[m.face_tets(f, 0)] * std::max(m.dual_lengths[f], 0.0) / m.face_areas[f];
   std::vector<Triplets> added(sys.nb);
   struct Entry {
     Index body, l;

@@ -36,15 +36,15 @@
 ///
 /// Interface half cells. The projection's kinetic energy is ½ Σ_f ρ A_f d_f u_f² over the
 /// faces' dual cells; a Solid face has only the half dual cell between the face and its cell's
-/// circumcentre (A_f δ_f, δ_f = d̃_f), whose fluid moves with the face's normal velocity
-/// (H u)_f. Left out (the paper's form), that fluid carries no kinetic energy and the added
-/// mass is biased low at first order (−10 % of C_m at 0.025 m cells around a 0.1 m sphere).
-/// Counted, it is the mass M_I = Σ_f ρ_t A_f δ_f H_fᵀ H_f on the body's DOFs: A += M_I/h,
-/// b += Σ_f ρ_t A_f δ_f u_f⁰ H_fᵀ / h (u_f⁰ the half cell's velocity at tⁿ, CoupledInput::u_ref),
-/// and the fluid's force on the body gains −Σ_f ρ_t A_f δ_f (u_f − u_f⁰)/h H_fᵀ, its pressure
-/// at the face rather than at the circumcentre. Every scheme sees the same force, so the
-/// iterated schemes converge to the simultaneous solution; time splitting's fluid solve has
-/// the faces at their held velocity (u_f = u_f⁰), so the term is 0 there.
+/// circumcentre (A_f δ_f, δ_f = max(d_f, 0), not the clamped d̃_f), whose fluid moves with the
+/// face's normal velocity (H u)_f. Left out (the paper's form), that fluid carries no kinetic
+/// energy and the added mass is biased low at first order (−10 % of C_m at 0.025 m cells around a
+/// 0.1 m sphere). Counted, it is the mass M_I = Σ_f ρ_t A_f δ_f H_fᵀ H_f on the body's DOFs: A +=
+/// M_I/h, b += Σ_f ρ_t A_f δ_f u_f⁰ H_fᵀ / h (u_f⁰ the half cell's velocity at tⁿ,
+/// CoupledInput::u_ref), and the fluid's force on the body gains −Σ_f ρ_t A_f δ_f (u_f − u_f⁰)/h
+/// H_fᵀ, its pressure at the face rather than at the circumcentre. Every scheme sees the same
+/// force, so the iterated schemes converge to the simultaneous solution; time splitting's fluid
+/// solve has the faces at their held velocity (u_f = u_f⁰), so the term is 0 there.
 ///
 /// Enclosed regions (bounded only by Solid faces of free bodies: a liquid in a closed toy or
 /// balloon) keep their volume exactly. The linearised constraint conserves it only to
