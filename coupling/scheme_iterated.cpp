@@ -121,7 +121,7 @@ class IteratedStep {
         "ratio {:.3g}",
         scheme, e.iterations, e.evaluations, m_rep.fluid_solves, e.factorizations, e.updates,
         e.skipped_updates, e.line_searches, e.force_ratio, e.energy_ratio);
-    if (!(m_last_x.size() == x.size() && m_last_x == x)) residual(x);
+    if (!is_last(x)) residual(x);
     return x;
   }
 
@@ -182,6 +182,9 @@ class IteratedStep {
 
   /// g(u) = the bodies' trapezoidal out-of-balance force + the fluid's forces of the
   /// projection with the Solid faces at n·(H u)   [BatheSonnad80, Eq. (6)]
+  /// x is the point of the last residual evaluation (m_last holds its fluid solution).
+  bool is_last(const VecX& x) const { return m_last_x.size() == x.size() && m_last_x == x; }
+
   VecX residual(const VecX& x) {
     CoupledSolution s = fluid_at(x);
     ScopedTimer timer(m_ctx.phases, "solid");
@@ -242,7 +245,7 @@ class IteratedStep {
   /// translations, so the blocks sum to the body's translational added mass), symmetrised and
   /// clipped to be positive semi-definite.
   std::vector<SparseMatrix> lumped_added_mass(const VecX& x) {
-    const CoupledSolution s0 = m_last_x.size() == x.size() && m_last_x == x ? m_last : fluid_at(x);
+    const CoupledSolution s0 = is_last(x) ? m_last : fluid_at(x);
     std::vector<SparseMatrix> out(m_nb);
     for (Index b = 0; b < m_nb; ++b) {
       if (!m_eq[b]) continue;
