@@ -31,9 +31,18 @@ using json = nlohmann::ordered_json;
 const std::vector<std::string> k_integrators = {"paper", "midpoint", "newton", "modified_newton",
                                                 "bfgs"};
 
+/// Two-way scenes: the coupling schemes, the simultaneous one with either linearised rule.
+const std::vector<std::string> k_schemes = {"simultaneous/paper", "simultaneous/midpoint", "newton",
+                                            "bfgs"};
+
 std::string label(const std::string& integrator) {
   if (integrator == "paper" || integrator == "midpoint") return "linearized/" + integrator;
   return integrator;
+}
+
+/// The first row of a table, the cost reference ("x paper").
+bool is_paper(const std::string& m) {
+  return m == "paper" || m == "simultaneous/paper";
 }
 
 struct Run {
@@ -55,11 +64,13 @@ double world_energy(const solid::SolidWorld& w, double& kinetic) {
   return e;
 }
 
-void record(const solid::SolidWorld& w, size_t body, Index tip, double t, Run& r) {
+/// One sample; `fluid_ke` (J) is added to the energy (two-way runs: the fluid's kinetic energy).
+void record(const solid::SolidWorld& w, size_t body, Index tip, double t, Run& r,
+            double fluid_ke = 0.0) {
   double ke = 0;
   r.t.push_back(t);
   r.z.push_back(w.bodies[body].displacement(tip, 2));
-  r.energy.push_back(world_energy(w, ke));
+  r.energy.push_back(world_energy(w, ke) + fluid_ke);
   r.kinetic.push_back(ke);
 }
 
@@ -97,6 +108,48 @@ Run run_integrator(const solid::SolidWorld& world0, size_t body, Index tip,
   r.wall_s = now_seconds() - t0;
   logger().info("bench integrators: {} at h = {:.4g} s: {} steps in {:.3g} s{}", label(integrator),
                 h, r.steps(), r.wall_s, r.failure.empty() ? "" : ": " + r.failure);
+  return r;
+}
+
+/// One two-way run of `scheme` (k_schemes) at h to `end`, as run_integrator; the energy adds
+/// the fluid's kinetic energy.
+Run run_coupled(const Scene& scene, const solid::SolidWorld& world0, size_t body, Index tip,
+                const std::string& scheme, double h, double end, double bound) {
+  Run r;
+  r.integrator = scheme;
+  r.h = h;
+  Scene sc = scene;
+  solid::SolidWorld w = world0;
+  const std::string prefix = "simultaneous/";
+  if (scheme.rfind(prefix, 0) == 0) {
+    sc.coupling->params.scheme = coupling::Scheme::Simultaneous;
+    w.trapezoid = solid::parse_trapezoid(scheme.substr(prefix.size()));
+  } else {
+    sc.coupling->params.scheme = coupling::parse_scheme(scheme);
+  }
+  coupling::FsiSimulation sim = make_simulation(sc, std::move(w));
+  PhaseTimes phases;
+  sim.start(phases);
+  record(sim.world(), body, tip, 0.0, r);
+  const int steps = static_cast<int>(std::ceil(end / h - 1e-9));
+  const double t0 = now_seconds();
+  for (int k = 1; k <= steps; ++k) {
+    double fluid_ke = 0;
+    try {
+      fluid_ke = sim.step(h, phases).coupled->fluid.kinetic_energy;
+    } catch (const Error& e) {
+      r.failure = one_line(fmt::format("failed at t = {:.4g} s: {}", k * h, e.what()));
+      break;
+    }
+    record(sim.world(), body, tip, k * h, r, fluid_ke);
+    if (bound > 0 && std::abs(r.energy.back() - r.energy.front()) > bound) {
+      r.failure = fmt::format("diverged at t = {:.4g} s", k * h);
+      break;
+    }
+  }
+  r.wall_s = now_seconds() - t0;
+  logger().info("bench integrators: {} at h = {:.4g} s: {} steps in {:.3g} s{}", scheme, h,
+                r.steps(), r.wall_s, r.failure.empty() ? "" : ": " + r.failure);
   return r;
 }
 
@@ -144,8 +197,11 @@ json bench_scene(const std::filesystem::path& file, const BenchIntegratorsOption
                  std::ostream& out) {
   const Scene scene = load_scene(file, opt.overrides);
   const std::string name = file.string();
-  TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic && !scene.fluid,
-                 "{}: bench integrators needs a dynamic scene without a fluid", name);
+  const bool two_way = scene.two_way();
+  TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic && (!scene.fluid || two_way),
+                 "{}: bench integrators needs a dynamic scene without a fluid or two-way "
+                 "coupled",
+                 name);
   const solid::SolidWorld world0 = build_world(scene);
   const size_t body = first_deformable_body(world0);
   TETFSI_REQUIRE(InputError, body < world0.bodies.size(),
@@ -155,6 +211,7 @@ json bench_scene(const std::filesystem::path& file, const BenchIntegratorsOption
   const double dt = scene.time.dt;
   const double end = scene.time.end_time.value_or(scene.time.num_steps() * dt);
 
+  // the reference: the bodies alone (two-way: without the fluid, which barely changes T)
   const Run ref = run_integrator(world0, body, tip, "newton", 0.5 * dt, end, 0.0);
   TETFSI_REQUIRE(InputError, ref.failure.empty(), "{}: the reference run (newton at dt/2) {}", name,
                  ref.failure);
@@ -164,17 +221,20 @@ json bench_scene(const std::filesystem::path& file, const BenchIntegratorsOption
                  name, end);
   const double ke_ref = *std::max_element(ref.kinetic.begin(), ref.kinetic.end());
   fmt::print(out,
-             "{} ('{}'): tip node {} at {}, period T = {:.4g} s (newton at dt/2), {:.4g} s = "
-             "{:.3g} T per run, reference kinetic energy {:.4g} J\n",
-             name, scene.name, tip, fmt_vec(rest.row(tip).transpose()), *period, end, end / *period,
-             ke_ref);
-  fmt::print(out, "{:<24} {:>8} {:>9} {:>11} {:>11} {:>9} {:>8}  {}\n", "integrator", "dt (s)",
-             "A_last/A_1", "drift/KE", "max|dE|/KE", "ms/step", "x paper", "status");
+             "{} ('{}'{}): tip node {} at {}, period T = {:.4g} s (newton at dt/2{}), {:.4g} s "
+             "= {:.3g} T per run, reference kinetic energy {:.4g} J\n",
+             name, scene.name, two_way ? ", two-way: coupling.scheme per row" : "", tip,
+             fmt_vec(rest.row(tip).transpose()), *period, two_way ? ", the bodies alone" : "", end,
+             end / *period, ke_ref);
+  fmt::print(out, "{:<24} {:>8} {:>9} {:>11} {:>11} {:>9} {:>8}  {}\n",
+             two_way ? "coupling.scheme" : "integrator", "dt (s)", "A_last/A_1", "drift/KE",
+             "max|dE|/KE", "ms/step", "x paper", "status");
   json rows = json::array();
   for (const double h : {dt, 2 * dt}) {
     double paper_ms = 0;
-    for (const std::string& m : k_integrators) {
-      const Run r = run_integrator(world0, body, tip, m, h, end, 10 * ke_ref);
+    for (const std::string& m : two_way ? k_schemes : k_integrators) {
+      const Run r = two_way ? run_coupled(scene, world0, body, tip, m, h, end, 10 * ke_ref)
+                            : run_integrator(world0, body, tip, m, h, end, 10 * ke_ref);
       const bool done = r.failure.empty();
       const int periods = static_cast<int>(std::floor(r.t.back() / *period + 1e-9));
       const bool amp = done && periods >= 2;
@@ -185,7 +245,7 @@ json bench_scene(const std::filesystem::path& file, const BenchIntegratorsOption
       for (double e : r.energy) max_err = std::max(max_err, std::abs(e - r.energy.front()));
       const double drift = (r.energy.back() - r.energy.front()) / ke_ref;
       const double ms = r.steps() > 0 ? 1e3 * r.wall_s / r.steps() : 0.0;
-      if (m == "paper") paper_ms = ms;
+      if (is_paper(m)) paper_ms = ms;
       fmt::print(out, "{:<24} {:>8.4g} {:>9} {:>11} {:>11} {:>9.3g} {:>8}  {}\n", label(m), h,
                  text(amp, "{:.4f}", ratio), text(done, "{:+.2e}", drift),
                  text(done, "{:.2e}", max_err / ke_ref), ms,

@@ -15,6 +15,11 @@
 /// gravity potential), the wall milliseconds per step and their ratio to linearized/paper at
 /// the same h, and whether the run completed ("diverged at t" when |E − E(0)| exceeds 10 ×
 /// the reference's kinetic energy, "failed at t: ..." when a step throws).
+/// A two-way scene (`data/bench/swing_air.json`) runs the coupling schemes instead:
+/// simultaneous/paper and simultaneous/midpoint (the simultaneous solve with either
+/// linearised rule), newton and bfgs (the iterated coupled step, the nonlinear trapezoidal
+/// rule); E adds the fluid's kinetic energy, the reference run (T, KE) is the bodies alone,
+/// and "x paper" is against simultaneous/paper.
 #include <filesystem>
 #include <iosfwd>
 #include <string>
@@ -37,7 +42,8 @@ struct BenchIntegratorsOptions {
 };
 
 /// Run the benchmark on `scenes` and print one table per scene to `out`.
-/// @throws InputError if a scene cannot be read, is static, has a fluid, has no deformable
+/// @throws InputError if a scene cannot be read, is static, has a fluid without two-way coupling,
+/// has no deformable
 ///   body, or its reference run shows fewer than two periods.
 /// @return 0
 int bench_integrators(const std::vector<std::filesystem::path>& scenes,

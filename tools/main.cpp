@@ -339,9 +339,9 @@ Command add_bench_integrators(CLI::App& bench) {
   auto o = std::make_shared<Opt>();
   CLI::App* cmd = bench.add_subcommand(
       "integrators",
-      "the solid integrators on undamped swings at dt and 2 dt: amplitude after the last "
-      "period, energy drift, cost per step");
-  cmd->add_option("SCENES", o->scenes, "dynamic solid-only scene files (JSON)")
+      "the solid integrators (two-way scenes: the coupling schemes) on undamped swings at dt "
+      "and 2 dt: amplitude after the last period, energy drift, cost per step");
+  cmd->add_option("SCENES", o->scenes, "dynamic scene files (JSON), solid-only or two-way coupled")
       ->type_name("FILE ...")
       ->capture_default_str();
   cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
