@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cstring>
+#include <fstream>
 #include <system_error>
 
 #include <vtkErrorCode.h>
@@ -233,6 +235,13 @@ void write_png(const fs::path& path, const Image& image) {
 
   fs::path tmp = path;
   tmp += ".tmp";
+  // Open the file ourselves first: VTK 9.1's PNG writer leaks libpng's structs when it
+  // cannot (the error path of vtkPNGWriter::WriteSlice), and our message names the reason.
+  if (!std::ofstream(tmp, std::ios::binary))
+    throw InputError(
+        fmt::format("cannot write '{}': {} (check that the folder exists and is "
+                    "writable)",
+                    path.string(), std::strerror(errno)));
   vtkNew<vtkPNGWriter> writer;
   std::string why;
   {

@@ -1361,7 +1361,7 @@ TEST_CASE("the shipped scenes parse") {
   CHECK(rs.output.every == 4);
   CHECK(rs.resolved["bodies"] == sag.resolved["bodies"]);
   REQUIRE(rs.fluid);
-  const MatX3& X = build_world(rs).bodies[0].rest_positions();
+  const MatX3 X = build_world(rs).bodies[0].rest_positions();  // a copy: the world is a temporary
   const Vec3 lo = X.colwise().minCoeff().transpose(), hi = X.colwise().maxCoeff().transpose();
   CHECK(((lo - rs.fluid->domain.lo).array() >= 0.2 - 1e-12).all());
   CHECK(((rs.fluid->domain.hi - hi).array() >= 0.2 - 1e-12).all());
