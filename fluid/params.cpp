@@ -12,4 +12,8 @@ const char* to_string(Reconstruction r) {
   return k_reconstruction_names.name(r);
 }
 
+const char* to_string(TransferScheme s) {
+  return k_transfer_scheme_names.name(s);
+}
+
 }  // namespace tetfsi::fluid

@@ -64,6 +64,22 @@ inline constexpr EnumNames<Reconstruction, 2> k_reconstruction_names{
 Reconstruction parse_reconstruction(const std::string& name);
 const char* to_string(Reconstruction r);
 
+/// How the transfer (advection) carries velocity and scalars from the old mesh to the new one
+/// (transfer.hpp).
+enum class TransferScheme {
+  SemiLagrangian,  ///< one RK2 back-trace per sample, first order [Stam99], [KFCO06, §4]
+  MacCormack,      ///< + the back-and-forth error estimate on the old mesh, sampled at the new
+                   ///< point, clamped to the local extrema [Selle08]
+  Bfecc,           ///< + the same error estimate carried along the back-trace, clamped [Selle08]
+};
+
+inline constexpr EnumNames<TransferScheme, 3> k_transfer_scheme_names{
+    "transfer scheme",
+    {{{TransferScheme::SemiLagrangian, "semi_lagrangian"},
+      {TransferScheme::MacCormack, "maccormack"},
+      {TransferScheme::Bfecc, "bfecc"}}}};
+const char* to_string(TransferScheme s);
+
 /// The fluid's physics and numerics.
 struct FluidParams {
   double density = 1.2;  ///< ρ (kg/m³): 1.2 for air, 1000 for water
@@ -96,6 +112,13 @@ struct FluidParams {
   /// kinetic energy on Taylor–Green (0.026 vs 0.197 /s at 9k cells, 0.011 vs 0.099 at 61k) and
   /// keeps more angular momentum in rigid rotation than vertex least squares.
   Reconstruction reconstruction = Reconstruction::Whitney;
+  /// How the transfer carries smoke density and temperature, and the face velocities
+  /// (transfer.hpp). Measured: see the README's transfer table.
+  TransferScheme scalar_transfer = TransferScheme::SemiLagrangian;
+  TransferScheme velocity_transfer = TransferScheme::SemiLagrangian;
+  /// The transfer takes the old pressure's acceleration at the midpoint of each back-trace
+  /// rather than at its end (transfer.hpp): second order in time along curved paths.
+  bool pressure_along_path = false;
   /// δ: cells joined by an interior face with d_f ≤ δ × (its mean edge) share one pressure
   /// unknown (co-spherical cells, A_f/d_f = ∞; operators.hpp). Larger values merge cells
   /// whose circumcentres differ, which costs accuracy near solids (measured: a uniform

@@ -61,7 +61,12 @@ VecX cell_to_vertex(const TetMesh& m, const VecX& c) {
   return sum;
 }
 
-VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
+namespace {
+
+/// cell_to_vertex_linear's fit at every vertex: the value (clamped) and, where the fit is
+/// determined, its gradient (zero elsewhere). The values sit at the cell centroids, or at
+/// `points` (#T × 3) if given. `grad` may be null.
+VecX vertex_linear_fit(const TetMesh& m, const VecX& c, const MatX3* points, MatX3* grad) {
   const Index nv = m.num_vertices(), nt = m.num_tets();
   using Mat4 = Eigen::Matrix4d;
   std::vector<Mat4> N(static_cast<size_t>(nv), Mat4::Zero());
@@ -69,7 +74,7 @@ VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
   VecX lo = VecX::Constant(nv, std::numeric_limits<double>::infinity());
   VecX hi = -lo;
   for (Index t = 0; t < nt; ++t) {
-    const Vec3 xc = mesh::tet_centroid(m, t);
+    const Vec3 xc = points ? Vec3(points->row(t).transpose()) : mesh::tet_centroid(m, t);
     const double w = m.volumes[t];
     for (int i = 0; i < 4; ++i) {
       const Index v = m.tets(t, i);
@@ -82,6 +87,7 @@ VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
     }
   }
   VecX out(nv);
+  if (grad) *grad = MatX3::Zero(nv, 3);
   for (Index v = 0; v < nv; ++v) {
     const double wsum = N[v](0, 0);
     if (!(wsum > 0)) {
@@ -100,8 +106,21 @@ VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
       continue;
     const Vec4 x = ldlt.solve(r[v]);
     out[v] = std::clamp(x(0), lo[v], hi[v]);
+    if (grad) grad->row(v) = x.tail<3>().transpose();
   }
   return out;
+}
+
+}  // namespace
+
+VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
+  return vertex_linear_fit(m, c, nullptr, nullptr);
+}
+
+MatX3 vertex_gradients(const TetMesh& m, const VecX& c, const MatX3& points) {
+  MatX3 g;
+  vertex_linear_fit(m, c, &points, &g);
+  return g;
 }
 
 Eigen::Matrix<double, 4, 3> barycentric_gradients(const TetMesh& m, Index t) {
@@ -194,14 +213,20 @@ Vec3 VelocityField::at(Index t, const Vec4& bary) const {
 double VelocityField::normal_at(Index t, const Vec4& bary, const Vec3& n) const {
   const double v = n.dot(at(t, bary));
   if (m_kind == Reconstruction::VertexLeastSquares) return v;
+  const auto [lo, hi] = normal_range(t, n);
+  return std::clamp(v, lo, hi);
+}
+
+std::pair<double, double> VelocityField::normal_range(Index t, const Vec3& n) const {
+  const MatX3& ls = least_squares_vertices();
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (int i = 0; i < 4; ++i) {
-    const double w = n.dot(m_vertex_ls.row(m_mesh->tets(t, i)).transpose());
+    const double w = n.dot(ls.row(m_mesh->tets(t, i)).transpose());
     lo = std::min(lo, w);
     hi = std::max(hi, w);
   }
   const double pad = kClampMargin * (hi - lo);
-  return std::clamp(v, lo - pad, hi + pad);
+  return {lo - pad, hi + pad};
 }
 
 MatX3 VelocityField::vertex_velocities() const {

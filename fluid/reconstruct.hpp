@@ -12,6 +12,8 @@
 ///    solid) would amplify round-off in its fluxes by 1/V; it takes the vertex
 ///    least-squares values instead (also exact for uniform flow).
 /// Which one the fluid uses is FluidParams::reconstruction; the tests measure both.
+#include <utility>
+
 #include "core/types.hpp"
 #include "fluid/params.hpp"
 #include "mesh/tet_mesh.hpp"
@@ -32,6 +34,10 @@ class VelocityField {
   /// cells, and semi-Lagrangian sampling of them gained energy (+51 % per revolution of a
   /// rigid rotation at 98k cells without the clamp; −12 % with it, −47 % with the bare range).
   double normal_at(Index t, const Vec4& bary, const Vec3& n) const;
+  /// The range normal_at clamps to in tet t: n · U_v over the tet's 4 vertex least-squares
+  /// velocities, widened by one range width on each side (both kinds; the second-order
+  /// transfer clamps its corrected values to it [Selle08]).
+  std::pair<double, double> normal_range(Index t, const Vec3& n) const;
   /// Velocity at the centroid of every tet (#T × 3).
   MatX3 cell_velocities() const;
   /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
@@ -70,6 +76,12 @@ VecX cell_to_vertex(const mesh::TetMesh& m, const VecX& cell_values);
 /// make no new extrema. (A per-cell clamped linear reconstruction kept fronts sharper but
 /// left cell-to-cell speckle in the smoke.)
 VecX cell_to_vertex_linear(const mesh::TetMesh& m, const VecX& cell_values);
+
+/// The gradient of cell_to_vertex_linear's fit at every vertex (#V × 3, units of the values
+/// per m), with the cell values sitting at `points` (#T × 3: e.g. the circumcentres of
+/// pressures): exact for linear fields; zero where the fit is not determined or the values
+/// are uniform.
+MatX3 vertex_gradients(const mesh::TetMesh& m, const VecX& cell_values, const MatX3& points);
 
 /// Gradients of the barycentric functions of tet t (row i = ∇λ_i, 1/m).
 Eigen::Matrix<double, 4, 3> barycentric_gradients(const mesh::TetMesh& m, Index t);

@@ -195,6 +195,14 @@ FluidPrediction FluidSimulation::predict(TetMesh nm, double h,
     in.old_density = &I.state.density;
     in.old_temperature = &I.state.temperature;
     in.reconstruction = P.reconstruction;
+    in.scalar_scheme = P.scalar_transfer;
+    in.velocity_scheme = P.velocity_transfer;
+    VecX old_rho;
+    if (P.pressure_along_path && I.state.p.size() == I.mesh.num_tets()) {
+      old_rho = cell_fluid_density(I.mesh, P);
+      in.old_pressure = &I.state.p;
+      in.old_cell_density = &old_rho;
+    }
     for (const PatchConditions& pc : P.patches) {
       in.inflow_density.push_back(pc.smoke_density);
       in.inflow_temperature.push_back(pc.emits_temperature ? pc.temperature

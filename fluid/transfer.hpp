@@ -58,6 +58,15 @@ struct TransferInput {
   const VecX* old_density = nullptr;
   const VecX* old_temperature = nullptr;
   Reconstruction reconstruction = Reconstruction::VertexLeastSquares;
+  /// First-order semi-Lagrangian, or one of the second-order schemes of [Selle08] (see
+  /// `transfer`), for the cell scalars and for the face velocities.
+  TransferScheme scalar_scheme = TransferScheme::SemiLagrangian;
+  TransferScheme velocity_scheme = TransferScheme::SemiLagrangian;
+  /// The old pressure (#T_old, Pa) and fluid density per old cell (#T_old, kg/m³). When both
+  /// are given, the velocity transfer takes the old pressure's acceleration along the path by
+  /// the midpoint rule instead of at the path's end (see `transfer`).
+  const VecX* old_pressure = nullptr;
+  const VecX* old_cell_density = nullptr;
   /// What enters through the old mesh's Inflow faces, by patch (TetMesh::face_patch): a
   /// scalar back-trace stopped at an Inflow face takes these values (the fluid that came in
   /// through the patch during the step). Empty: the boundary value is interpolated as
@@ -73,6 +82,26 @@ struct TransferOutput {
 };
 
 /// Advect the old state by h onto `new_mesh` (see the file comment).
+///
+/// The second-order schemes [Selle08] go old mesh → new mesh → old mesh: the first-order
+/// values φ̂ on the new mesh are carried back (old points traced forward through the old
+/// velocity, located in the new fluid) to give φ̄ on the old mesh; e = (φⁿ − φ̄)/2 estimates
+/// the transfer's error, and φ = φ̂ + e, with e read at the new point (MacCormack) or at its
+/// back-trace's end (BFECC, i.e. the transfer of φⁿ + e), clamped to the old values around
+/// the back-trace's end (face velocities: normal_range of the old field; scalars: the cell and
+/// its face neighbours). The velocity's error field is reconstructed by vertex least squares
+/// (smooth) whatever the transfer's reconstruction. Samples whose trace touched the boundary or an
+/// Inflow patch stay first order.
+///
+/// The pressure along the path (old_pressure given): the projection applies the pressure
+/// acceleration −∇p/ρ at the end of the path only, where the flow felt it all along: a vector
+/// carried round a curved path keeps its direction and the projection then removes the part
+/// that no longer points along the flow (a rigid rotation loses 1 − cos(Ω h) of its angular
+/// momentum per step). Adding h/ρ (∇pⁿ(x) − ∇pⁿ(x_mid)) · n_f — the old pressure's
+/// acceleration at the RK2 midpoint of the back-trace instead of at x — integrates it by the
+/// midpoint rule; the new projection then only adds the change of pressure. ∇p is the vertex
+/// fit of vertex_gradients, interpolated linearly; faces whose trace touched the boundary
+/// take no correction.
 TransferOutput transfer(const TransferInput& in, const mesh::TetMesh& new_mesh, double h);
 
 }  // namespace tetfsi::fluid

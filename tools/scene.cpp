@@ -608,6 +608,7 @@ class Parser {
     fp.up = g_norm > 0 ? Vec3(-gravity / g_norm) : Vec3(Vec3::UnitZ());
     if (has(n, "buoyancy")) read(child(n, "buoyancy"), buoyancy_keys(), fp);
     if (has(n, "decay")) read(child(n, "decay"), decay_keys(), fp);
+    if (has(n, "transfer")) read(child(n, "transfer"), transfer_keys(), fp);
     if (has(n, "solver")) read(child(n, "solver"), fluid_solver_keys(), fp);
     if (has(n, "sources")) {
       const Node list = child(n, "sources");
@@ -631,7 +632,7 @@ class Parser {
   /// fluid.grid of a grid scene: the grid's cells from cell_size or cells, within max_cells;
   /// the tet mesh's keys refused.
   void grid(const Node& n, FluidSpec& f) const {
-    for (const char* key : {"refine", "reconstruction", "min_dual_fraction"})
+    for (const char* key : {"refine", "reconstruction", "transfer", "min_dual_fraction"})
       if (has(n, key))
         fail(child_path(n.path, key),
              "is a key of the tet mesh, not of fluid.discretization \"grid\"; remove it");
@@ -756,12 +757,14 @@ json fluid_json(const FluidSpec& f) {
   j["domain"] = domain;
   if (f.grid_spec) {  // the tet mesh's keys are refused on the grid
     j.erase("reconstruction");
+    j.erase("transfer");
     j.erase("min_dual_fraction");
     j["grid"] = fluid_grid_keys().write(f.grid);
   }
   j["mesh"] = fluid_mesh_keys().write(f.sizing);
   j["buoyancy"] = buoyancy_keys().write(fp);
   j["decay"] = decay_keys().write(fp);
+  if (!f.grid_spec) j["transfer"] = transfer_keys().write(fp);
   j["solver"] = fluid_solver_keys().write(fp);
   j["sources"] = json::array();
   for (const fluid::SmokeSource& src : fp.sources) {

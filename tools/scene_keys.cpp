@@ -903,6 +903,9 @@ const Section<FluidSpec>& fluid_keys() {
            {.key = "reconstruction",
             .doc = "of the velocity inside a tet from its face components"},
            fluid::k_reconstruction_names, [fp](auto& t) -> auto& { return fp(t).reconstruction; }),
+       sub<FluidSpec>({.key = "transfer",
+                       .type = KeyType::Object,
+                       .doc = "advection from mesh to mesh (tet mesh)"}),
        bind<FluidSpec>(
            {.key = "min_dual_fraction",
             .type = KeyType::Number,
@@ -1115,6 +1118,24 @@ const Section<fluid::FluidParams>& decay_keys() {
                                       .unit = "1/s",
                                       .range = k_non_negative},
                                      TETFSI_AT(temperature_decay))}};
+  return s;
+}
+
+const Section<fluid::FluidParams>& transfer_keys() {
+  using F = fluid::FluidParams;
+  static const Section<F> s{
+      "fluid.transfer",
+      "advection from mesh to mesh (see Sharper transfer)",
+      {bind_enum<F>({.key = "scalars",
+                     .doc = "smoke density and temperature: first order, or second order clamped"},
+                    fluid::k_transfer_scheme_names, TETFSI_AT(scalar_transfer)),
+       bind_enum<F>(
+           {.key = "velocity", .doc = "the face velocities: first order, or second order clamped"},
+           fluid::k_transfer_scheme_names, TETFSI_AT(velocity_transfer)),
+       bind<F>({.key = "pressure_along_path",
+                .type = KeyType::Boolean,
+                .doc = "the old pressure's acceleration at each back-trace's midpoint"},
+               TETFSI_AT(pressure_along_path))}};
   return s;
 }
 
@@ -1333,8 +1354,9 @@ const std::vector<KeySection>& scene_key_sections() {
       rows_of(kinematic_keys()),   rows_of(plane_obstacle_keys()), rows_of(box_obstacle_keys()),
       rows_of(fluid_keys()),       rows_of(domain_keys()),         rows_of(patch_keys()),
       rows_of(fluid_mesh_keys()),  rows_of(fluid_grid_keys()),     rows_of(buoyancy_keys()),
-      rows_of(decay_keys()),       rows_of(fluid_solver_keys()),   rows_of(source_keys()),
-      rows_of(source_box_keys()),  rows_of(refine_keys()),         rows_of(coupling_keys())};
+      rows_of(decay_keys()),       rows_of(transfer_keys()),       rows_of(fluid_solver_keys()),
+      rows_of(source_keys()),      rows_of(source_box_keys()),     rows_of(refine_keys()),
+      rows_of(coupling_keys())};
   return sections;
 }
 

@@ -179,6 +179,7 @@ const Section<mesh::Sizing>& fluid_mesh_keys();
 const Section<GridKeys>& fluid_grid_keys();
 const Section<fluid::FluidParams>& buoyancy_keys();
 const Section<fluid::FluidParams>& decay_keys();
+const Section<fluid::FluidParams>& transfer_keys();
 const Section<fluid::FluidParams>& fluid_solver_keys();
 const Section<fluid::SmokeSource>& source_keys();
 const Section<BoxSpec>& source_box_keys();

@@ -55,7 +55,7 @@ json fluid_scene() {
   return json::parse(R"({
     "bodies": [ { "name": "b", "mesh": { "box": { "lo": [0.4, 0.4, 0.4], "hi": [0.6, 0.6, 0.6] } } } ],
     "fluid": { "domain": { "lo": [0, 0, 0], "hi": [1, 1, 1] }, "mesh": {}, "buoyancy": {},
-               "decay": {}, "solver": {}, "refine": {} },
+               "decay": {}, "transfer": {}, "solver": {}, "refine": {} },
     "time": {}, "output": {}, "solver": {}, "solid": {}, "static": {}, "coupling": {}
   })");
 }
@@ -72,6 +72,7 @@ const std::set<std::string> k_fixed = {"",
                                        "fluid.mesh",
                                        "fluid.buoyancy",
                                        "fluid.decay",
+                                       "fluid.transfer",
                                        "fluid.solver",
                                        "fluid.refine",
                                        "coupling"};
