@@ -107,6 +107,9 @@ def main():
     panels, skipped = [], []
     for title, ylabel, log, series in PANELS:
         present = [(c, label) for c, label in series if usable(columns, c)]
+        if title == "enclosed volume drift" and not any(
+                v > 0 for v in columns.get("enclosed_volume", []) if math.isfinite(v)):
+            present = []  # no enclosed liquid: the drift column is all 0
         if log:
             present = [(c, label) for c, label in present
                        if any(v > 0 for v in columns[c] if math.isfinite(v))]
@@ -145,13 +148,14 @@ def main():
         ax.legend(fontsize=8, loc="best", ncol=2 if len(series) > 4 else 1)
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
-    for ax in axes[-1]:
-        ax.set_xlabel("time (s)")
-        ax.xaxis.set_tick_params(labelbottom=True)
+    for i, ax in enumerate(list(axes.flat)[:len(panels)]):
+        if i + ncols >= len(panels):  # nothing drawn below it: its own time axis
+            ax.set_xlabel("time (s)")
+            ax.xaxis.set_tick_params(labelbottom=True)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     tmp = args.output + ".tmp"
     try:
-        fig.savefig(tmp, dpi=90, format="png")
+        fig.savefig(tmp, dpi=80, format="png")
         os.replace(tmp, args.output)
     except OSError as e:
         if os.path.exists(tmp):

@@ -11,7 +11,8 @@
 ///                     [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
 ///   tetfsi render OUT [--step N | --all] [--slice AXIS=VALUE] [--color ARRAY] [-o FILE.png]
-///                     [--body-color ARRAY] [--range MIN,MAX] [--size WxH] [--movie FILE.mp4]
+///                     [--body-color ARRAY] [--range MIN,MAX] [--body-opacity A] [--zoom F]
+///                     [--size WxH] [--movie FILE.mp4]
 ///   tetfsi plot OUT [-o FILE.png]
 ///   tetfsi scene --keys [--markdown]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
@@ -411,7 +412,7 @@ CLI::Validator size_validator() {
         }
         return "expected WIDTHxHEIGHT in pixels (e.g. 1280x720), got '" + s + "'";
       },
-      "WxH");
+      "");
 }
 
 Command add_render(CLI::App& app) {
@@ -454,6 +455,10 @@ Command add_render(CLI::App& app) {
   cmd->add_option("--body-opacity", o->render.body_opacity,
                   "in (0, 1]: below 1 shows the slice through the bodies")
       ->type_name("A")
+      ->capture_default_str();
+  cmd->add_option("--zoom", o->render.zoom,
+                  "magnify the picture's centre (1: the whole box fits; in [0.1, 20])")
+      ->type_name("F")
       ->capture_default_str();
   cmd->add_option("--size", o->size, "picture size in pixels")
       ->type_name("WxH")

@@ -428,6 +428,7 @@ void style_text(vtkTextProperty* p, int size, bool bold = false) {
   p->SetItalic(false);
   p->SetShadow(false);
   p->SetColor(0.12, 0.12, 0.14);
+  p->SetBackgroundRGBA(1.0, 1.0, 1.0, 0.6);  // readable over the slice and the bodies
 }
 
 vtkSmartPointer<vtkScalarBarActor> make_bar(vtkLookupTable* lut, const std::string& title,
@@ -436,7 +437,7 @@ vtkSmartPointer<vtkScalarBarActor> make_bar(vtkLookupTable* lut, const std::stri
   bar->SetLookupTable(lut);
   bar->SetTitle(title.c_str());
   bar->SetNumberOfLabels(5);
-  bar->SetLabelFormat("%-#.3g");
+  bar->SetLabelFormat("%.3g");
   bar->SetUnconstrainedFontSize(true);
   bar->SetVerticalTitleSeparation(6);
   bar->SetBarRatio(horizontal ? 0.35 : 0.3);
@@ -449,7 +450,9 @@ vtkSmartPointer<vtkScalarBarActor> make_bar(vtkLookupTable* lut, const std::stri
     bar->SetPosition(0.25, 0.015);
     bar->SetWidth(0.42);
     bar->SetHeight(0.13);
-  } else {
+  } else {  // beside the box, on the plain background: no backdrop behind the text
+    bar->GetTitleTextProperty()->SetBackgroundOpacity(0.0);
+    bar->GetLabelTextProperty()->SetBackgroundOpacity(0.0);
     bar->SetOrientationToVertical();
     bar->SetTextPositionToPrecedeScalarBar();
     bar->SetPosition(0.86, 0.16);
@@ -510,7 +513,7 @@ Vec3 view_direction(int axis) {
     case 1:
       return Vec3(-0.35, -1.0, 0.4).normalized();
     default:
-      return Vec3(-0.3, -1.0, 0.95).normalized();
+      return Vec3(0.15, -1.0, 1.05).normalized();
   }
 }
 
@@ -653,7 +656,7 @@ class FrameRenderer {
     outline_actor->SetMapper(outline_mapper);
     outline_actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
     outline_actor->GetProperty()->SetLineWidth(1.5);
-    m_renderer->AddActor(outline_actor);
+    if (run.domain) m_renderer->AddActor(outline_actor);  // a scene without fluid: no box
     add_obstacles(m_renderer, run.scene, view_box);
 
     const int h = opt.height;
@@ -744,6 +747,7 @@ class FrameRenderer {
     fit_box(cam, view_box, double(opt.width) / opt.height,
             {-0.97, colors.fluid.empty() ? 0.97 : 0.62},
             {colors.bodies.empty() ? -0.95 : -0.66, 1.0 - title_ndc});
+    cam->Zoom(opt.zoom);
     m_renderer->ResetCameraClippingRange(bounds);
   }
 
@@ -915,6 +919,8 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
         fmt::format("--size: {}x{} pixels; each side must be in 16..8192", opt.width, opt.height));
   if (!(opt.body_opacity > 0.0 && opt.body_opacity <= 1.0))
     throw InputError(fmt::format("--body-opacity: must be in (0, 1], got {}", opt.body_opacity));
+  if (!(opt.zoom >= 0.1 && opt.zoom <= 20.0))
+    throw InputError(fmt::format("--zoom: must be in [0.1, 20], got {}", opt.zoom));
   if (opt.range && !(opt.range->at(1) > opt.range->at(0)))
     throw InputError(fmt::format("--range: MIN must be below MAX, got {},{}", opt.range->at(0),
                                  opt.range->at(1)));

@@ -57,6 +57,7 @@ struct RenderOptions {
   std::filesystem::path movie;
   int width = 1280, height = 720;  ///< pixels
   double body_opacity = 1.0;       ///< in (0, 1]: < 1 shows the slice through the bodies
+  double zoom = 1.0;  ///< in [0.1, 20]: > 1 magnifies the picture's centre (the box fits at 1)
 };
 
 /// One picture written.
