@@ -64,7 +64,7 @@ bool wait_for_exit(pid_t pid, double timeout_s) {
 
 }  // namespace
 
-std::string find_program(const std::string& name) {
+std::string find_program(const std::string& name, bool fallback) {
   std::vector<std::string> dirs;
   if (const char* path = std::getenv("PATH")) {
     std::string p = path;
@@ -76,7 +76,7 @@ std::string find_program(const std::string& name) {
       start = colon + 1;
     }
   }
-  dirs.insert(dirs.end(), {"/usr/bin", "/bin"});
+  if (fallback) dirs.insert(dirs.end(), {"/usr/bin", "/bin"});
   for (const std::string& d : dirs) {
     if (d.empty()) continue;
     const std::string file = d + "/" + name;
@@ -93,7 +93,7 @@ HeadlessDisplay::HeadlessDisplay() {
     m_display = old;
     return;
   }
-  const std::string xvfb = find_program("Xvfb");
+  const std::string xvfb = find_program("Xvfb", true);  // Debian's, whatever the PATH
   if (xvfb.empty())
     throw InputError(fmt::format(
         "rendering needs an X display (Debian's VTK draws through X) and {}; Xvfb is not "

@@ -35,7 +35,8 @@ class HeadlessDisplay {
   pid_t m_pid = -1;
 };
 
-/// The first executable file `name` in PATH, else in /usr/bin and /bin; "" if none.
-std::string find_program(const std::string& name);
+/// The first executable file `name` in PATH, else (`fallback`) in /usr/bin and /bin; "" if
+/// none.
+std::string find_program(const std::string& name, bool fallback = false);
 
 }  // namespace tetfsi::tools

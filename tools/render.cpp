@@ -645,110 +645,16 @@ class FrameRenderer {
     m_renderer->SetBackground(1.0, 1.0, 1.0);
     m_renderer->SetBackground2(0.84, 0.87, 0.91);
     m_renderer->SetUseFXAA(true);
-
-    // The fluid box's outline.
-    vtkNew<vtkOutlineSource> outline;
-    outline->SetBounds(view_box.lo(0), view_box.hi(0), view_box.lo(1), view_box.hi(1),
-                       view_box.lo(2), view_box.hi(2));
-    vtkNew<vtkPolyDataMapper> outline_mapper;
-    outline_mapper->SetInputConnection(outline->GetOutputPort());
-    vtkNew<vtkActor> outline_actor;
-    outline_actor->SetMapper(outline_mapper);
-    outline_actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
-    outline_actor->GetProperty()->SetLineWidth(1.5);
-    if (run.domain) m_renderer->AddActor(outline_actor);  // a scene without fluid: no box
+    if (run.domain) add_outline(view_box);  // a scene without fluid: no box
     add_obstacles(m_renderer, run.scene, view_box);
-
-    const int h = opt.height;
-    if (!colors.fluid.empty()) {
-      const bool signed_map = colors.fluid == "pressure" || colors.fluid == "divergence";
-      m_fluid_lut = make_lut(signed_map ? k_cool_warm : k_inferno, fluid_range);
-      m_plane->SetNormal(slice.axis == 0, slice.axis == 1, slice.axis == 2);
-      Vec3 origin = view_box.center();
-      origin(slice.axis) = slice.value;
-      m_plane->SetOrigin(origin.data());
-      m_cutter->SetCutFunction(m_plane);
-      m_cutter->SetInputConnection(m_to_points->GetOutputPort());
-      m_slice_mapper->SetInputConnection(m_cutter->GetOutputPort());
-      m_slice_mapper->SetLookupTable(m_fluid_lut);
-      m_slice_mapper->SetScalarModeToUsePointFieldData();
-      m_slice_mapper->SelectColorArray(colors.fluid.c_str());
-      m_slice_mapper->SetUseLookupTableScalarRange(true);
-      m_slice_mapper->ScalarVisibilityOn();
-      m_slice_actor->SetMapper(m_slice_mapper);
-      // Unlit: the slice's colours are the colour bar's exactly.
-      m_slice_actor->GetProperty()->SetAmbient(1.0);
-      m_slice_actor->GetProperty()->SetDiffuse(0.0);
-      m_renderer->AddActor(m_slice_actor);
-      m_renderer->AddActor2D(make_bar(m_fluid_lut, unit_of(colors.fluid, "\n"), false, h));
-    }
+    if (!colors.fluid.empty()) add_slice(view_box, fluid_range);
     if (!colors.bodies.empty()) {
       m_body_lut = make_lut(k_body, body_range);
-      m_renderer->AddActor2D(make_bar(m_body_lut, unit_of(colors.bodies), true, h));
+      m_renderer->AddActor2D(make_bar(m_body_lut, unit_of(colors.bodies), true, opt.height));
     }
-    for (size_t b = 0; b < run.body_names.size(); ++b) {
-      m_bodies.push_back(std::make_unique<Body>());
-      Body& body = *m_bodies.back();
-      body.surface->SetInputData(vtkSmartPointer<vtkUnstructuredGrid>::New());
-      body.mapper->SetInputConnection(body.surface->GetOutputPort());
-      // Kinematic bodies are rigid: their stress is round-off, drawn in the plain colour.
-      if (m_body_lut &&
-          !(run.kinematic[b] && opt.body_color.empty() && colors.bodies == "von_mises_stress")) {
-        body.mapper->SetLookupTable(m_body_lut);
-        body.mapper->SelectColorArray(colors.bodies.c_str());
-        body.mapper->SetUseLookupTableScalarRange(true);
-        body.mapper->ScalarVisibilityOn();
-      } else {
-        body.mapper->ScalarVisibilityOff();
-      }
-      body.actor->SetMapper(body.mapper);
-      body.actor->GetProperty()->SetColor(k_body[0][0], k_body[0][1], k_body[0][2]);
-      body.actor->GetProperty()->SetOpacity(opt.body_opacity);
-      body.actor->GetProperty()->SetSpecular(0.2);
-      body.actor->GetProperty()->SetSpecularPower(20);
-      m_renderer->AddActor(body.actor);
-    }
-    if (opt.body_opacity < 1.0) {
-      m_renderer->SetUseDepthPeeling(true);
-      m_renderer->SetMaximumNumberOfPeels(8);
-    }
-
-    // Title (scene, time, step) and what the slice shows.
-    style_text(m_title->GetTextProperty(), std::max(14, h / 30), true);
-    m_title->SetDisplayPosition(h / 45, h - h / 45 - std::max(14, h / 30));
-    m_renderer->AddActor2D(m_title);
-    style_text(m_subtitle->GetTextProperty(), std::max(11, h / 50));
-    m_subtitle->GetTextProperty()->SetColor(0.3, 0.3, 0.34);
-    m_subtitle->SetDisplayPosition(h / 45,
-                                   h - 2 * (h / 45) - std::max(14, h / 30) - std::max(11, h / 50));
-    std::string sub;
-    if (!colors.fluid.empty())
-      sub =
-          fmt::format("slice {} = {:.4g} m: {}", kAxisNames[slice.axis], slice.value, colors.fluid);
-    if (!colors.bodies.empty())
-      sub += fmt::format("{}bodies: {}", sub.empty() ? "" : "   |   ", colors.bodies);
-    m_subtitle->SetInput(sub.c_str());
-    m_renderer->AddActor2D(m_subtitle);
-
-    // A fixed camera on the box: every frame of a run lines up. The box fills the part of the
-    // picture the title and the colour bars leave free.
-    vtkCamera* cam = m_renderer->GetActiveCamera();
-    const Vec3 c = view_box.center();
-    const Vec3 eye = c + view_direction(slice.axis);
-    cam->SetFocalPoint(c.data());
-    cam->SetPosition(eye.data());
-    cam->SetViewUp(0, 0, 1);
-    cam->SetViewAngle(30);
-    double bounds[6] = {view_box.lo(0), view_box.hi(0), view_box.lo(1),
-                        view_box.hi(1), view_box.lo(2), view_box.hi(2)};
-    m_renderer->ResetCamera(bounds);
-    const double title_ndc =
-        2.0 * (2 * (h / 45) + std::max(14, h / 30) + std::max(11, h / 50) + h / 40) / h;
-    fit_box(cam, view_box, double(opt.width) / opt.height,
-            {-0.97, colors.fluid.empty() ? 0.97 : 0.62},
-            {colors.bodies.empty() ? -0.95 : -0.66, 1.0 - title_ndc});
-    cam->Zoom(opt.zoom);
-    m_renderer->ResetCameraClippingRange(bounds);
+    add_bodies();
+    add_titles();
+    place_camera(view_box);
   }
 
   /// Draw `frame` and write it to `png`.
@@ -798,6 +704,120 @@ class FrameRenderer {
   }
 
  private:
+  /// The fluid box's outline.
+  void add_outline(const Box& box) {
+    vtkNew<vtkOutlineSource> outline;
+    outline->SetBounds(box.lo(0), box.hi(0), box.lo(1), box.hi(1), box.lo(2), box.hi(2));
+    vtkNew<vtkPolyDataMapper> mapper;
+    mapper->SetInputConnection(outline->GetOutputPort());
+    vtkNew<vtkActor> actor;
+    actor->SetMapper(mapper);
+    actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
+    actor->GetProperty()->SetLineWidth(1.5);
+    m_renderer->AddActor(actor);
+  }
+
+  /// The slice pipeline (cell data to points, cutter, mapper) and its colour bar.
+  void add_slice(const Box& box, const std::array<double, 2>& range) {
+    const std::string& array = m_colors.fluid;
+    const bool signed_map = array == "pressure" || array == "divergence";
+    m_fluid_lut = make_lut(signed_map ? k_cool_warm : k_inferno, range);
+    m_plane->SetNormal(m_slice.axis == 0, m_slice.axis == 1, m_slice.axis == 2);
+    Vec3 origin = box.center();
+    origin(m_slice.axis) = m_slice.value;
+    m_plane->SetOrigin(origin.data());
+    m_cutter->SetCutFunction(m_plane);
+    m_cutter->SetInputConnection(m_to_points->GetOutputPort());
+    m_slice_mapper->SetInputConnection(m_cutter->GetOutputPort());
+    m_slice_mapper->SetLookupTable(m_fluid_lut);
+    m_slice_mapper->SetScalarModeToUsePointFieldData();
+    m_slice_mapper->SelectColorArray(array.c_str());
+    m_slice_mapper->SetUseLookupTableScalarRange(true);
+    m_slice_mapper->ScalarVisibilityOn();
+    m_slice_actor->SetMapper(m_slice_mapper);
+    // Unlit: the slice's colours are the colour bar's exactly.
+    m_slice_actor->GetProperty()->SetAmbient(1.0);
+    m_slice_actor->GetProperty()->SetDiffuse(0.0);
+    m_renderer->AddActor(m_slice_actor);
+    m_renderer->AddActor2D(make_bar(m_fluid_lut, unit_of(array, "\n"), false, m_opt.height));
+  }
+
+  /// One surface actor per body, coloured through m_body_lut (kinematic bodies: plain).
+  void add_bodies() {
+    for (size_t b = 0; b < m_run.body_names.size(); ++b) {
+      m_bodies.push_back(std::make_unique<Body>());
+      Body& body = *m_bodies.back();
+      body.surface->SetInputData(vtkSmartPointer<vtkUnstructuredGrid>::New());
+      body.mapper->SetInputConnection(body.surface->GetOutputPort());
+      // Kinematic bodies are rigid: their stress is round-off, drawn in the plain colour.
+      if (m_body_lut && !(m_run.kinematic[b] && m_opt.body_color.empty() &&
+                          m_colors.bodies == "von_mises_stress")) {
+        body.mapper->SetLookupTable(m_body_lut);
+        body.mapper->SelectColorArray(m_colors.bodies.c_str());
+        body.mapper->SetUseLookupTableScalarRange(true);
+        body.mapper->ScalarVisibilityOn();
+      } else {
+        body.mapper->ScalarVisibilityOff();
+      }
+      body.actor->SetMapper(body.mapper);
+      body.actor->GetProperty()->SetColor(k_body[0][0], k_body[0][1], k_body[0][2]);
+      body.actor->GetProperty()->SetOpacity(m_opt.body_opacity);
+      body.actor->GetProperty()->SetSpecular(0.2);
+      body.actor->GetProperty()->SetSpecularPower(20);
+      m_renderer->AddActor(body.actor);
+    }
+    if (m_opt.body_opacity < 1.0) {
+      m_renderer->SetUseDepthPeeling(true);
+      m_renderer->SetMaximumNumberOfPeels(8);
+    }
+  }
+
+  /// Font sizes and margins (px) of the title lines, from the picture's height.
+  int title_size() const { return std::max(14, m_opt.height / 30); }
+  int subtitle_size() const { return std::max(11, m_opt.height / 50); }
+  int margin() const { return m_opt.height / 45; }
+
+  /// The title (scene, time, step; set per frame) and what the slice and bodies show.
+  void add_titles() {
+    const int h = m_opt.height;
+    style_text(m_title->GetTextProperty(), title_size(), true);
+    m_title->SetDisplayPosition(margin(), h - margin() - title_size());
+    m_renderer->AddActor2D(m_title);
+    style_text(m_subtitle->GetTextProperty(), subtitle_size());
+    m_subtitle->GetTextProperty()->SetColor(0.3, 0.3, 0.34);
+    m_subtitle->SetDisplayPosition(margin(), h - 2 * margin() - title_size() - subtitle_size());
+    std::string sub;
+    if (!m_colors.fluid.empty())
+      sub = fmt::format("slice {} = {:.4g} m: {}", kAxisNames[m_slice.axis], m_slice.value,
+                        m_colors.fluid);
+    if (!m_colors.bodies.empty())
+      sub += fmt::format("{}bodies: {}", sub.empty() ? "" : "   |   ", m_colors.bodies);
+    m_subtitle->SetInput(sub.c_str());
+    m_renderer->AddActor2D(m_subtitle);
+  }
+
+  /// A fixed camera on the box: every frame of a run lines up. The box fills the part of the
+  /// picture the title and the colour bars leave free.
+  void place_camera(const Box& box) {
+    vtkCamera* cam = m_renderer->GetActiveCamera();
+    const Vec3 c = box.center();
+    const Vec3 eye = c + view_direction(m_slice.axis);
+    cam->SetFocalPoint(c.data());
+    cam->SetPosition(eye.data());
+    cam->SetViewUp(0, 0, 1);
+    cam->SetViewAngle(30);
+    double bounds[6] = {box.lo(0), box.hi(0), box.lo(1), box.hi(1), box.lo(2), box.hi(2)};
+    m_renderer->ResetCamera(bounds);
+    const double h = m_opt.height;
+    const double title_ndc =
+        2.0 * (2 * margin() + title_size() + subtitle_size() + m_opt.height / 40) / h;
+    fit_box(cam, box, double(m_opt.width) / m_opt.height,
+            {-0.97, m_colors.fluid.empty() ? 0.97 : 0.62},
+            {m_colors.bodies.empty() ? -0.95 : -0.66, 1.0 - title_ndc});
+    cam->Zoom(m_opt.zoom);
+    m_renderer->ResetCameraClippingRange(bounds);
+  }
+
   struct Body {
     FrameReader reader;
     vtkNew<vtkDataSetSurfaceFilter> surface;
@@ -885,6 +905,80 @@ std::string make_movie(const fs::path& folder, const std::string& prefix, double
   return "";
 }
 
+/// The options' own ranges. @throws InputError naming the option.
+void check_options(const RenderOptions& opt) {
+  if (opt.width < 16 || opt.height < 16 || opt.width > 8192 || opt.height > 8192)
+    throw InputError(
+        fmt::format("--size: {}x{} pixels; each side must be in 16..8192", opt.width, opt.height));
+  if (!(opt.body_opacity > 0.0 && opt.body_opacity <= 1.0))
+    throw InputError(fmt::format("--body-opacity: must be in (0, 1], got {}", opt.body_opacity));
+  if (!(opt.zoom >= 0.1 && opt.zoom <= 20.0))
+    throw InputError(fmt::format("--zoom: must be in [0.1, 20], got {}", opt.zoom));
+  if (opt.range && !(opt.range->at(1) > opt.range->at(0)))
+    throw InputError(fmt::format("--range: MIN must be below MAX, got {},{}", opt.range->at(0),
+                                 opt.range->at(1)));
+  if (!opt.movie.empty() && !opt.all)
+    throw InputError("--movie needs --all (a movie of every frame)");
+}
+
+/// The frames `opt` asks for: all, the step's, or the last.
+/// @throws InputError naming the steps written if the step's frame was not.
+std::vector<const FrameFiles*> frames_to_draw(const RunIndex& run, const RenderOptions& opt,
+                                              const fs::path& out_dir) {
+  std::vector<const FrameFiles*> todo;
+  if (opt.all) {
+    for (const FrameFiles& f : run.frames) todo.push_back(&f);
+  } else if (opt.step) {
+    const FrameFiles* f = run.find(*opt.step);
+    if (!f)
+      throw InputError(
+          fmt::format("{}: no frame of step {} was written; frames: steps {} "
+                      "(pick one with --step, or --all)",
+                      out_dir.string(), *opt.step, list_steps(run)));
+    todo.push_back(f);
+  } else {
+    todo.push_back(&run.frames.back());
+  }
+  return todo;
+}
+
+/// --slice, checked against the box, or the default: normal z through the inflow patches'
+/// mean height, else the box's centre.
+SlicePlane slice_of(const RunIndex& run, const RenderOptions& opt, const Box& box) {
+  if (!opt.slice) return SlicePlane{2, run.jet_z ? *run.jet_z : box.center()(2)};
+  const SlicePlane s = *opt.slice;
+  if (s.value < box.lo(s.axis) || s.value > box.hi(s.axis))
+    throw InputError(fmt::format("--slice {}={}: outside the fluid box ({} in [{}, {}] m)",
+                                 kAxisNames[s.axis], s.value, kAxisNames[s.axis], box.lo(s.axis),
+                                 box.hi(s.axis)));
+  return s;
+}
+
+/// The slice's fixed colour range: --range, 0..the emitted smoke, or robust_range over the
+/// last frame.
+std::array<double, 2> fluid_range_of(const RunIndex& run, const RenderOptions& opt,
+                                     const ColorChoice& colors, FrameReader& reader) {
+  const FrameFiles& last = run.frames.back();
+  if (opt.range) return *opt.range;
+  if (colors.fluid == "smoke_density" && run.emitted_smoke > 0.0) return {0.0, run.emitted_smoke};
+  if (last.fluid.empty()) return {0.0, 1.0};
+  return robust_range(values_of(reader.read(last.fluid, colors.fluid), colors.fluid));
+}
+
+/// The bodies' fixed colour range: robust_range over the last frame's coloured bodies.
+std::array<double, 2> body_range_of(const RunIndex& run, const ColorChoice& colors,
+                                    FrameReader& reader) {
+  const FrameFiles& last = run.frames.back();
+  std::vector<double> all;
+  for (size_t b = 0; b < last.bodies.size(); ++b) {
+    if (run.kinematic[b] && colors.bodies == "von_mises_stress") continue;
+    const std::vector<double> v =
+        values_of(reader.read(last.bodies[b], colors.bodies), colors.bodies);
+    all.insert(all.end(), v.begin(), v.end());
+  }
+  return robust_range(std::move(all));
+}
+
 }  // namespace
 
 SlicePlane parse_slice(const std::string& text) {
@@ -914,88 +1008,31 @@ std::array<double, 2> pixel_of(const RenderedFrame& frame, const Vec3& x, int wi
 
 RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
   const auto start = std::chrono::steady_clock::now();
-  if (opt.width < 16 || opt.height < 16 || opt.width > 8192 || opt.height > 8192)
-    throw InputError(
-        fmt::format("--size: {}x{} pixels; each side must be in 16..8192", opt.width, opt.height));
-  if (!(opt.body_opacity > 0.0 && opt.body_opacity <= 1.0))
-    throw InputError(fmt::format("--body-opacity: must be in (0, 1], got {}", opt.body_opacity));
-  if (!(opt.zoom >= 0.1 && opt.zoom <= 20.0))
-    throw InputError(fmt::format("--zoom: must be in [0.1, 20], got {}", opt.zoom));
-  if (opt.range && !(opt.range->at(1) > opt.range->at(0)))
-    throw InputError(fmt::format("--range: MIN must be below MAX, got {},{}", opt.range->at(0),
-                                 opt.range->at(1)));
-  if (!opt.movie.empty() && !opt.all)
-    throw InputError("--movie needs --all (a movie of every frame)");
+  check_options(opt);
   const RunIndex run = read_run(out_dir);
-
-  // The frames to draw.
-  std::vector<const FrameFiles*> todo;
-  if (opt.all) {
-    for (const FrameFiles& f : run.frames) todo.push_back(&f);
-  } else if (opt.step) {
-    const FrameFiles* f = run.find(*opt.step);
-    if (!f)
-      throw InputError(
-          fmt::format("{}: no frame of step {} was written; frames: steps {} "
-                      "(pick one with --step, or --all)",
-                      out_dir.string(), *opt.step, list_steps(run)));
-    todo.push_back(f);
-  } else {
-    todo.push_back(&run.frames.back());
-  }
-
-  RenderReport report;
-  report.scene_name = run.name;
-  report.width = opt.width;
-  report.height = opt.height;
+  const std::vector<const FrameFiles*> todo = frames_to_draw(run, opt, out_dir);
   const Box view_box = view_box_of(run);
-  SlicePlane slice;
-  if (opt.slice) {
-    slice = *opt.slice;
-    if (slice.value < view_box.lo(slice.axis) || slice.value > view_box.hi(slice.axis))
-      throw InputError(fmt::format("--slice {}={}: outside the fluid box ({} in [{}, {}] m)",
-                                   kAxisNames[slice.axis], slice.value, kAxisNames[slice.axis],
-                                   view_box.lo(slice.axis), view_box.hi(slice.axis)));
-  } else {
-    slice.axis = 2;
-    slice.value = run.jet_z ? *run.jet_z : view_box.center()(2);
-  }
+  const SlicePlane slice = slice_of(run, opt, view_box);
 
   // Arrays and their fixed ranges (from the last frame).
   FrameReader probe_fluid, probe_body;
   const ColorChoice colors = choose_colors(run, opt, *todo.front(), probe_fluid, probe_body);
-  std::array<double, 2> fluid_range = {0, 1}, body_range = {0, 1};
-  const FrameFiles& last = run.frames.back();
-  if (!colors.fluid.empty()) {
-    if (opt.range)
-      fluid_range = *opt.range;
-    else if (colors.fluid == "smoke_density" && run.emitted_smoke > 0.0)
-      fluid_range = {0.0, run.emitted_smoke};
-    else if (!last.fluid.empty())
-      fluid_range =
-          robust_range(values_of(probe_fluid.read(last.fluid, colors.fluid), colors.fluid));
-  }
-  if (!colors.bodies.empty()) {
-    std::vector<double> all;
-    for (size_t b = 0; b < last.bodies.size(); ++b) {
-      if (run.kinematic[b] && colors.bodies == "von_mises_stress") continue;
-      const fs::path& p = last.bodies[b];
-      const std::vector<double> v = values_of(probe_body.read(p, colors.bodies), colors.bodies);
-      all.insert(all.end(), v.begin(), v.end());
-    }
-    body_range = robust_range(std::move(all));
-  }
+  RenderReport report;
+  report.scene_name = run.name;
+  report.width = opt.width;
+  report.height = opt.height;
   report.slice = slice;
   report.has_slice = !colors.fluid.empty();
   report.color = colors.fluid;
-  report.color_range = fluid_range;
   report.body_color = colors.bodies;
-  report.body_range = body_range;
+  if (!colors.fluid.empty()) report.color_range = fluid_range_of(run, opt, colors, probe_fluid);
+  if (!colors.bodies.empty()) report.body_range = body_range_of(run, colors, probe_body);
 
   // Where the pictures go.
   const std::string prefix = file_safe_name(run.name);
-  fs::path folder = opt.all ? (opt.output.empty() ? out_dir / "pictures" : opt.output)
-                            : (opt.output.empty() ? out_dir / "pictures" : fs::path());
+  const fs::path folder = opt.all || opt.output.empty()
+                              ? (opt.output.empty() ? out_dir / "pictures" : opt.output)
+                              : fs::path();
   std::error_code ec;
   if (!folder.empty()) {
     fs::create_directories(folder, ec);
@@ -1005,7 +1042,7 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
   }
 
   const HeadlessDisplay display;
-  FrameRenderer renderer(run, opt, colors, slice, view_box, fluid_range, body_range);
+  FrameRenderer renderer(run, opt, colors, slice, view_box, report.color_range, report.body_range);
   for (const FrameFiles* f : todo) {
     const fs::path png =
         folder.empty() ? opt.output : folder / fmt::format("{}_{:06d}.png", prefix, f->step);
@@ -1013,7 +1050,7 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
   }
 
   if (!opt.movie.empty()) {
-    double fps = 25.0;
+    double fps = 25.0;  // real time: one frame per output.every × dt, within 1..60 fps
     if (run.frames.size() >= 2) {
       const double dt_frame =
           (run.frames.back().time - run.frames.front().time) / double(run.frames.size() - 1);
