@@ -4,6 +4,7 @@
 #   make test-long  the long cases only
 #   make bench      the solver benchmark
 #   make sanitize   an ASan + UBSan build in build-sanitize/ and its test run (skips "long")
+#   make pictures   regenerate the README's pictures docs/*.png (scripts/make_pictures.sh, ~8 min)
 BUILD ?= build
 JOBS ?= $(shell nproc)
 SCENE ?= data/scenes/smoke_sheets.json
@@ -19,7 +20,7 @@ SAN_ENV = OMPI_MCA_mca_base_component_disable_dlclose=1 \
   LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0:fast_unwind_on_malloc=0 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 
-.PHONY: setup configure build run test test-long test-all bench sanitize format clean
+.PHONY: setup configure build run test test-long test-all bench sanitize format clean pictures
 
 setup:
 	@bash scripts/setup.sh
@@ -43,6 +44,9 @@ test-long: build
 
 test-all: build
 	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS)
+
+pictures: build
+	BUILD=$(BUILD) bash scripts/make_pictures.sh
 
 bench: build
 	$(BUILD)/tools/tetfsi bench solvers --n 250000

@@ -10,6 +10,7 @@ packages=(
   libvtk9-dev python3-vtk9 zlib1g-dev liblz4-dev
   doctest-dev libtbb-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   libpetsc-real-dev libhypre-dev
+  xvfb python3-numpy python3-matplotlib   # tetfsi render (VTK needs X: Xvfb), tetfsi plot
 )
 
 missing=()

@@ -1,7 +1,7 @@
 /// @file main.cpp
 /// The `tetfsi` command line:
 ///   tetfsi run SCENE [--out DIR] [--set key.path=value ...] [--steps N | --end-time T]
-///                    [--progress auto|tty|plain|off]
+///                    [--progress auto|tty|plain|off] [--preview]
 ///   tetfsi validate SCENE [--set key.path=value ...]
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
 ///   tetfsi bench remesh [--json FILE] [--max-cells N]
@@ -10,6 +10,10 @@
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
+///   tetfsi render OUT [--step N | --all] [--slice AXIS=VALUE] [--color ARRAY] [-o FILE.png]
+///                     [--body-color ARRAY] [--range MIN,MAX] [--body-opacity A] [--zoom F]
+///                     [--size WxH] [--movie FILE.mp4]
+///   tetfsi plot OUT [-o FILE.png]
 ///   tetfsi scene --keys [--markdown]
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
@@ -39,8 +43,10 @@
 #include "tools/bench_solvers.hpp"
 #include "tools/bench_step.hpp"
 #include "tools/output.hpp"
+#include "tools/plot.hpp"
 #include "tools/process_env.hpp"
 #include "tools/quality_cmd.hpp"
+#include "tools/render.hpp"
 #include "tools/run.hpp"
 #include "tools/scene.hpp"
 #include "tools/scene_keys.hpp"
@@ -105,6 +111,7 @@ Command add_run(CLI::App& app) {
     std::vector<std::string> sets;
     int steps = 0;
     double end_time = 0.0;
+    bool preview = false;
     CLI::Option *steps_opt = nullptr, *end_opt = nullptr;
   };
   auto o = std::make_shared<Opt>();
@@ -127,6 +134,8 @@ Command add_run(CLI::App& app) {
       ->type_name("MODE")
       ->check(CLI::IsMember(tools::k_progress_mode_names.names()))
       ->capture_default_str();
+  run->add_flag("--preview", o->preview,
+                "at the end, render the last frame to OUT/preview.png (as `tetfsi render`)");
   return {run, [o] {
             const tools::Scene scene = tools::load_scene(o->scene_file, o->sets);
             tools::RunOptions opt;
@@ -142,8 +151,24 @@ Command add_run(CLI::App& app) {
             const tools::RunResult r = tools::run_scene(scene, opt);
             std::signal(SIGINT, SIG_DFL);
             std::signal(SIGTERM, SIG_DFL);
+            std::string preview_error;
+            std::filesystem::path preview;
+            // A preview of the last frame written (a failed run's too: its last good step; not
+            // after Ctrl-C). Only a completed run reports a failed preview: else the run's
+            // error is the one line.
+            if (o->preview && r.frames_written > 0 && !r.interrupted) {
+              try {
+                tools::RenderOptions ro;
+                ro.output = opt.out_dir / "preview.png";
+                preview = tools::render_output(opt.out_dir, ro).frames.back().png;
+              } catch (const std::exception& e) {
+                preview_error = std::string("--preview: ") + e.what();
+              }
+            }
             tools::print_summary(r, std::cout);
+            if (!preview.empty()) std::cout << "preview: " << preview.string() << "\n";
             std::cout.flush();
+            if (!preview_error.empty() && r.completed) return report_error(preview_error);
             if (r.interrupted) {
               report_error(r.error);
               return 130;  // the shell convention for "ended by SIGINT"
@@ -373,6 +398,109 @@ Command add_quality(CLI::App& app) {
           [o] { return tetfsi::tools::quality_command(o->file, o->json, o->png, std::cout); }};
 }
 
+/// "1280x720" → (1280, 720).
+CLI::Validator size_validator() {
+  return CLI::Validator(
+      [](std::string& s) -> std::string {
+        const size_t x = s.find('x');
+        try {
+          size_t a = 0, b = 0;
+          if (x != std::string::npos && std::stoi(s.substr(0, x), &a) > 0 &&
+              std::stoi(s.substr(x + 1), &b) > 0 && a == x && b == s.size() - x - 1)
+            return {};
+        } catch (const std::exception&) {
+        }
+        return "expected WIDTHxHEIGHT in pixels (e.g. 1280x720), got '" + s + "'";
+      },
+      "");
+}
+
+Command add_render(CLI::App& app) {
+  struct Opt {
+    std::string out, png, slice, size = "1280x720", movie;
+    std::vector<double> range;
+    int step = 0;
+    tetfsi::tools::RenderOptions render;
+    CLI::Option* step_opt = nullptr;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = app.add_subcommand(
+      "render",
+      "a picture of a run's frame, headless (VTK's renderer, off screen): the bodies coloured by "
+      "a body array, a slice of the fluid, colour bars, the scene's name and the time");
+  cmd->add_option("OUT", o->out, "the output folder of a run (`tetfsi run SCENE --out OUT`)")
+      ->required()
+      ->type_name("DIR");
+  o->step_opt = cmd->add_option("--step", o->step, "the frame of this step (default: the last)")
+                    ->type_name("N");
+  auto* all =
+      cmd->add_flag("--all", o->render.all, "every frame, one PNG each (then -o names a folder)");
+  o->step_opt->excludes(all);
+  cmd->add_option("--slice", o->slice,
+                  "the fluid slice: normal to AXIS through VALUE m (default: z through the "
+                  "inflow patches' centre, else the box centre)")
+      ->type_name("AXIS=VALUE");
+  cmd->add_option("--color", o->render.color,
+                  "the slice's fluid array (default: smoke_density if the scene emits smoke, "
+                  "else pressure; vectors by magnitude); a body array colours the bodies")
+      ->type_name("ARRAY");
+  cmd->add_option("--body-color", o->render.body_color,
+                  "the bodies' array (default: von_mises_stress)")
+      ->type_name("ARRAY");
+  cmd->add_option("--range", o->range,
+                  "the slice's colour range (default: fixed per run, see the README)")
+      ->delimiter(',')
+      ->expected(2)
+      ->type_name("MIN,MAX");
+  cmd->add_option("--body-opacity", o->render.body_opacity,
+                  "in (0, 1]: below 1 shows the slice through the bodies")
+      ->type_name("A")
+      ->capture_default_str();
+  cmd->add_option("--zoom", o->render.zoom,
+                  "magnify the picture's centre (1: the whole box fits; in [0.1, 20])")
+      ->type_name("F")
+      ->capture_default_str();
+  cmd->add_option("--size", o->size, "picture size in pixels")
+      ->type_name("WxH")
+      ->check(size_validator())
+      ->capture_default_str();
+  cmd->add_option("-o,--output", o->png,
+                  "the PNG (default OUT/pictures/<scene>_<step>.png); with --all a folder "
+                  "(default OUT/pictures)")
+      ->type_name("FILE.png");
+  cmd->add_option("--movie", o->movie,
+                  "with --all: assemble the PNGs into this movie with ffmpeg (if installed)")
+      ->type_name("FILE.mp4");
+  return {cmd, [o] {
+            tetfsi::tools::RenderOptions& r = o->render;
+            if (*o->step_opt) r.step = o->step;
+            if (!o->slice.empty()) r.slice = tetfsi::tools::parse_slice(o->slice);
+            if (o->range.size() == 2) r.range = std::array<double, 2>{o->range[0], o->range[1]};
+            const size_t x = o->size.find('x');
+            r.width = std::stoi(o->size.substr(0, x));
+            r.height = std::stoi(o->size.substr(x + 1));
+            r.output = o->png;
+            r.movie = o->movie;
+            return tetfsi::tools::render_command(o->out, r, std::cout);
+          }};
+}
+
+Command add_plot(CLI::App& app) {
+  struct Opt {
+    std::string out, png;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = app.add_subcommand(
+      "plot",
+      "a run's stats.csv as a page of plots over time: energy budget, solver iterations and "
+      "residuals, divergence, enclosed volume drift, mesh quality, seconds per phase");
+  cmd->add_option("OUT", o->out, "the output folder of a run (`tetfsi run SCENE --out OUT`)")
+      ->required()
+      ->type_name("DIR");
+  cmd->add_option("-o,--output", o->png, "the PNG (default OUT/stats.png)")->type_name("FILE.png");
+  return {cmd, [o] { return tetfsi::tools::plot_command(o->out, o->png, std::cout); }};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -398,6 +526,9 @@ int main(int argc, char** argv) {
       "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
       "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
       "  tetfsi scene --keys   # every scene key with its default and range\n"
+      "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
+      "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
+      "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
       "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
@@ -416,6 +547,8 @@ int main(int argc, char** argv) {
                    add_bench_bfgs, add_bench_integrators})
     commands.push_back(add(*bench));
   commands.push_back(add_quality(app));
+  commands.push_back(add_render(app));
+  commands.push_back(add_plot(app));
   commands.push_back(add_scene(app));
 
   try {
