@@ -35,11 +35,9 @@ picture() {  # scene steps [run options] -- [render options]
 picture smoke_sheets "${STEPS_SMOKE_SHEETS:-100}" --set output.every=1
 # The paddle pushed by the jet (t = 2 s, its whole run).
 picture paddle "${STEPS_PADDLE:-100}"
-# The toy after landing (t = 0.75 s), at half the scene's step: at its own dt = 1/60 s the run
-# stops at t = 0.18 s when it lands (its surface intersects itself, step 11). A vertical slice
-# through it, the shell see-through, zoomed on the toy: the pressure of the water inside.
-picture toy "${STEPS_TOY:-90}" --set time.dt=0.008333333333333333 -- \
-  --slice y=0.5 --body-opacity 0.35 --zoom 1.8
+# The toy after landing (t = 0.75 s at the scene's dt of 1/120 s). A vertical slice through
+# it, the shell see-through, zoomed on the toy: the pressure of the water inside.
+picture toy "${STEPS_TOY:-90}" -- --slice y=0.5 --body-opacity 0.35 --zoom 1.8
 # smoke_sheets' stats.csv as plots (tetfsi plot).
 "$tetfsi" plot out/pictures/smoke_sheets -o docs/smoke_sheets_stats.png
 ls -l docs/*.png
