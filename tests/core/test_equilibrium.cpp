@@ -236,7 +236,7 @@ TEST_CASE("a linear problem with the exact matrix converges in 2 iterations (Tab
   }
 }
 
-TEST_CASE("modified Newton with a poor matrix fails and says so; BFGS recovers") {
+TEST_CASE("modified Newton with a poor matrix fails and says so - BFGS recovers") {
   const Index n = 8;
   const Dense K = spd(n);
   const VecX b = pattern(n, 0.7);
@@ -264,7 +264,7 @@ TEST_CASE("modified Newton with a poor matrix fails and says so; BFGS recovers")
   CHECK((b - K * x).norm() <= opt.rtol * b.norm());
 }
 
-TEST_CASE("keep_matrix forms the starting matrix once per run; max_force spans solves") {
+TEST_CASE("keep_matrix forms the starting matrix once per run - max_force spans solves") {
   const Index n = 5;
   const Dense K = spd(n);
   int formed = 0;

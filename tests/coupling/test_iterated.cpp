@@ -91,7 +91,7 @@ TEST_CASE("iterated schemes: newton and bfgs converge to the simultaneous answer
   }
 }
 
-TEST_CASE("iterated schemes: modified Newton cannot learn the added mass; BFGS does") {
+TEST_CASE("iterated schemes: modified Newton cannot learn the added mass - BFGS does") {
   // 0.32 kg of plate moving ~5 kg of water: the fixed matrix of Eq. (15) underestimates the
   // response by ~15x, a fixed-point iteration that amplifies its error each iteration.
   const double h = 1.0 / 30;

@@ -180,7 +180,7 @@ TEST_CASE("multigrid iterations stay flat as the cell count grows 8x") {
   CHECK(iters[1] <= 1.5 * iters[0]);
 }
 
-TEST_CASE("reconstruction: uniform flow exact for both; rotation and shear errors measured") {
+TEST_CASE("reconstruction: uniform flow exact for both - rotation and shear errors measured") {
   const mesh::TetMesh& m = sphere_in_box();
   const Vec3 U(0.3, -1.2, 2.0);
   const VecX uu = face_field(m, [&](const Vec3&) { return U; });

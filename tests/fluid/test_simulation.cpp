@@ -445,7 +445,7 @@ TEST_CASE("transfer table: blob and rotation and Taylor-Green at two resolutions
   }
 }
 
-TEST_CASE("jet: inflow flux = outflow flux every step; no smoke in a sealed cavity") {
+TEST_CASE("jet: inflow flux = outflow flux every step - no smoke in a sealed cavity") {
   // VALIDATION.md "Jet mass balance" with a hollow shell in the jet whose cavity is sealed.
   mesh::FluidDomain d = box_domain(Vec3::Zero(), Vec3(2, 1, 1));
   d.patches.push_back(patch("jet", FaceKind::Inflow, 0, Vec2(0.35, 0.35), Vec2(0.65, 0.65)));

@@ -87,7 +87,7 @@ TEST_CASE("bench step: three sizes, JSON with cells increasing and positive figu
   CHECK(cases[0]["scale"].get<double>() == doctest::Approx(2.0));
 }
 
-TEST_CASE("bench step: a scene without fluid is a one-line error; --steps 1 is a usage error") {
+TEST_CASE("bench step: a scene without fluid is a one-line error - --steps 1 is a usage error") {
   TempDir dir("bench_step_err");
   nlohmann::json j = nlohmann::json::parse(k_jet_scene);
   j.erase("fluid");

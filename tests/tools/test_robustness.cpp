@@ -148,7 +148,7 @@ TEST_CASE("validate makes run's step-0 checks: the same one-line error, nothing 
   }
 }
 
-TEST_CASE("a tolerance below round-off is met at the floor; a real failure still warns (item 8)") {
+TEST_CASE("a tolerance below round-off is met at the floor - a real failure still warns (item 8)") {
   TempDir dir("floor");
   const std::string scene = (k_scenes / "water_shell_in_water.json").string();
   // coupling.rel_tol 1e-13 lies below this system's round-off floor (~1e-12).

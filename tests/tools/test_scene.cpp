@@ -909,7 +909,7 @@ TEST_CASE("fluid physics errors are one line naming the JSON path") {
   CHECK(parse_scene(j, "scene.json").fluid->params.refine.size == mesh::Sizing{}.far_size);
 }
 
-TEST_CASE("a scene with a fluid may have no body; without one it needs a body") {
+TEST_CASE("a scene with a fluid may have no body - without one it needs a body") {
   json j = fluid_physics_json();
   j["bodies"] = json::array();
   const Scene empty = parse_scene(j, "scene.json");
