@@ -110,7 +110,6 @@ class Tracer {
       : m_mesh(om), m_field(field), m_locator(om), m_bary(om), m_h(h) {}
 
   const Barycentrics& bary() const { return m_bary; }
-  const mesh::PointLocator& locator() const { return m_locator; }
 
   /// Locate x in the mesh's fluid: walk there from a nearby point already located (`from`:
   /// the previous cell's point, or a face's cell); if that walk is stopped by the boundary,
@@ -191,13 +190,23 @@ void back_traces(const Tracer& tr, const TetMesh& nm, bool scalars, std::vector<
   }
 }
 
-/// Whether cell t and its face neighbours hold the same value of c, to `tol`.
-bool uniform_around(const TetMesh& m, const VecX& c, Index t, double tol) {
+/// The range of the old cell values around tet t (t and its face neighbours): the clamp of
+/// the corrected scalars [Selle08].
+std::pair<double, double> cell_range(const TetMesh& m, const VecX& c, Index t) {
+  double lo = c[t], hi = c[t];
   for (int k = 0; k < 4; ++k) {
     const Index n = m.neighbours(t, k);
-    if (n >= 0 && std::abs(c[n] - c[t]) > tol) return false;
+    if (n < 0) continue;
+    lo = std::min(lo, c[n]);
+    hi = std::max(hi, c[n]);
   }
-  return true;
+  return {lo, hi};
+}
+
+/// Whether cell t and its face neighbours hold the same value of c, to `tol`.
+bool uniform_around(const TetMesh& m, const VecX& c, Index t, double tol) {
+  const auto [lo, hi] = cell_range(m, c, t);
+  return std::max(hi - c[t], c[t] - lo) <= tol;
 }
 
 /// The reverse pass of the second-order schemes [Selle08]: the new mesh's first-order values
@@ -277,19 +286,6 @@ ErrorEstimate reverse_pass(const TransferInput& in, const Tracer& old_tr, const 
     e.u[g] = 0.5 * ((*in.old_u)[g] - hat_field->normal_at(q.tet, q.bary, n));
   }
   return e;
-}
-
-/// The range of the old cell values around tet t (t and its face neighbours): the clamp of
-/// the corrected scalars [Selle08].
-std::pair<double, double> cell_range(const TetMesh& m, const VecX& c, Index t) {
-  double lo = c[t], hi = c[t];
-  for (int k = 0; k < 4; ++k) {
-    const Index n = m.neighbours(t, k);
-    if (n < 0) continue;
-    lo = std::min(lo, c[n]);
-    hi = std::max(hi, c[n]);
-  }
-  return {lo, hi};
 }
 
 /// φ = φ̂ + e at the sample's point — the new point itself (MacCormack) or its back-trace's

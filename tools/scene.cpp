@@ -757,7 +757,6 @@ json fluid_json(const FluidSpec& f) {
   j["domain"] = domain;
   if (f.grid_spec) {  // the tet mesh's keys are refused on the grid
     j.erase("reconstruction");
-    j.erase("transfer");
     j.erase("min_dual_fraction");
     j["grid"] = fluid_grid_keys().write(f.grid);
   }

@@ -216,20 +216,39 @@ TEST_CASE("Taylor-Green with both reconstructions (the comparison behind the def
 
 namespace {
 
+/// The rotation tests' set-up: a hollow sphere (cavity radius 0.38) at the centre of the unit
+/// box, the fluid mesh around it at sizing z, the shell at rest as the solid, and the rigid
+/// rotation u = Ω × r (one revolution per second) in the cavity, projected.
+struct RotationCavity {
+  Vec3 o = Vec3(0.5, 0.5, 0.5);
+  mesh::SolidSurface shell = hollow_sphere(o, 0.45, 0.38, 3);
+  mesh::TetMesh m;
+  std::vector<SolidSurfaceMotion> solids = std::vector<SolidSurfaceMotion>(1);
+
+  explicit RotationCavity(const mesh::Sizing& z)
+      : m(mesh::remesh(box_domain(Vec3::Zero(), Vec3::Ones()), {shell}, z)) {
+    solids[0].triangles = shell.triangles;
+    solids[0].velocity = MatX3::Zero(shell.vertices.rows(), 3);
+  }
+
+  VecX rotation(double min_dual_fraction) const {
+    const double omega = 2 * std::numbers::pi;
+    return divergence_free_field(m, min_dual_fraction, [&](const Vec3& x) {
+      const Vec3 r = x - o;
+      return r.norm() < 0.4 ? Vec3(-omega * r.y(), omega * r.x(), 0.0) : Vec3::Zero();
+    });
+  }
+};
+
 /// Rigid rotation u = Ω × r (one revolution per second) in a spherical cavity of radius 0.38
 /// (slip walls: the wall of a hollow solid at rest), one revolution in `steps` steps on the
 /// same mesh; returns the relative change of the angular momentum about the axis.
 double rotation_drift(double size, int steps, Reconstruction k, Index* cells,
                       TransferScheme scheme = TransferScheme::SemiLagrangian, bool path = false) {
-  const Vec3 o(0.5, 0.5, 0.5);
-  const mesh::SolidSurface shell = hollow_sphere(o, 0.45, 0.38, 3);
-  const mesh::FluidDomain d = box_domain(Vec3::Zero(), Vec3::Ones());
-  const mesh::TetMesh m = mesh::remesh(d, {shell}, sizing(size, 2 * size));
+  const RotationCavity cav(sizing(size, 2 * size));
+  const Vec3& o = cav.o;
+  const mesh::TetMesh& m = cav.m;
   *cells = m.num_tets();
-  const double omega = 2 * std::numbers::pi;
-  std::vector<SolidSurfaceMotion> solids(1);
-  solids[0].triangles = shell.triangles;
-  solids[0].velocity = MatX3::Zero(shell.vertices.rows(), 3);
   FluidParams p = quiet_params();
   p.density = 1.0;
   p.reconstruction = k;
@@ -238,10 +257,7 @@ double rotation_drift(double size, int steps, Reconstruction k, Index* cells,
   FluidSimulation sim(p);
   sim.initialize(m);
   FluidState s = sim.state();
-  s.u = divergence_free_field(m, p.min_dual_fraction, [&](const Vec3& x) {
-    const Vec3 r = x - o;
-    return r.norm() < 0.4 ? Vec3(-omega * r.y(), omega * r.x(), 0.0) : Vec3::Zero();
-  });
+  s.u = cav.rotation(p.min_dual_fraction);
   sim.set_state(s);
   auto Lz = [&] {
     const MatX3 c = sim.cell_velocities();
@@ -255,7 +271,7 @@ double rotation_drift(double size, int steps, Reconstruction k, Index* cells,
   };
   const double L0 = Lz();
   PhaseTimes ph;
-  for (int i = 0; i < steps; ++i) sim.step(m, 1.0 / steps, solids, ph);
+  for (int i = 0; i < steps; ++i) sim.step(m, 1.0 / steps, cav.solids, ph);
   return (Lz() - L0) / L0;
 }
 
@@ -306,25 +322,16 @@ struct BlobFigures {
 /// (projected) rotation before every step, so the error is the scalar transfer's alone;
 /// after a whole revolution the exact blob is the initial one.
 BlobFigures rotating_blob(double size, double sigma, int steps, TransferScheme scheme) {
-  const Vec3 o(0.5, 0.5, 0.5);
-  const mesh::SolidSurface shell = hollow_sphere(o, 0.45, 0.38, 3);
-  const mesh::TetMesh m =
-      mesh::remesh(box_domain(Vec3::Zero(), Vec3::Ones()), {shell}, sizing(size, size));
-  const double omega = 2 * std::numbers::pi;
-  const Vec3 c = o + Vec3(0.18, 0, 0);
-  std::vector<SolidSurfaceMotion> solids(1);
-  solids[0].triangles = shell.triangles;
-  solids[0].velocity = MatX3::Zero(shell.vertices.rows(), 3);
+  const RotationCavity cav(sizing(size, size));
+  const mesh::TetMesh& m = cav.m;
+  const Vec3 c = cav.o + Vec3(0.18, 0, 0);
   FluidParams p = quiet_params();
   p.density = 1.0;
   p.scalar_transfer = scheme;
   FluidSimulation sim(p);
   sim.initialize(m);
   FluidState s = sim.state();
-  const VecX u0 = divergence_free_field(m, p.min_dual_fraction, [&](const Vec3& x) {
-    const Vec3 r = x - o;
-    return r.norm() < 0.4 ? Vec3(-omega * r.y(), omega * r.x(), 0.0) : Vec3::Zero();
-  });
+  const VecX u0 = cav.rotation(p.min_dual_fraction);
   VecX rho0(m.num_tets());
   for (Index t = 0; t < m.num_tets(); ++t)
     rho0[t] = std::exp(-(tet_centroid(m, t) - c).squaredNorm() / (2 * sigma * sigma));
@@ -333,7 +340,7 @@ BlobFigures rotating_blob(double size, double sigma, int steps, TransferScheme s
   for (int i = 0; i < steps; ++i) {
     s.u = u0;
     sim.set_state(s);
-    sim.step(m, 1.0 / steps, solids, ph);
+    sim.step(m, 1.0 / steps, cav.solids, ph);
     s = sim.state();
   }
   const VecX& V = m.volumes;
