@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "core/error.hpp"
+#include "core/linear_solver.hpp"
 
 namespace tetfsi {
 
@@ -150,10 +151,11 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
   const bool bfgs = opt.method == IterationMethod::Bfgs;
   InverseOperator start;
   if (!newton && opt.keep_matrix && history.kept) {
-    start = history.kept;
+    start = history.kept.inverse;
   } else {
-    start = factor(x);
-    if (!newton && opt.keep_matrix) history.kept = start;
+    FactoredMatrix k = factor(x);
+    start = k.inverse;
+    if (!newton && opt.keep_matrix) history.kept = std::move(k);
   }
   BfgsInverse H(start);
   const bool carry = bfgs && opt.keep_matrix;  // updates carried from solve to solve
@@ -162,9 +164,9 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
   history.updates.clear();  // set again on convergence
   // Re-form the matrix at y and drop the updates; with keep_matrix it is the one kept.
   auto reform = [&](const VecX& y) {
-    InverseOperator k = factor(y);
-    if (!newton && opt.keep_matrix) history.kept = k;
-    H.reset(std::move(k));
+    FactoredMatrix k = factor(y);
+    H.reset(k.inverse);
+    if (!newton && opt.keep_matrix) history.kept = std::move(k);
   };
   double e1 = 0.0;
   for (int i = 1; i <= opt.max_iterations; ++i) {
@@ -232,6 +234,36 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
       "ETOL {:.3g})",
       opt.max_iterations, rep.force_ratio, opt.rtol, rep.energy_ratio, opt.etol);
   return rep;
+}
+
+FactoredMatrix factor_blocks(std::vector<std::shared_ptr<const SparseMatrix>> blocks,
+                             std::vector<Index> offsets) {
+  TETFSI_CHECK(offsets.size() == blocks.size() + 1, "factor_blocks: {} offsets for {} blocks",
+               offsets.size(), blocks.size());
+  std::vector<std::shared_ptr<LinearSolver>> solvers(blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    if (!blocks[b]) continue;
+    TETFSI_CHECK(blocks[b]->rows() == offsets[b + 1] - offsets[b] &&
+                     blocks[b]->cols() == blocks[b]->rows(),
+                 "factor_blocks: block {} is {} x {} for {} unknowns", b, blocks[b]->rows(),
+                 blocks[b]->cols(), offsets[b + 1] - offsets[b]);
+    solvers[b] = factor_symmetric(*blocks[b]);  // refers to *blocks[b], which the operator keeps
+  }
+  FactoredMatrix f;
+  f.inverse = [blocks, solvers, offsets](const VecX& r) -> VecX {
+    VecX dx = VecX::Zero(r.size());
+    for (size_t b = 0; b < solvers.size(); ++b) {
+      if (!solvers[b]) continue;
+      const Index n = offsets[b + 1] - offsets[b];
+      VecX x = VecX::Zero(n);
+      solvers[b]->solve(r.segment(offsets[b], n), x);
+      dx.segment(offsets[b], n) = x;
+    }
+    return dx;
+  };
+  f.blocks = std::move(blocks);
+  f.offsets = std::move(offsets);
+  return f;
 }
 
 }  // namespace tetfsi

@@ -34,6 +34,7 @@
 /// Δxᵀg keeps its sign (up to `max_step`), then closes a sign change by regula falsi (Illinois);
 /// after `max_line_search` extra evaluations it keeps the best β found.
 #include <functional>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -59,6 +60,25 @@ const char* to_string(IterationMethod m);
 
 /// Applies an approximate inverse of the coefficient matrix: returns Δx = K̂⁻¹ r.
 using InverseOperator = std::function<VecX(const VecX&)>;
+
+/// A factored coefficient matrix: its inverse and, when it is block diagonal of sparse
+/// symmetric blocks (every matrix the bodies factor), those blocks, so that a checkpoint can
+/// re-form the kept starting matrix exactly (factor_blocks of the same blocks).
+struct FactoredMatrix {
+  FactoredMatrix() = default;
+  FactoredMatrix(InverseOperator op) : inverse(std::move(op)) {}  // NOLINT: implicit on purpose
+  InverseOperator inverse;
+  /// The diagonal blocks (null: that block's unknowns get Δx = 0, e.g. a kinematic body);
+  /// empty if the operator is not one of these.
+  std::vector<std::shared_ptr<const SparseMatrix>> blocks;
+  std::vector<Index> offsets;  ///< first unknown of each block, then the total
+  explicit operator bool() const { return static_cast<bool>(inverse); }
+};
+
+/// The block-diagonal inverse of `blocks` (each factored by factor_symmetric) at `offsets`
+/// (blocks.size() + 1 entries). @throws SolverError if a block cannot be factored.
+FactoredMatrix factor_blocks(std::vector<std::shared_ptr<const SparseMatrix>> blocks,
+                             std::vector<Index> offsets);
 
 struct EquilibriumOptions {
   IterationMethod method = IterationMethod::Bfgs;
@@ -122,13 +142,13 @@ struct EquilibriumProblem {
   /// g(x): the out-of-balance force (the seed's R − F − M Ü), zero on fixed DOFs.
   std::function<VecX(const VecX& x)> residual;
   /// A factorization of the coefficient matrix at x (the tangent, or the seed's Eq. (15)).
-  std::function<InverseOperator(const VecX& x)> factor;
+  std::function<FactoredMatrix(const VecX& x)> factor;
 };
 
 /// State kept across the solves of a run.
 struct EquilibriumHistory {
   double max_force = 0.0;  ///< the denominator of Eq. (12): largest ||g⁽⁰⁾|| so far
-  InverseOperator kept;    ///< EquilibriumOptions::keep_matrix: the starting matrix
+  FactoredMatrix kept;     ///< EquilibriumOptions::keep_matrix: the starting matrix
   std::vector<std::pair<VecX, VecX>> updates;  ///< keep_matrix, BFGS: the updates so far
 };
 

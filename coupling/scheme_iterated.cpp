@@ -277,27 +277,22 @@ class IteratedStep {
 
   /// bfgs, modified_newton: [BatheSonnad80, Eq. (15)], the bodies' own (h/4) K̂, block
   /// diagonal, no fluid (solid.starting_matrix "added_mass": plus lumped_added_mass / h).
-  InverseOperator body_inverse(const VecX& x) {
+  FactoredMatrix body_inverse(const VecX& x) {
     ScopedTimer timer(m_ctx.phases, "solid");
     // the bodies' own tangents, no fluid: [BatheSonnad80, Eq. (15)]; with
     // solid.starting_matrix "added_mass" plus the fluid's lumped added mass / h
     std::vector<SparseMatrix> added;
     if (m_ctx.world.equilibrium.added_mass_start) added = lumped_added_mass(x);
-    std::vector<InverseOperator> inv(m_nb);
+    std::vector<std::shared_ptr<const SparseMatrix>> blocks(m_nb);
     for (Index b = 0; b < m_nb; ++b) {
       if (!m_eq[b]) continue;
       SparseMatrix K = m_eq[b]->tangent(part(x, b));
       if (!added.empty()) K += added[b] / m_ctx.h;
-      inv[b] = solid::factor_inverse(K);
+      blocks[b] = std::make_shared<const SparseMatrix>(std::move(K));
     }
-    return [inv, off = m_off, nb = m_nb](const VecX& r) -> VecX {
-      VecX dx = VecX::Zero(r.size());
-      for (Index b = 0; b < nb; ++b)
-        if (inv[b])
-          dx.segment(off[b], off[b + 1] - off[b]) = inv[b](r.segment(off[b], off[b + 1] - off[b]));
-      return dx;
-    };
+    return factor_blocks(std::move(blocks), m_off);
   }
+
 
   StepContext& m_ctx;
   const PredictedFluid& m_pred;

@@ -100,14 +100,8 @@ VecX TrapezoidalEquilibrium::start() const {
   return u;
 }
 
-InverseOperator factor_inverse(const SparseMatrix& A) {
-  auto a = std::make_shared<const SparseMatrix>(A);  // the solver refers to it
-  std::shared_ptr<LinearSolver> s = factor_symmetric(*a);
-  return [a, s](const VecX& r) -> VecX {
-    VecX x = VecX::Zero(r.size());
-    s->solve(r, x);
-    return x;
-  };
+FactoredMatrix factor_inverse(const SparseMatrix& A) {
+  return factor_blocks({std::make_shared<const SparseMatrix>(A)}, {0, static_cast<Index>(A.rows())});
 }
 
 EquilibriumReport step_nonlinear(SolidBody& body, double h, const VecX& f_e,

@@ -76,7 +76,7 @@ class TrapezoidalEquilibrium {
 
 /// A factorization of (a copy of) A, CHOLMOD or UMFPACK if not positive definite, as an
 /// inverse.
-InverseOperator factor_inverse(const SparseMatrix& A);
+FactoredMatrix factor_inverse(const SparseMatrix& A);
 
 /// Advance one deformable body by h with the nonlinear rule: iterate from start() by
 /// `opt.method`, then set d, u (and leave them at tⁿ if it did not converge).
