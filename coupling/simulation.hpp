@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "core/checkpoint.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_step.hpp"
 #include "coupling/grid_coupled.hpp"
@@ -111,6 +112,17 @@ class FsiSimulation {
   /// Only rebuild the mesh around the bodies as they are (static runs); the fluid restarts at
   /// rest on it.
   void rebuild_at_rest(PhaseTimes& phases);
+
+  /// Everything the next step reads, as records under "sim/" (core/checkpoint.hpp): the world's
+  /// time, every body's d and u, the nonlinear integrators' histories (the kept starting
+  /// matrix, BFGS updates), the fluid (its mesh or grid, fields and time), and the coupling
+  /// scheme's state carried across steps. A simulation built from the same scene and given
+  /// these by load_state steps on bit for bit as this one would.
+  void save_state(CheckpointWriter& w) const;
+  /// Restore save_state's records into a simulation just built from the same scene (instead
+  /// of start()). @throws CheckpointError naming the record if they do not fit this
+  /// simulation (other bodies or node counts, another discretisation or scheme).
+  void load_state(const CheckpointReader& r);
 
   solid::SolidWorld& world() { return m_world; }
   const solid::SolidWorld& world() const { return m_world; }
