@@ -1044,8 +1044,12 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
   if (!in) throw InputError(fmt::format("{}: cannot open the scene file for reading", name));
   std::stringstream buffer;
   buffer << in.rdbuf();
-  const std::string text = buffer.str();
+  return parse_scene_text(buffer.str(), file, overrides);
+}
 
+Scene parse_scene_text(const std::string& text, const fs::path& file,
+                       const std::vector<std::string>& overrides) {
+  const std::string name = display_name(file);
   check_nesting(text, name);
   json j;
   try {

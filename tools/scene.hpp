@@ -14,7 +14,8 @@
 ///   "description": "free text, kept in the resolved scene",
 ///   "mode": "dynamic" | "static",
 ///   "time":   { "dt": 0.005, "end_time": 2.0 }            // or "steps": 400 (not both)
-///   "output": { "every": 4, "compression": "lz4" | "zlib" | "none" },
+///   "output": { "every": 4, "compression": "lz4" | "zlib" | "none",
+///               "checkpoint_every": 0, "keep_checkpoints": 2 },
 ///   "gravity": [0, 0, -9.81],
 ///   "solver": { "linear": "cholmod", "rel_tol": 1e-8, "max_iterations": 1000 },
 ///   "solid":  { "integrator": "linearized" | "newton" | "modified_newton" | "bfgs",
@@ -242,6 +243,10 @@ struct TimeSpec {
 struct OutputSpec {
   int every = 1;                    ///< write a frame every this many steps (≥ 1)
   std::string compression = "lz4";  ///< "lz4", "zlib" or "none"
+  /// A checkpoint every this many steps (and at the last step); 0: only when the run is
+  /// stopped (signal, OUT/STOP, wall time). tools/checkpoints.hpp.
+  int checkpoint_every = 0;
+  int keep_checkpoints = 2;  ///< the newest checkpoints kept (>= 1)
 };
 
 struct SolverSpec {
@@ -339,6 +344,12 @@ Scene parse_scene(const nlohmann::json& j, const std::filesystem::path& file);
 /// @throws InputError for a missing file, a JSON syntax error (with line and column), a bad
 ///   override (naming it) or anything parse_scene rejects.
 Scene load_scene(const std::filesystem::path& file, const std::vector<std::string>& overrides = {});
+
+/// As load_scene, from JSON text already read (a checkpoint's stored scene): `file` names the
+/// scene in messages and anchors relative paths.
+/// @throws InputError as load_scene.
+Scene parse_scene_text(const std::string& text, const std::filesystem::path& file,
+                       const std::vector<std::string>& overrides = {});
 
 /// Build the bodies (read/generate/tetrahedralise meshes, transform, pins, loads, initial
 /// velocity, kinematic motion with its state at t = 0) and obstacles of a scene.

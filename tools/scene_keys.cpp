@@ -378,7 +378,20 @@ const Section<OutputSpec>& output_keys() {
        bind<OutputSpec>(one_of({.key = "compression",
                                 .doc = "of the .vtu data: `zlib` is smaller and 5x slower"},
                                k_compression_names),
-                        TETFSI_AT(compression))}};
+                        TETFSI_AT(compression)),
+       bind<OutputSpec>({.key = "checkpoint_every",
+                         .type = KeyType::Integer,
+                         .doc = "a checkpoint every this many steps in OUT/checkpoints/ (and at "
+                                "the last step), for `tetfsi resume`; 0: only when the run is "
+                                "stopped (README \"Checkpoints and restart\")",
+                         .range = k_non_negative},
+                        TETFSI_AT(checkpoint_every)),
+       bind<OutputSpec>({.key = "keep_checkpoints",
+                         .type = KeyType::Integer,
+                         .doc = "the newest checkpoints kept; older ones are deleted once a "
+                                "newer one is written",
+                         .range = k_count},
+                        TETFSI_AT(keep_checkpoints))}};
   return s;
 }
 
