@@ -8,6 +8,7 @@
 #include "coupling/simulation.hpp"
 #include "solid/world.hpp"
 #include "tools/scene.hpp"
+#include "tools/state_io.hpp"
 
 namespace tetfsi::tools {
 
@@ -124,6 +125,42 @@ std::optional<std::string> DivergenceGuard::check_fluid(const coupling::FsiStepR
       "and energy); "
       "reduce time.dt",
       f->max_speed, limit, kFactor * kFactor, scale);
+}
+
+namespace {
+
+template <class S, class F>
+void visit_guard(S& energy0, S& potential0, S& floor, S& work, S& release, S& buoyancy,
+                 S& body_speed, S& mass, F&& f) {
+  f("energy0", energy0);
+  f("potential0", potential0);
+  f("floor", floor);
+  f("work", work);
+  f("release", release);
+  f("buoyancy", buoyancy);
+  f("body_speed", body_speed);
+  f("mass", mass);
+}
+
+}  // namespace
+
+void DivergenceGuard::save_state(CheckpointWriter& w) const {
+  visit_guard(m_energy0, m_potential0, m_floor, m_work, m_release, m_buoyancy, m_body_speed, m_mass,
+              RecordSaver{w, "run/guard/"});
+  MatX3 c(static_cast<Index>(m_centroid0.size()), 3);
+  for (size_t i = 0; i < m_centroid0.size(); ++i) c.row(static_cast<Index>(i)) = m_centroid0[i];
+  w.put("run/guard/centroid0", c);
+}
+
+void DivergenceGuard::load_state(const CheckpointReader& r) {
+  visit_guard(m_energy0, m_potential0, m_floor, m_work, m_release, m_buoyancy, m_body_speed, m_mass,
+              RecordLoader{r, "run/guard/"});
+  const MatX3 c = r.get<MatX3>("run/guard/centroid0");
+  if (static_cast<size_t>(c.rows()) != m_centroid0.size())
+    r.fail(fmt::format("run/guard/centroid0: {} bodies, this scene has {}", c.rows(),
+                       m_centroid0.size()));
+  for (size_t i = 0; i < m_centroid0.size(); ++i)
+    m_centroid0[i] = c.row(static_cast<Index>(i)).transpose();
 }
 
 std::optional<std::string> DivergenceGuard::after_step(const solid::SolidWorld& world,

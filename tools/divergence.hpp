@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/checkpoint.hpp"
 #include "core/types.hpp"
 
 namespace tetfsi::solid {
@@ -54,6 +55,13 @@ class DivergenceGuard {
                                         const coupling::FsiStepReport& rep);
 
   double budget() const;  ///< the current budget (J)
+
+  /// What the guard carries between steps (the start's energies and centroids, the work and
+  /// the peak speed so far), as records under "run/guard/", and back into a guard built for
+  /// the same world (`tetfsi resume`: the budget is the whole run's, not the resumed part's).
+  /// @throws CheckpointError naming the record if one is missing or does not fit the world.
+  void save_state(CheckpointWriter& w) const;
+  void load_state(const CheckpointReader& r);
 
  private:
   double mechanical_energy(const solid::SolidWorld& world) const;

@@ -1,5 +1,7 @@
 #include "tools/output.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
@@ -632,6 +634,11 @@ void PvdWriter::add(double time, const std::string& relative_file) {
   write_text_file_atomic(m_path, to_xml(m_entries));
 }
 
+void PvdWriter::reset(std::vector<PvdEntry> entries) {
+  m_entries = std::move(entries);
+  write_text_file_atomic(m_path, to_xml(m_entries));
+}
+
 // ---- stats.csv -----------------------------------------------------------------------------
 
 const std::vector<std::string>& StatsWriter::phase_columns(bool fluid, bool coupled) {
@@ -693,18 +700,54 @@ const std::vector<std::string>& StatsWriter::columns(bool fluid, bool coupled) {
   return fluid ? (coupled ? cc : cf) : c;
 }
 
-StatsWriter::StatsWriter(const fs::path& path, bool fluid, bool coupled)
+namespace {
+
+/// stats.csv of a resumed run: its header (which must be `header`) and its rows of steps
+/// 1..last, in order, rewritten atomically without any later row.
+void truncate_stats(const fs::path& path, const std::string& header, int last) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw InputError(fmt::format("cannot continue '{}': {}", path.string(),
+                                 fs::exists(path) ? std::strerror(errno) : "no such file"));
+  std::string line, kept;
+  if (!std::getline(in, line) || line + '\n' != header)
+    throw InputError(
+        fmt::format("cannot continue '{}': its header is not this run's columns", path.string()));
+  kept = header;
+  int expected = 1;
+  while (expected <= last && std::getline(in, line)) {
+    const std::string first = line.substr(0, line.find(','));
+    if (first != std::to_string(expected) || line.find(',') == std::string::npos) break;
+    kept += line + '\n';
+    ++expected;
+  }
+  if (expected <= last)
+    throw InputError(fmt::format(
+        "cannot continue '{}': it has the rows of steps 1..{} only, the checkpoint is at step {}",
+        path.string(), expected - 1, last));
+  write_text_file_atomic(path, kept);
+}
+
+}  // namespace
+
+StatsWriter::StatsWriter(const fs::path& path, bool fluid, bool coupled,
+                         std::optional<int> continue_after)
     : m_path(path), m_fluid(fluid), m_coupled(fluid && coupled) {
-  m_file = std::fopen(path.c_str(), "w");
-  if (!m_file)
-    throw InputError(fmt::format("cannot write '{}': {}", path.string(), std::strerror(errno)));
   std::string header;
   for (const auto& c : columns(m_fluid, m_coupled)) {
     if (!header.empty()) header += ',';
     header += c;
   }
   header += '\n';
-  std::fputs(header.c_str(), m_file);
+  if (continue_after) {
+    truncate_stats(path, header, *continue_after);
+    m_file = std::fopen(path.c_str(), "a");
+  } else {
+    m_file = std::fopen(path.c_str(), "w");
+  }
+  if (!m_file)
+    throw InputError(fmt::format("cannot write '{}': {}", path.string(), std::strerror(errno)));
+  if (!continue_after) std::fputs(header.c_str(), m_file);
   std::fflush(m_file);
 }
 
@@ -758,13 +801,14 @@ void StatsWriter::write(const StepStats& r) {
 
 namespace {
 
-/// Create the folder and warn about an earlier run in it; returns the path.
-fs::path prepare_out_dir(const fs::path& out) {
+/// Create the folder and warn about an earlier run in it (unless `resume`); returns the path.
+fs::path prepare_out_dir(const fs::path& out, bool resume) {
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec || !fs::is_directory(out))
     throw InputError(fmt::format("cannot create output folder '{}': {}", out.string(),
                                  ec ? ec.message() : "not a folder"));
+  if (resume) return out;
   for (const char* f : {"stats.csv", "summary.json", "scene.resolved.json"}) {
     if (fs::exists(out / f)) {
       logger().warn("output folder '{}' holds an earlier run: its files are overwritten",
@@ -802,11 +846,11 @@ std::vector<std::string> output_file_names(const Scene& scene, const solid::Soli
 }
 
 OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
-                           const solid::SolidWorld& world)
+                           const solid::SolidWorld& world, std::optional<int> resume_step)
     : m_file_names(output_file_names(scene, world)),
-      m_out(prepare_out_dir(out_dir)),
+      m_out(prepare_out_dir(out_dir, resume_step.has_value())),
       m_compression(parse_compression(scene.output.compression)),
-      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way()) {
+      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step) {
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
@@ -864,6 +908,7 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
     m_interface_pvd->add(time, rel_i);
   }
   ++m_frames;
+  m_frame_steps.push_back(step);
 }
 
 void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, double time,
@@ -882,10 +927,124 @@ void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, do
   m_fluid_pvd->add(time, rel_f);
   m_interface_pvd->add(time, rel_i);
   ++m_frames;
+  m_frame_steps.push_back(step);
 }
 
 void OutputWriter::write_summary(const std::string& json_text) {
   write_text_file_atomic(m_out / "summary.json", json_text);
+}
+
+std::vector<const PvdWriter*> OutputWriter::streams() const {
+  std::vector<const PvdWriter*> s;
+  for (const PvdWriter& p : m_pvd) s.push_back(&p);
+  if (m_fluid_pvd) s.push_back(&*m_fluid_pvd);
+  if (m_interface_pvd) s.push_back(&*m_interface_pvd);
+  return s;
+}
+
+std::vector<PvdWriter*> OutputWriter::streams() {
+  std::vector<PvdWriter*> s;
+  for (PvdWriter& p : m_pvd) s.push_back(&p);
+  if (m_fluid_pvd) s.push_back(&*m_fluid_pvd);
+  if (m_interface_pvd) s.push_back(&*m_interface_pvd);
+  return s;
+}
+
+namespace {
+
+/// The step of a frame file "sheet/sheet_000050.vtu" (the digits after its last '_'), or -1.
+long frame_step_of(const std::string& file) {
+  const std::string stem = fs::path(file).stem().string();
+  const auto u = stem.rfind('_');
+  if (u == std::string::npos || u + 1 == stem.size()) return -1;
+  const std::string digits = stem.substr(u + 1);
+  if (digits.size() > 9 ||
+      !std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c); }))
+    return -1;
+  return std::stol(digits);
+}
+
+std::string join_lines(const std::vector<std::string>& v) {
+  std::string s;
+  for (const std::string& x : v) s += x + '\n';
+  return s;
+}
+
+std::vector<std::string> split_lines(const std::string& s) {
+  std::vector<std::string> v;
+  std::size_t start = 0;
+  while (start < s.size()) {
+    const std::size_t end = s.find('\n', start);
+    v.push_back(s.substr(start, end - start));
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  return v;
+}
+
+}  // namespace
+
+void OutputWriter::save_state(CheckpointWriter& w, int through_step) const {
+  int frames = 0;
+  std::vector<int> steps;
+  for (const int s : m_frame_steps) {
+    if (s > through_step) continue;
+    ++frames;
+    steps.push_back(s);
+  }
+  w.put("run/output/frames", frames);
+  w.put("run/output/frame_steps", steps);
+  const std::vector<const PvdWriter*> st = streams();
+  w.put("run/output/streams", static_cast<int>(st.size()));
+  for (size_t i = 0; i < st.size(); ++i) {
+    std::vector<double> times;
+    std::vector<std::string> files;
+    for (const PvdEntry& e : st[i]->entries()) {
+      if (frame_step_of(e.file) > through_step) continue;
+      times.push_back(e.time);
+      files.push_back(e.file);
+    }
+    const std::string key = fmt::format("run/output/pvd/{}/", i);
+    w.put(key + "name", st[i]->path().filename().string());
+    w.put(key + "times", times);
+    w.put(key + "files", join_lines(files));
+  }
+}
+
+void OutputWriter::load_state(const CheckpointReader& r) {
+  const std::vector<PvdWriter*> st = streams();
+  const auto n = r.get_int("run/output/streams");
+  if (n != static_cast<std::int64_t>(st.size()))
+    r.fail(fmt::format("run/output/streams: {} collections, this scene writes {}", n, st.size()));
+  m_frames = static_cast<int>(r.get_int("run/output/frames"));
+  m_frame_steps = r.get_vector<int>("run/output/frame_steps");
+  const int last = m_frame_steps.empty() ? -1 : m_frame_steps.back();
+  for (size_t i = 0; i < st.size(); ++i) {
+    const std::string key = fmt::format("run/output/pvd/{}/", i);
+    const std::string name = r.get_text(key + "name");
+    if (name != st[i]->path().filename().string())
+      r.fail(fmt::format("{}name: '{}', this scene writes '{}'", key, name,
+                         st[i]->path().filename().string()));
+    const std::vector<double> times = r.get_vector<double>(key + "times");
+    const std::vector<std::string> files = split_lines(r.get_text(key + "files"));
+    if (times.size() != files.size())
+      r.fail(fmt::format("{}: {} times for {} files", key, times.size(), files.size()));
+    std::vector<PvdEntry> entries;
+    for (size_t k = 0; k < times.size(); ++k) entries.push_back({times[k], files[k]});
+    // The frames the stopped run wrote after the checkpoint: listed in the collection on disk
+    // or not (a frame is listed only once all its files exist), they are ours to remove.
+    const fs::path folder = m_out / st[i]->path().stem();
+    std::error_code ec;
+    for (const auto& f : fs::directory_iterator(folder, ec)) {
+      const std::string stem = st[i]->path().stem().string();
+      const std::string fname = f.path().filename().string();
+      if (fname.rfind(stem + "_", 0) != 0) continue;
+      const std::string ext = f.path().extension().string();
+      if (ext != ".vtu" && ext != ".vtp" && ext != ".vti") continue;
+      if (frame_step_of(fname) > last) fs::remove(f.path(), ec);
+    }
+    st[i]->reset(std::move(entries));
+  }
 }
 
 std::vector<fs::path> OutputWriter::pvd_paths() const {

@@ -40,6 +40,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/checkpoint.hpp"
 #include "core/enum_names.hpp"
 #include "core/timer.hpp"
 #include "core/types.hpp"
@@ -220,6 +221,8 @@ class PvdWriter {
   /// Append a frame and rewrite the whole collection atomically.
   /// @param relative_file dataset path relative to the `.pvd`'s folder ('/' separators)
   void add(double time, const std::string& relative_file);
+  /// Replace every entry (a resumed run's collection so far) and rewrite the collection.
+  void reset(std::vector<PvdEntry> entries);
 
   const std::filesystem::path& path() const { return m_path; }
   const std::vector<PvdEntry>& entries() const { return m_entries; }
@@ -301,11 +304,15 @@ struct StepStats {
 /// keeps every completed step). Doubles are printed with 17 significant digits.
 class StatsWriter {
  public:
-  /// Creates (truncates) the file and writes the header.
+  /// Creates (truncates) the file and writes the header; or, with `continue_after` (a resumed
+  /// run), keeps the existing file's header and its rows of steps 1..continue_after (rewritten
+  /// atomically without the later ones) and appends after them.
   /// @param fluid write the fluid columns too (columns(true))
   /// @param coupled (with `fluid`) a two-way coupled run: columns(true, true)
-  /// @throws InputError naming the file if it cannot be opened.
-  explicit StatsWriter(const std::filesystem::path& path, bool fluid = false, bool coupled = false);
+  /// @throws InputError naming the file if it cannot be opened; with `continue_after`, if it
+  ///   is missing, its header is not this run's, or its rows do not run 1..continue_after.
+  explicit StatsWriter(const std::filesystem::path& path, bool fluid = false, bool coupled = false,
+                       std::optional<int> continue_after = std::nullopt);
   ~StatsWriter();
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
@@ -352,11 +359,24 @@ class OutputWriter {
   /// ways, Scene::two_way). If the folder holds an earlier run
   /// (a stats.csv, summary.json or scene.resolved.json), logs a warning: our files are
   /// overwritten, nothing else is touched or deleted.
+  /// With `resume_step` (`tetfsi resume`), the folder's run continues after that step instead:
+  /// stats.csv keeps its rows up to it (StatsWriter's continue_after) and load_state restores
+  /// the collections.
   /// @throws InputError if the folder cannot be created or written, if two body names map
   ///   to the same file name, or if a body's file name is "fluid" or "interface" in a scene
   ///   with a fluid.
   OutputWriter(const std::filesystem::path& out_dir, const Scene& scene,
-               const solid::SolidWorld& world);
+               const solid::SolidWorld& world, std::optional<int> resume_step = std::nullopt);
+
+  /// The collections and the frame count into a checkpoint, as records under "run/output/":
+  /// the frames of steps <= `through_step` only (a frame written because the run ended or
+  /// stopped, off the output.every schedule, is not one of the continued run's frames).
+  void save_state(CheckpointWriter& w, int through_step) const;
+  /// A resumed run: the collections and frame count of save_state's records; every `.pvd` is
+  /// rewritten with them, and the frame files of later steps that this writer's streams hold
+  /// (written after the checkpoint by the run that stopped) are deleted.
+  /// @throws CheckpointError if the records do not fit this scene's streams.
+  void load_state(const CheckpointReader& r);
 
   /// Write one `.vtu` per body for the world's current state, labelled `step` (file name)
   /// and `time` (in the `.pvd`), and update every `.pvd`. In a fluid scene, also the fluid
@@ -397,6 +417,11 @@ class OutputWriter {
   std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
   StatsWriter m_stats;
   int m_frames = 0;
+  std::vector<int> m_frame_steps;  ///< the step of every frame written, in order
+
+  /// Every collection: the bodies' in body order, then fluid.pvd and interface.pvd.
+  std::vector<const PvdWriter*> streams() const;
+  std::vector<PvdWriter*> streams();
 
   /// Write every body's `.vtu` of the frame; returns their paths relative to m_out, in body
   /// order, for the `.pvd`s (which the caller updates once the frame's other files exist).

@@ -8,6 +8,7 @@
 #include "fluid/grid_projection.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/quality.hpp"
+#include "tools/state_io.hpp"
 
 namespace tetfsi::tools {
 
@@ -149,6 +150,125 @@ void RunRecorder::record_coupled_step(const coupling::CoupledStepReport& rep, do
   if (!rep.predicted_mesh) ++s.unpredicted_meshes;
   s.solid_iterations += rep.solid_iterations;
   s.total_energy = c.total_energy;
+}
+
+namespace {
+
+template <class S, class F>
+void visit_fields_step(S& s, F&& f) {  // FluidStepStats but its quality columns
+  f("cells", s.cells);
+  f("vertices", s.vertices);
+  f("steiner_points", s.steiner_points);
+  f("recovery_rounds", s.recovery_rounds);
+  f("remesh_s", s.remesh_s);
+  f("pressure_iterations", s.pressure_iterations);
+  f("pressure_residual", s.pressure_residual);
+  f("divergence_before", s.divergence_before);
+  f("divergence", s.divergence);
+  f("fluid_kinetic_energy", s.fluid_kinetic_energy);
+  f("smoke_mass", s.smoke_mass);
+  f("inflow_flux", s.inflow_flux);
+  f("outflow_flux", s.outflow_flux);
+  f("solid_flux", s.solid_flux);
+  f("max_speed", s.max_speed);
+  f("cfl", s.cfl);
+  f("traces_clamped", s.traces_clamped);
+}
+
+template <class S, class F>
+void visit_fields_fluid(S& s, F&& f) {  // FluidSummary
+  f("remeshes", s.remeshes);
+  f("remesh_s", s.remesh_s);
+  f("max_remesh_s", s.max_remesh_s);
+  f("cells", s.cells);
+  f("vertices", s.vertices);
+  f("min_dihedral_deg", s.min_dihedral_deg);
+  f("max_slivers", s.max_slivers);
+  f("fluid_steps", s.fluid_steps);
+  f("fluid_s", s.fluid_s);
+  f("pressure_iterations", s.pressure_iterations);
+  f("unconverged_pressure_solves", s.unconverged_pressure_solves);
+  f("max_divergence", s.max_divergence);
+  f("max_cfl", s.max_cfl);
+  f("smoke_mass", s.smoke_mass);
+  f("fluid_kinetic_energy", s.fluid_kinetic_energy);
+}
+
+template <class S, class F>
+void visit_fields_coupled(S& s, F&& f) {  // CoupledStepStats
+  f("iterations", s.iterations);
+  f("residual", s.residual);
+  f("interface_power", s.interface_power);
+  f("total_energy", s.total_energy);
+  f("enclosed_volume", s.enclosed_volume);
+  f("enclosed_volume_drift", s.enclosed_volume_drift);
+}
+
+template <class S, class F>
+void visit_fields_coupling(S& s, F&& f) {  // CouplingSummary
+  f("scheme", s.scheme);
+  f("solver", s.solver);
+  f("coupled_steps", s.coupled_steps);
+  f("iterations", s.iterations);
+  f("max_residual", s.max_residual);
+  f("unconverged_solves", s.unconverged_solves);
+  f("steps_at_floor", s.steps_at_floor);
+  f("max_floor", s.max_floor);
+  f("max_interface_power", s.max_interface_power);
+  f("max_interface_imbalance", s.max_interface_imbalance);
+  f("max_enclosed_regions", s.max_enclosed_regions);
+  f("max_volume_drift", s.max_volume_drift);
+  f("enclosed_volume", s.enclosed_volume);
+  f("unpredicted_meshes", s.unpredicted_meshes);
+  f("solid_iterations", s.solid_iterations);
+  f("total_energy", s.total_energy);
+}
+
+}  // namespace
+
+void RunRecorder::save_state(CheckpointWriter& w) const {
+  const std::string p = "run/recorder/";
+  visit_fields_step(m_stats, RecordSaver{w, p + "step/"});
+  std::string names;
+  std::vector<double> values;
+  for (const auto& [name, value] : m_stats.quality) {
+    names += name + '\n';
+    values.push_back(value);
+  }
+  w.put(p + "step/quality_names", names);
+  w.put(p + "step/quality", values);
+  visit_fields_fluid(m_summary, RecordSaver{w, p + "fluid/"});
+  w.put(p + "has_coupled_step", m_coupled_stats.has_value());
+  if (m_coupled_stats) visit_fields_coupled(*m_coupled_stats, RecordSaver{w, p + "coupled_step/"});
+  w.put(p + "has_coupling", m_coupling_summary.has_value());
+  if (m_coupling_summary)
+    visit_fields_coupling(*m_coupling_summary, RecordSaver{w, p + "coupling/"});
+}
+
+void RunRecorder::load_state(const CheckpointReader& r) {
+  const std::string p = "run/recorder/";
+  visit_fields_step(m_stats, RecordLoader{r, p + "step/"});
+  const std::string names = r.get_text(p + "step/quality_names");
+  const std::vector<double> values = r.get_vector<double>(p + "step/quality");
+  m_stats.quality.clear();
+  std::size_t start = 0;
+  for (const double v : values) {
+    const std::size_t end = names.find('\n', start);
+    if (end == std::string::npos) r.fail(p + "step/quality_names: fewer names than values");
+    m_stats.quality.emplace_back(names.substr(start, end - start), v);
+    start = end + 1;
+  }
+  visit_fields_fluid(m_summary, RecordLoader{r, p + "fluid/"});
+  m_coupled_stats.reset();
+  if (r.get_bool(p + "has_coupled_step")) {
+    CoupledStepStats c;
+    visit_fields_coupled(c, RecordLoader{r, p + "coupled_step/"});
+    m_coupled_stats = c;
+  }
+  if (r.get_bool(p + "has_coupling") != m_coupling_summary.has_value())
+    r.fail(p + "has_coupling: the checkpoint's run and this one differ in coupling");
+  if (m_coupling_summary)
+    visit_fields_coupling(*m_coupling_summary, RecordLoader{r, p + "coupling/"});
 }
 
 FluidFrameFields frame_fields(const fluid::FluidSimulation& sim) {

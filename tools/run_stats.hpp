@@ -77,6 +77,12 @@ class RunRecorder {
   const std::optional<CoupledStepStats>& coupled_stats() const { return m_coupled_stats; }
   const std::optional<CouplingSummary>& coupling_summary() const { return m_coupling_summary; }
 
+  /// Every figure kept across steps, as records under "run/recorder/" (a checkpoint), and back
+  /// into a recorder of the same kind of run (`tetfsi resume`).
+  /// @throws CheckpointError naming the record if one is missing or of another type.
+  void save_state(CheckpointWriter& w) const;
+  void load_state(const CheckpointReader& r);
+
  private:
   void record_mesh(const mesh::TetMesh& m, const mesh::RemeshReport& report, double seconds,
                    PhaseTimes& phases);
