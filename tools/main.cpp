@@ -1,7 +1,12 @@
 /// @file main.cpp
 /// The `tetfsi` command line:
 ///   tetfsi run SCENE [--out DIR] [--set key.path=value ...] [--steps N | --end-time T]
-///                    [--progress auto|tty|plain|off] [--preview]
+///                    [--progress auto|tty|plain|off] [--preview] [--checkpoint-every N]
+///                    [--keep-checkpoints K] [--wall-time HH:MM:SS]
+///   tetfsi resume OUT [--steps N | --end-time T] [--set key.path=value ...] [--fallback]
+///                     [--progress MODE] [--checkpoint-every N] [--keep-checkpoints K]
+///                     [--wall-time HH:MM:SS]
+///   tetfsi checkpoint FILE
 ///   tetfsi validate SCENE [--set key.path=value ...]
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
 ///   tetfsi bench remesh [--json FILE] [--max-cells N]
@@ -18,8 +23,11 @@
 ///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
 /// command-line usage errors are reported by CLI11 with its exit code. Ctrl-C (or SIGTERM)
-/// during `run` stops after the current step with a complete output folder, one line
-/// `error: interrupted ...` and exit code 130; a second Ctrl-C ends the program at once.
+/// during `run` / `resume` stops after the current step with a complete output folder, a
+/// checkpoint, one line `error: interrupted ...` and exit code 130; a second Ctrl-C ends the
+/// program at once. A file OUT/STOP (checked before every step) or a --wall-time about to run
+/// out stops the same way with exit code 0. Each stop with a checkpoint prints the line
+/// `resume with: tetfsi resume OUT`.
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -42,6 +50,7 @@
 #include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/bench_step.hpp"
+#include "tools/checkpoints.hpp"
 #include "tools/output.hpp"
 #include "tools/plot.hpp"
 #include "tools/process_env.hpp"
@@ -104,6 +113,54 @@ void add_set_option(CLI::App* cmd, std::vector<std::string>& sets, const std::st
   cmd->add_option("--set", sets, help)->allow_extra_args(false)->type_name("KEY=VALUE");
 }
 
+/// The options `run` and `resume` share: checkpoints and the wall time.
+struct CheckpointCli {
+  int every = 0, keep = 2;
+  std::string wall_time;
+  CLI::Option *every_opt = nullptr, *keep_opt = nullptr, *wall_opt = nullptr;
+
+  void add(CLI::App* cmd) {
+    every_opt = cmd->add_option("--checkpoint-every", every,
+                                "a checkpoint every N steps in OUT/checkpoints/ and at the last "
+                                "step (overrides output.checkpoint_every; 0: only when stopped)")
+                    ->type_name("N")
+                    ->check(CLI::NonNegativeNumber);
+    keep_opt = cmd->add_option("--keep-checkpoints", keep,
+                               "keep the K newest checkpoints (overrides output.keep_checkpoints, "
+                               "default 2)")
+                   ->type_name("K")
+                   ->check(at_least_one());
+    wall_opt = cmd->add_option("--wall-time", wall_time,
+                               "stop with a checkpoint (exit code 0) before this much wall time "
+                               "has passed")
+                   ->type_name("HH:MM:SS");
+  }
+  void apply(tetfsi::tools::RunOptions& opt) const {
+    if (*every_opt) opt.checkpoint_every = every;
+    if (*keep_opt) opt.keep_checkpoints = keep;
+    if (*wall_opt) opt.wall_time = tetfsi::tools::parse_wall_time(wall_time);
+  }
+};
+
+/// What a run or a resumed run prints and returns: the summary, the resume line of a stopped
+/// run, and the exit code (130 for a signal, 0 for OUT/STOP and the wall time).
+int finish_command(const tetfsi::tools::RunResult& r, const std::string& preview_error,
+                   const std::filesystem::path& preview) {
+  tetfsi::tools::print_summary(r, std::cout);
+  if (!preview.empty()) std::cout << "preview: " << preview.string() << "\n";
+  if (r.interrupted && !r.checkpoint.empty())
+    std::cout << "resume with: " << tetfsi::tools::resume_command(r) << "\n";
+  std::cout.flush();
+  if (!preview_error.empty() && r.completed) return report_error(preview_error);
+  if (r.interrupted && r.stop_reason == "signal") {
+    report_error(r.error);
+    return 130;  // the shell convention for "ended by SIGINT"
+  }
+  if (r.interrupted) return r.checkpoint.empty() ? report_error(r.error) : 0;
+  if (!r.completed) return report_error(r.error);
+  return 0;
+}
+
 Command add_run(CLI::App& app) {
   using namespace tetfsi;
   struct Opt {
@@ -113,6 +170,7 @@ Command add_run(CLI::App& app) {
     double end_time = 0.0;
     bool preview = false;
     CLI::Option *steps_opt = nullptr, *end_opt = nullptr;
+    CheckpointCli checkpoints;
   };
   auto o = std::make_shared<Opt>();
   CLI::App* run = app.add_subcommand("run", "simulate a scene and write ParaView output");
@@ -136,6 +194,7 @@ Command add_run(CLI::App& app) {
       ->capture_default_str();
   run->add_flag("--preview", o->preview,
                 "at the end, render the last frame to OUT/preview.png (as `tetfsi render`)");
+  o->checkpoints.add(run);
   return {run, [o] {
             const tools::Scene scene = tools::load_scene(o->scene_file, o->sets);
             tools::RunOptions opt;
@@ -145,6 +204,7 @@ Command add_run(CLI::App& app) {
             if (*o->steps_opt) opt.steps = o->steps;
             if (*o->end_opt) opt.end_time = o->end_time;
             opt.progress = tools::parse_progress_mode(o->progress);
+            o->checkpoints.apply(opt);
             opt.stop = &g_stop;
             std::signal(SIGINT, on_stop_signal);
             std::signal(SIGTERM, on_stop_signal);
@@ -165,17 +225,78 @@ Command add_run(CLI::App& app) {
                 preview_error = std::string("--preview: ") + e.what();
               }
             }
-            tools::print_summary(r, std::cout);
-            if (!preview.empty()) std::cout << "preview: " << preview.string() << "\n";
-            std::cout.flush();
-            if (!preview_error.empty() && r.completed) return report_error(preview_error);
-            if (r.interrupted) {
-              report_error(r.error);
-              return 130;  // the shell convention for "ended by SIGINT"
-            }
-            if (!r.completed) return report_error(r.error);
-            return 0;
+            return finish_command(r, preview_error, preview);
           }};
+}
+
+Command add_resume(CLI::App& app) {
+  using namespace tetfsi;
+  struct Opt {
+    std::string out, progress = "auto";
+    std::vector<std::string> sets;
+    int steps = 0;
+    double end_time = 0.0;
+    bool fallback = false;
+    CLI::Option *steps_opt = nullptr, *end_opt = nullptr;
+    CheckpointCli checkpoints;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = app.add_subcommand(
+      "resume",
+      "go on with a run from its newest checkpoint (OUT/checkpoints/), into the same folder: the "
+      "collections and stats.csv carry on, bit for bit as if it had never stopped");
+  cmd->add_option("OUT", o->out, "the output folder of the run")->required()->type_name("DIR");
+  o->steps_opt = cmd->add_option("--steps", o->steps,
+                                 "the whole run's number of steps (default: the run's own)")
+                     ->type_name("N")
+                     ->check(at_least_one());
+  o->end_opt = cmd->add_option("--end-time", o->end_time,
+                               "the whole run's end time in s: ceil(T / dt) steps")
+                   ->type_name("T");
+  o->steps_opt->excludes(o->end_opt);
+  add_set_option(cmd, o->sets,
+                 "override a value of the run's scene: output.* only (e.g. --set "
+                 "output.every=5); a change of the physics is an error (repeatable)");
+  cmd->add_flag("--fallback", o->fallback,
+                "if the newest checkpoint is unusable (truncated, corrupt, another version or "
+                "scene), warn and use the previous valid one");
+  cmd->add_option("--progress", o->progress, "as for run")
+      ->type_name("MODE")
+      ->check(CLI::IsMember(tools::k_progress_mode_names.names()))
+      ->capture_default_str();
+  o->checkpoints.add(cmd);
+  return {cmd, [o] {
+            tools::ResumeOptions ro;
+            ro.run.out_dir = o->out;
+            if (*o->steps_opt) ro.run.steps = o->steps;
+            if (*o->end_opt) ro.run.end_time = o->end_time;
+            ro.run.progress = tools::parse_progress_mode(o->progress);
+            o->checkpoints.apply(ro.run);
+            ro.overrides = o->sets;
+            ro.fallback = o->fallback;
+            ro.run.stop = &g_stop;
+            std::signal(SIGINT, on_stop_signal);
+            std::signal(SIGTERM, on_stop_signal);
+            const tools::RunResult r = tools::resume_run(ro);
+            std::signal(SIGINT, SIG_DFL);
+            std::signal(SIGTERM, SIG_DFL);
+            return finish_command(r, "", {});
+          }};
+}
+
+Command add_checkpoint(CLI::App& app) {
+  struct Opt {
+    std::string file;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = app.add_subcommand(
+      "checkpoint",
+      "verify a checkpoint file and list its run (scene, step, time) and records (key, type, "
+      "shape, bytes)");
+  cmd->add_option("FILE", o->file, "a checkpoint, e.g. OUT/checkpoints/step_000120.tfck")
+      ->required()
+      ->type_name("FILE.tfck");
+  return {cmd, [o] { return tetfsi::tools::checkpoint_command(o->file, std::cout); }};
 }
 
 Command add_validate(CLI::App& app) {
@@ -529,6 +650,8 @@ int main(int argc, char** argv) {
       "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
       "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
       "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
+      "  tetfsi run data/scenes/toy.json --checkpoint-every 50 --wall-time 11:30:00\n"
+      "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
       "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
@@ -540,7 +663,8 @@ int main(int argc, char** argv) {
       ->type_name("LEVEL")
       ->capture_default_str();
 
-  std::vector<Command> commands = {add_run(app), add_validate(app)};
+  std::vector<Command> commands = {add_run(app), add_resume(app), add_checkpoint(app),
+                                   add_validate(app)};
   CLI::App* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
   for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_coupled,

@@ -6,8 +6,10 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <fstream>
 #include <limits>
 #include <ostream>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -17,8 +19,12 @@
 #include "mesh/quality.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/static_solve.hpp"
+#include "tools/checkpoints.hpp"
 #include "tools/divergence.hpp"
 #include "tools/output.hpp"
+#include "tools/state_io.hpp"
+
+namespace fs = std::filesystem;
 
 namespace tetfsi::tools {
 
@@ -41,7 +47,9 @@ std::string format_duration(double s) {
 /// printed directly rather than through the logger, whose level may hide it.
 class Progress {
  public:
-  Progress(ProgressMode mode, int total_steps) : m_total(total_steps), m_start(now_seconds()) {
+  /// @param done_before steps done before this part of the run (a resumed run)
+  Progress(ProgressMode mode, int total_steps, int done_before = 0)
+      : m_total(total_steps), m_done0(done_before), m_start(now_seconds()) {
     if (mode == ProgressMode::Auto)
       mode = isatty(fileno(stderr)) ? ProgressMode::Tty : ProgressMode::Plain;
     m_mode = mode;
@@ -53,7 +61,7 @@ class Progress {
     if (m_mode == ProgressMode::Off) return;
     const double now = now_seconds();
     const double elapsed = now - m_start;
-    const double ms_per_step = 1e3 * elapsed / std::max(step, 1);
+    const double ms_per_step = 1e3 * elapsed / std::max(step - m_done0, 1);
     const double eta = 1e-3 * ms_per_step * (m_total - step);
     const int pct = m_total > 0 ? static_cast<int>(100.0 * step / m_total) : 100;
     if (m_mode == ProgressMode::Tty) {
@@ -87,6 +95,7 @@ class Progress {
  private:
   ProgressMode m_mode = ProgressMode::Off;
   int m_total;
+  int m_done0;
   double m_start;
   double m_last_print;
   int m_last_tenth = 0;
@@ -165,6 +174,29 @@ Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
   Scene s = scene;
   TETFSI_REQUIRE(InputError, !(opt.steps && opt.end_time),
                  "give either a step count or an end time, not both");
+  if (opt.checkpoint_every || opt.keep_checkpoints || opt.wall_time) {
+    if (s.mode == Mode::Static) {
+      logger().warn(
+          "scene '{}' is static: --checkpoint-every, --keep-checkpoints and --wall-time are "
+          "ignored (a static solve has no steps to resume)",
+          s.name);
+    } else {
+      if (opt.checkpoint_every) {
+        TETFSI_REQUIRE(InputError, *opt.checkpoint_every >= 0,
+                       "--checkpoint-every must be >= 0, got {}", *opt.checkpoint_every);
+        s.output.checkpoint_every = *opt.checkpoint_every;
+        if (s.resolved.is_object())
+          s.resolved["output"]["checkpoint_every"] = *opt.checkpoint_every;
+      }
+      if (opt.keep_checkpoints) {
+        TETFSI_REQUIRE(InputError, *opt.keep_checkpoints >= 1,
+                       "--keep-checkpoints must be >= 1, got {}", *opt.keep_checkpoints);
+        s.output.keep_checkpoints = *opt.keep_checkpoints;
+        if (s.resolved.is_object())
+          s.resolved["output"]["keep_checkpoints"] = *opt.keep_checkpoints;
+      }
+    }
+  }
   if (!opt.steps && !opt.end_time) return s;
   if (s.mode == Mode::Static) {
     logger().warn("scene '{}' is static: the step count / end time override is ignored", s.name);
@@ -194,19 +226,117 @@ Scene apply_overrides(const Scene& scene, const RunOptions& opt) {
   return s;
 }
 
+/// What one part of a dynamic run starts from: step 1 of a fresh run, or the step after a
+/// checkpoint (`tetfsi resume`), and what the loop carries between steps beyond the
+/// simulation.
+struct Session {
+  int first_step = 1;
+  int last_frame = 0;        ///< the step of the last frame on the output.every schedule
+  double wall_before = 0.0;  ///< wall seconds of the run's earlier parts (resume)
+  double begin = 0.0;        ///< now_seconds() when this part began (before the build)
+  double start = 0.0;        ///< now_seconds() when the loop's timing began (after the build)
+  std::optional<DivergenceGuard> guard;
+};
+
+/// The layout version of the "run/" records (the file format has its own).
+constexpr int k_run_records_version = 1;
+
+template <class S, class F>
+void visit_equilibrium(S& e, F&& f) {
+  f("method", e.method);
+  f("via", e.via);
+  f("iteration_limit", e.iteration_limit);
+  f("steps", e.steps);
+  f("max_iterations", e.max_iterations);
+  f("iterations", e.iterations);
+  f("evaluations", e.evaluations);
+  f("fluid_solves", e.fluid_solves);
+}
+
+template <class S, class F>
+void visit_result(S& r, F&& f) {  // the counters of RunResult a resumed run goes on from
+  f("steps_done", r.steps_done);
+  f("end_time", r.end_time);
+  f("build_s", r.build_s);
+  f("solver_iterations", r.solver_iterations);
+  f("unconverged_steps", r.unconverged_steps);
+}
+
+/// The checkpoint after step `step`: the simulation's records ("sim/") and the run's ("run/"),
+/// written atomically to OUT/checkpoints/step_NNNNNN.tfck; then the old ones are pruned.
+fs::path write_checkpoint(const Scene& scene, const coupling::FsiSimulation& sim,
+                          const RunRecorder* rec, const OutputWriter& out, const RunResult& r,
+                          const Session& ses, int step) {
+  const double t0 = now_seconds();
+  CheckpointWriter w;
+  sim.save_state(w);
+  w.put("run/version", k_run_records_version);
+  w.put("run/step", step);
+  w.put("run/time", step * scene.time.dt);
+  w.put("run/steps_planned", r.steps_planned);
+  w.put("run/scene", scene.resolved.dump());
+  w.put("run/scene_file", scene.file.string());
+  w.put("run/physics_hash", static_cast<std::int64_t>(physics_hash(scene.resolved)));
+  w.put("run/last_frame", ses.last_frame);
+  w.put("run/wall_s", ses.wall_before + (now_seconds() - ses.start));
+  visit_result(r, RecordSaver{w, "run/result/"});
+  w.put("run/has_equilibrium", r.equilibrium.has_value());
+  if (r.equilibrium) visit_equilibrium(*r.equilibrium, RecordSaver{w, "run/equilibrium/"});
+  w.put("run/has_recorder", rec != nullptr);
+  if (rec) rec->save_state(w);
+  ses.guard->save_state(w);
+  out.save_state(w, ses.last_frame);
+  const fs::path path = checkpoint_path(out.out_dir(), step);
+  std::error_code ec;
+  fs::create_directories(path.parent_path(), ec);
+  w.write(path);
+  prune_checkpoints(out.out_dir(), step, scene.output.keep_checkpoints);
+  logger().info("checkpoint after step {}: {} ({:.3g} MB in {:.3g} s)", step, path.string(),
+                1e-6 * static_cast<double>(w.bytes()), now_seconds() - t0);
+  return path;
+}
+
+/// A stop requested before the next step: the reason ("signal", "stop_file", "wall_time") and
+/// the one-line message, or nothing.
+std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions& opt,
+                                                                const fs::path& stop_file,
+                                                                const Session& ses,
+                                                                double longest_step,
+                                                                double longest_checkpoint) {
+  if (opt.stop && opt.stop->load())
+    return std::pair{std::string("signal"), std::string("interrupted")};
+  std::error_code ec;
+  if (fs::exists(stop_file, ec))
+    return std::pair{std::string("stop_file"), fmt::format("stopped by '{}'", stop_file.string())};
+  if (opt.wall_time && longest_step > 0.0) {
+    const double elapsed = now_seconds() - ses.begin;
+    const double checkpoint = longest_checkpoint > 0.0 ? longest_checkpoint : longest_step;
+    if (elapsed + 1.25 * longest_step + checkpoint > *opt.wall_time)
+      return std::pair{std::string("wall_time"),
+                       fmt::format("stopped before the wall time runs out ({:.0f} of {:.0f} s "
+                                   "used, the longest step took {:.3g} s)",
+                                   elapsed, *opt.wall_time, longest_step)};
+  }
+  return std::nullopt;
+}
+
 void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
-                 OutputWriter& out, const RunOptions& opt, RunResult& r) {
+                 OutputWriter& out, const RunOptions& opt, RunResult& r, Session& ses) {
   solid::SolidWorld& world = sim.world();
   const double dt = scene.time.dt;
   const int n = scene.time.num_steps();
   const int every = std::max(1, scene.output.every);
+  const int checkpoint_every = scene.output.checkpoint_every;
   r.steps_planned = n;
   r.dt = dt;
-  Progress progress(opt.progress, n);
+  Progress progress(opt.progress, n, ses.first_step - 1);
   StepStats row;
   StateSnapshot last_good;
-  DivergenceGuard guard(world, divergence_scales(scene));
-  int last_frame = 0;  // step of the last frame written (frame 0 is written by the caller)
+  DivergenceGuard& guard = *ses.guard;
+  int last_frame = ses.last_frame;  // step of the last frame written, on schedule or not
+  double longest_step = 0.0, longest_checkpoint = 0.0;
+  int last_checkpoint = -1;
+  const fs::path stop_file = out.out_dir() / "STOP";
   // When the run stops early, also write the last completed step as a frame if it is not one
   // yet, so that the collection ends where the run did (best effort: the stop is reported).
   auto write_last_good_frame = [&](int done) {
@@ -217,15 +347,33 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
       logger().warn("could not write the frame of step {}: {}", done, e.what());
     }
   };
-  for (int step = 1; step <= n; ++step) {
-    if (opt.stop && opt.stop->load()) {
+  // A checkpoint after step `done`, once; a failure is logged and the run goes on.
+  auto checkpoint = [&](int done) {
+    if (done == last_checkpoint) return;
+    const double t0 = now_seconds();
+    try {
+      r.checkpoint = write_checkpoint(scene, sim, fluid, out, r, ses, done);
+      last_checkpoint = done;
+    } catch (const Error& e) {
+      logger().error("no checkpoint after step {}: {}", done, one_line(e.what()));
+    }
+    longest_checkpoint = std::max(longest_checkpoint, now_seconds() - t0);
+  };
+  for (int step = ses.first_step; step <= n; ++step) {
+    if (const auto stop = stop_request(opt, stop_file, ses, longest_step, longest_checkpoint)) {
       progress.finish();
+      checkpoint(step - 1);
       write_last_good_frame(step - 1);
+      if (stop->first == "stop_file") {
+        std::error_code ec;
+        fs::remove(stop_file, ec);  // consumed: a resumed run must not stop at once
+      }
       r.interrupted = true;
-      r.error = fmt::format(
-          "interrupted after step {}/{} (t = {:.6g} s); the output is complete "
-          "up to there",
-          step - 1, n, (step - 1) * dt);
+      r.stop_reason = stop->first;
+      r.error =
+          fmt::format("{} after step {}/{} (t = {:.6g} s); the output is complete up to there{}",
+                      stop->second, step - 1, n, (step - 1) * dt,
+                      last_checkpoint == step - 1 ? "" : "; no checkpoint could be written");
       return;
     }
     const double t = step * dt;
@@ -268,6 +416,8 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
         ScopedTimer timer(row.phases, "output");
         write_frame(out, sim, step, t);
         last_frame = step;
+        // A frame off the schedule (the last step's) is not one of a longer run's frames.
+        if (step % every == 0) ses.last_frame = step;
       }
       fill_energies(world, row);
     } catch (const Error& e) {
@@ -278,6 +428,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
       return;
     }
     row.phases.add("total", now_seconds() - t0);
+    longest_step = std::max(longest_step, now_seconds() - t0);
     row.step = step;
     row.time = t;
     row.dt = dt;
@@ -293,6 +444,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
     r.steps_done = step;
     r.end_time = t;
     progress.update(step, t);
+    if (checkpoint_every > 0 && (step % checkpoint_every == 0 || step == n)) checkpoint(step);
   }
   progress.finish();
   r.completed = true;
@@ -395,28 +547,68 @@ coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld wo
   return coupling::FsiSimulation(std::move(world), std::move(fluid), std::move(coupling));
 }
 
+namespace {
+
+/// A stale OUT/STOP (left from before this run) would stop it after its first step.
+void remove_stale_stop_file(const fs::path& out_dir) {
+  const fs::path stop = out_dir / "STOP";
+  std::error_code ec;
+  if (!fs::exists(stop, ec)) return;
+  fs::remove(stop, ec);
+  logger().warn("removed '{}', left from before this run (create it during a run to stop it)",
+                stop.string());
+}
+
+/// The end of run_scene and resume_run: the wall seconds, final state and summaries, and
+/// summary.json.
+void finish_run(const solid::SolidWorld& world, const std::optional<RunRecorder>& fluid,
+                OutputWriter& out, const Session& ses, RunResult& r) {
+  r.wall_s = ses.wall_before + (now_seconds() - ses.start);
+  r.frames_written = out.frames_written();
+  fill_final(world, r);
+  if (fluid) {
+    r.fluid = fluid->summary();
+    r.coupling = fluid->coupling_summary();
+  }
+  try {
+    out.write_summary(summary_json(r));
+  } catch (const Error& e) {
+    if (r.completed) throw;
+    logger().warn("{}", e.what());  // the step error is the one to report
+  }
+}
+
+/// The simulation of `scene` with its recorder installed, as run_scene and resume_run build it.
+coupling::FsiSimulation build_simulation(const Scene& scene, RunResult& r,
+                                         std::optional<RunRecorder>& fluid) {
+  const double t = now_seconds();
+  solid::SolidWorld world0 = build_world(scene);
+  r.build_s += now_seconds() - t;
+  logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world0.bodies.size(),
+                world0.bodies.size() == 1 ? "y" : "ies", now_seconds() - t);
+  coupling::FsiSimulation sim = make_simulation(scene, std::move(world0));
+  if (sim.has_fluid()) fluid.emplace(sim);
+  return sim;
+}
+
+}  // namespace
+
 RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   TETFSI_REQUIRE(InputError, !opt.out_dir.empty(), "no output folder given");
+  Session ses;
+  ses.begin = now_seconds();
   const Scene scene = apply_overrides(scene_in, opt);
   RunResult r;
   r.scene_name = scene.name;
   r.mode = scene.mode == Mode::Static ? "static" : "dynamic";
   r.out_dir = opt.out_dir;
 
-  double t = now_seconds();
-  solid::SolidWorld world0 = build_world(scene);
-  r.build_s = now_seconds() - t;
-  logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world0.bodies.size(),
-                world0.bodies.size() == 1 ? "y" : "ies", r.build_s);
-  coupling::FsiSimulation sim = make_simulation(scene, std::move(world0));
-  const solid::SolidWorld& world = sim.world();
   std::optional<RunRecorder> fluid;
-  if (sim.has_fluid()) {
-    fluid.emplace(sim);
-    sim.set_mesh_observer(fluid->mesh_observer());
-  }
+  coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
+  if (fluid) sim.set_mesh_observer(fluid->mesh_observer());
+  const solid::SolidWorld& world = sim.world();
 
-  t = now_seconds();
+  ses.start = now_seconds();
   OutputWriter out(opt.out_dir, scene, world);
   bool initial_ok = true;
   if (fluid) {
@@ -436,23 +628,142 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   } else if (scene.mode == Mode::Static) {
     run_static(scene, sim, rec, out, r);
   } else {
+    remove_stale_stop_file(opt.out_dir);
     r.equilibrium = equilibrium_summary(scene);
-    run_dynamic(scene, sim, rec, out, opt, r);
+    ses.guard.emplace(world, divergence_scales(scene));
+    run_dynamic(scene, sim, rec, out, opt, r, ses);
   }
-  r.wall_s = now_seconds() - t;
-  r.frames_written = out.frames_written();
-  fill_final(world, r);
-  if (fluid) {
-    r.fluid = fluid->summary();
-    r.coupling = fluid->coupling_summary();
-  }
-  try {
-    out.write_summary(summary_json(r));
-  } catch (const Error& e) {
-    if (r.completed) throw;
-    logger().warn("{}", e.what());  // the step error is the one to report
-  }
+  finish_run(world, fluid, out, ses, r);
   return r;
+}
+
+namespace {
+
+std::string read_text_file(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+/// The checkpoint's run records checked before anything is built from them: their layout
+/// version, the stored scene against its hash and against the folder's scene.resolved.json
+/// (a checkpoint copied from another run's folder). Returns the stored resolved scene.
+/// @throws CheckpointError naming the file and the fault.
+nlohmann::json check_run_records(const CheckpointReader& ck, const fs::path& out_dir) {
+  const auto version = ck.get_int("run/version");
+  if (version != k_run_records_version)
+    ck.fail(fmt::format("run/version: the run's records are of layout {}, this tetfsi reads {}",
+                        version, k_run_records_version));
+  const nlohmann::json stored = nlohmann::json::parse(ck.get_text("run/scene"), nullptr, false);
+  if (!stored.is_object()) ck.fail("run/scene: not a JSON scene");
+  if (static_cast<std::uint64_t>(ck.get_int("run/physics_hash")) != physics_hash(stored))
+    ck.fail("run/scene: does not match its run/physics_hash");
+  const fs::path folder_scene = out_dir / "scene.resolved.json";
+  std::error_code ec;
+  if (fs::exists(folder_scene, ec)) {
+    const nlohmann::json here = nlohmann::json::parse(read_text_file(folder_scene), nullptr, false);
+    if (here.is_object()) {
+      if (auto d = first_difference(physics_part(here), physics_part(stored)))
+        ck.fail(
+            fmt::format("its scene is not this folder's ('{}'): {}", folder_scene.string(), *d));
+    }
+  }
+  return stored;
+}
+
+}  // namespace
+
+RunResult resume_run(const ResumeOptions& ro) {
+  const RunOptions& opt = ro.run;
+  TETFSI_REQUIRE(InputError, !opt.out_dir.empty(), "no output folder given");
+  Session ses;
+  ses.begin = now_seconds();
+  const std::vector<CheckpointFile> files = list_checkpoints(opt.out_dir);
+  if (files.empty())
+    throw CheckpointError(fmt::format(
+        "no checkpoint to resume from in '{}' (a run writes them with --checkpoint-every N, and "
+        "when it is stopped)",
+        checkpoint_dir(opt.out_dir).string()));
+  // The newest valid checkpoint (older ones only with --fallback).
+  std::optional<CheckpointReader> ck;
+  nlohmann::json stored;
+  for (auto it = files.rbegin(); it != files.rend() && !ck; ++it) {
+    try {
+      ck.emplace(it->path);
+      stored = check_run_records(*ck, opt.out_dir);
+    } catch (const CheckpointError& e) {
+      ck.reset();
+      const bool older = std::next(it) != files.rend();
+      if (!ro.fallback)
+        throw CheckpointError(fmt::format("{}{}", one_line(e.what()),
+                                          older ? "; `tetfsi resume --fallback` resumes from the "
+                                                  "previous checkpoint"
+                                                : ""));
+      logger().warn(
+          "{}{}", one_line(e.what()),
+          older ? fmt::format("; falling back to '{}'", std::next(it)->path.string()) : "");
+    }
+  }
+  if (!ck)
+    throw CheckpointError(
+        fmt::format("no valid checkpoint in '{}'", checkpoint_dir(opt.out_dir).string()));
+  const int step = static_cast<int>(ck->get_int("run/step"));
+
+  // The stored scene with the allowed overrides; the physics must not change.
+  Scene scene = apply_overrides(
+      parse_scene_text(ck->get_text("run/scene"), ck->get_text("run/scene_file"), ro.overrides),
+      opt);
+  if (auto d = first_difference(physics_part(stored), physics_part(scene.resolved)))
+    throw InputError(fmt::format(
+        "checkpoint '{}': the resumed scene differs in {} (a resumed run may change output.*, "
+        "time.steps and time.end_time only)",
+        ck->path().string(), *d));
+  const int n = scene.time.num_steps();
+  TETFSI_REQUIRE(InputError, n > step,
+                 "checkpoint '{}' is at step {}, the run's last step is {}: give --steps N (more "
+                 "than {}) or --end-time T to go on",
+                 ck->path().string(), step, n, step);
+  logger().info("resuming '{}' from '{}' (step {} of {})", opt.out_dir.string(),
+                ck->path().string(), step, n);
+
+  RunResult r;
+  r.scene_name = scene.name;
+  r.mode = "dynamic";
+  r.out_dir = opt.out_dir;
+  r.resumed_from = step;
+  visit_result(r, RecordLoader{*ck, "run/result/"});
+  std::optional<RunRecorder> fluid;
+  coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
+  const solid::SolidWorld& world = sim.world();
+  sim.load_state(*ck);  // instead of start(): the state after `step`
+  if (fluid) {
+    if (!ck->get_bool("run/has_recorder")) ck->fail("run/has_recorder: the run had no fluid");
+    fluid->load_state(*ck);
+    sim.set_mesh_observer(fluid->mesh_observer());
+  }
+  if (ck->get_bool("run/has_equilibrium")) {
+    r.equilibrium.emplace();
+    visit_equilibrium(*r.equilibrium, RecordLoader{*ck, "run/equilibrium/"});
+  }
+  ses.guard.emplace(world, divergence_scales(scene));
+  ses.guard->load_state(*ck);
+  ses.first_step = step + 1;
+  ses.last_frame = static_cast<int>(ck->get_int("run/last_frame"));
+  ses.wall_before = ck->get_double("run/wall_s");
+
+  ses.start = now_seconds();
+  OutputWriter out(opt.out_dir, scene, world, step);
+  out.load_state(*ck);
+  remove_stale_stop_file(opt.out_dir);
+  ck.reset();  // its memory, before the run goes on
+  run_dynamic(scene, sim, fluid ? &*fluid : nullptr, out, opt, r, ses);
+  finish_run(world, fluid, out, ses, r);
+  return r;
+}
+
+std::string resume_command(const RunResult& r) {
+  return "tetfsi resume " + shell_quote(r.out_dir.string());
 }
 
 std::string summary_json(const RunResult& r) {
@@ -461,6 +772,11 @@ std::string summary_json(const RunResult& r) {
   j["mode"] = r.mode;
   j["completed"] = r.completed;
   j["interrupted"] = r.interrupted;
+  j["stop_reason"] =
+      r.stop_reason.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.stop_reason);
+  j["checkpoint"] =
+      r.checkpoint.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.checkpoint.string());
+  if (r.resumed_from >= 0) j["resumed_from_step"] = r.resumed_from;
   j["error"] = r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error);
   j["steps"] = r.steps_done;
   j["steps_planned"] = r.steps_planned;

@@ -39,8 +39,29 @@ struct RunOptions {
   std::optional<double> end_time;  ///< overrides it by end time: ceil(T / dt) steps
   ProgressMode progress = ProgressMode::Auto;
   /// If set, checked before every step: once true the run stops cleanly (output complete up to
-  /// the last step, summary written, `interrupted` set). The CLI sets it on Ctrl-C / SIGTERM.
+  /// the last step, a checkpoint, summary written, `interrupted` set, stop_reason "signal").
+  /// The CLI sets it on Ctrl-C / SIGTERM.
   const std::atomic<bool>* stop = nullptr;
+  /// Override output.checkpoint_every / output.keep_checkpoints (recorded in `resolved`).
+  std::optional<int> checkpoint_every;
+  std::optional<int> keep_checkpoints;
+  /// Seconds the run may take from its start (`--wall-time`): before each step, if the longest
+  /// step so far (× 1.25) and a checkpoint's write would end past it, the run stops there with
+  /// a checkpoint (stop_reason "wall_time").
+  std::optional<double> wall_time;
+};
+
+/// `tetfsi resume OUT`: go on from the newest valid checkpoint of `run.out_dir`.
+struct ResumeOptions {
+  /// out_dir, steps / end_time (the whole run's length, default the stored scene's), progress,
+  /// stop, checkpoint options and wall time, as for a run.
+  RunOptions run;
+  /// `--set key=value` on the checkpoint's stored scene: output.*, time.steps, time.end_time
+  /// (and description) only; anything else changes the physics and is an error.
+  std::vector<std::string> overrides;
+  /// A newest checkpoint that cannot be used is an error, or with `fallback` a warning and
+  /// the next older one is tried.
+  bool fallback = false;
 };
 
 /// Final state of one body.
@@ -69,9 +90,15 @@ struct EquilibriumSummary {
 };
 
 struct RunResult {
-  bool completed = false;    ///< every step ran; false if a step failed (see `error`)
-  bool interrupted = false;  ///< stopped on request (RunOptions::stop); `error` says where
-  std::string error;         ///< one line: where and why the run stopped (empty if completed)
+  bool completed = false;  ///< every step ran; false if a step failed (see `error`)
+  bool interrupted =
+      false;  ///< stopped on request (signal, OUT/STOP, wall time); `error` says where
+  /// "signal" (the CLI exits with 130), "stop_file" or "wall_time" (exit 0) if interrupted
+  std::string stop_reason;
+  /// The last checkpoint this run wrote (empty: none): a stopped run's resume point.
+  std::filesystem::path checkpoint;
+  int resumed_from = -1;  ///< resumed runs: the step of the checkpoint the last part started at
+  std::string error;      ///< one line: where and why the run stopped (empty if completed)
   std::string scene_name;
   std::string mode;           ///< "dynamic" or "static"
   int steps_planned = 0;      ///< steps requested (1 for static)
@@ -123,6 +150,23 @@ coupling::FsiSimulation make_simulation(const Scene& scene, solid::SolidWorld wo
 /// @throws InputError / MeshError for a scene that cannot be built or an output folder that
 ///   cannot be written.
 RunResult run_scene(const Scene& scene, const RunOptions& options);
+
+/// `tetfsi resume`: the run of the output folder `options.run.out_dir` goes on from its newest
+/// valid checkpoint (tools/checkpoints.hpp) as if it had never stopped: the scene is the
+/// checkpoint's stored one (with the allowed overrides), the simulation is rebuilt as
+/// run_scene builds it and then given the checkpoint's state (FsiSimulation::load_state,
+/// instead of start), and so are the run's counters, summaries, divergence budget and
+/// collections. stats.csv keeps its rows up to the checkpoint's step and the collections their
+/// frames up to it (later ones, from a run that went past it, are dropped), then both go on;
+/// scene.resolved.json and summary.json describe the whole run. A restarted run equals the
+/// continuous one bit for bit (every VTU array and every non-timing stats.csv column).
+/// @throws CheckpointError naming the file (no checkpoint, or an unusable newest one without
+///   `fallback`, or none usable), InputError for an override that changes the physics (naming
+///   the first differing key and both values) or a run that is already at its last step.
+RunResult resume_run(const ResumeOptions& options);
+
+/// The command that continues a stopped run: "tetfsi resume OUT".
+std::string resume_command(const RunResult& r);
 
 /// The summary of a run as JSON text (what summary.json holds).
 std::string summary_json(const RunResult& r);
