@@ -181,9 +181,10 @@ void CheckpointWriter::write(const fs::path& path) const {
     if (fd >= 0) ::close(fd);
     std::error_code ec;
     fs::remove(tmp, ec);
-    throw Error(fmt::format("cannot write checkpoint '{}' ({}: {}); the previous checkpoints are "
-                            "kept",
-                            path.string(), what, why));
+    throw Error(
+        fmt::format("cannot write checkpoint '{}' ({}: {}); the previous checkpoints are "
+                    "kept",
+                    path.string(), what, why));
   };
   if (fd < 0) fail("open");
   bool ok = write_all(fd, head.data(), head.size());
@@ -235,9 +236,10 @@ CheckpointReader::CheckpointReader(fs::path path) : m_path(std::move(path)) {
     fail("is not a tetfsi checkpoint (its first bytes are not 'TETFSICK')");
   const auto version = read_at<std::uint32_t>(m_data, 8);
   if (version != k_checkpoint_version)
-    fail(fmt::format("has format version {}, this tetfsi reads version {}; resume it with the "
-                     "tetfsi that wrote it",
-                     version, k_checkpoint_version));
+    fail(
+        fmt::format("has format version {}, this tetfsi reads version {}; resume it with the "
+                    "tetfsi that wrote it",
+                    version, k_checkpoint_version));
   const auto count = read_at<std::uint64_t>(m_data, 16);
   std::size_t at = k_header_bytes;
   std::vector<std::uint32_t> crcs;
@@ -268,9 +270,9 @@ CheckpointReader::CheckpointReader(fs::path path) : m_path(std::move(path)) {
     e.type = static_cast<RecordType>(type);
     const std::size_t eb = element_bytes(e.type);
     const bool empty = e.rows == 0 || e.cols == 0;
-    if (eb > 0 && (empty ? bytes != 0
-                         : bytes % eb != 0 || (bytes / eb) % e.cols != 0 ||
-                               bytes / eb / e.cols != e.rows))
+    if (eb > 0 &&
+        (empty ? bytes != 0
+               : bytes % eb != 0 || (bytes / eb) % e.cols != 0 || bytes / eb / e.cols != e.rows))
       fail(fmt::format("record '{}' says {} × {} {} but holds {} bytes", e.key, e.rows, e.cols,
                        to_string(e.type), bytes));
     e.offset = at;

@@ -40,7 +40,15 @@ class CheckpointError : public Error {
 /// CRC-32 (IEEE 802.3, as zlib's crc32) of `n` bytes, continuing from `crc`.
 std::uint32_t crc32(const void* data, std::size_t n, std::uint32_t crc = 0);
 
-enum class RecordType : std::uint8_t { F64 = 1, I32 = 2, I8 = 3, U8 = 4, I64 = 5, Text = 6, Sparse = 7 };
+enum class RecordType : std::uint8_t {
+  F64 = 1,
+  I32 = 2,
+  I8 = 3,
+  U8 = 4,
+  I64 = 5,
+  Text = 6,
+  Sparse = 7
+};
 const char* to_string(RecordType t);
 
 namespace detail {

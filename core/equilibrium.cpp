@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "core/checkpoint.hpp"
 #include "core/error.hpp"
 #include "core/linear_solver.hpp"
 
@@ -243,10 +244,10 @@ FactoredMatrix factor_blocks(std::vector<std::shared_ptr<const SparseMatrix>> bl
   std::vector<std::shared_ptr<LinearSolver>> solvers(blocks.size());
   for (size_t b = 0; b < blocks.size(); ++b) {
     if (!blocks[b]) continue;
-    TETFSI_CHECK(blocks[b]->rows() == offsets[b + 1] - offsets[b] &&
-                     blocks[b]->cols() == blocks[b]->rows(),
-                 "factor_blocks: block {} is {} x {} for {} unknowns", b, blocks[b]->rows(),
-                 blocks[b]->cols(), offsets[b + 1] - offsets[b]);
+    TETFSI_CHECK(
+        blocks[b]->rows() == offsets[b + 1] - offsets[b] && blocks[b]->cols() == blocks[b]->rows(),
+        "factor_blocks: block {} is {} x {} for {} unknowns", b, blocks[b]->rows(),
+        blocks[b]->cols(), offsets[b + 1] - offsets[b]);
     solvers[b] = factor_symmetric(*blocks[b]);  // refers to *blocks[b], which the operator keeps
   }
   FactoredMatrix f;
@@ -264,6 +265,55 @@ FactoredMatrix factor_blocks(std::vector<std::shared_ptr<const SparseMatrix>> bl
   f.blocks = std::move(blocks);
   f.offsets = std::move(offsets);
   return f;
+}
+
+void save_history(const EquilibriumHistory& h, CheckpointWriter& w, const std::string& prefix) {
+  w.put(prefix + "max_force", h.max_force);
+  w.put(prefix + "kept", static_cast<bool>(h.kept));
+  if (h.kept) {
+    TETFSI_CHECK(!h.kept.blocks.empty(), "save_history: the kept matrix has no blocks to save");
+    w.put(prefix + "kept_offsets", h.kept.offsets);
+    std::vector<std::uint8_t> present;
+    for (size_t b = 0; b < h.kept.blocks.size(); ++b) {
+      present.push_back(h.kept.blocks[b] ? 1 : 0);
+      if (h.kept.blocks[b]) w.put(fmt::format("{}kept_block/{}", prefix, b), *h.kept.blocks[b]);
+    }
+    w.put(prefix + "kept_present", present);
+  }
+  w.put(prefix + "updates", static_cast<std::int64_t>(h.updates.size()));
+  for (size_t i = 0; i < h.updates.size(); ++i) {
+    w.put(fmt::format("{}update/{}/v", prefix, i), h.updates[i].first);
+    w.put(fmt::format("{}update/{}/w", prefix, i), h.updates[i].second);
+  }
+}
+
+EquilibriumHistory load_history(const CheckpointReader& r, const std::string& prefix) {
+  EquilibriumHistory h;
+  h.max_force = r.get_double(prefix + "max_force");
+  if (r.get_bool(prefix + "kept")) {
+    std::vector<Index> offsets = r.get_vector<Index>(prefix + "kept_offsets");
+    const std::vector<std::uint8_t> present = r.get_vector<std::uint8_t>(prefix + "kept_present");
+    if (offsets.size() != present.size() + 1)
+      r.fail(fmt::format("record '{}kept_offsets' has {} entries for {} blocks", prefix,
+                         offsets.size(), present.size()));
+    std::vector<std::shared_ptr<const SparseMatrix>> blocks(present.size());
+    for (size_t b = 0; b < present.size(); ++b) {
+      if (!present[b]) continue;
+      const std::string key = fmt::format("{}kept_block/{}", prefix, b);
+      SparseMatrix a = r.get_sparse(key);
+      if (a.rows() != offsets[b + 1] - offsets[b] || a.cols() != a.rows())
+        r.fail(fmt::format("record '{}' is {} x {} for {} unknowns", key, a.rows(), a.cols(),
+                           offsets[b + 1] - offsets[b]));
+      blocks[b] = std::make_shared<const SparseMatrix>(std::move(a));
+    }
+    h.kept = factor_blocks(std::move(blocks), std::move(offsets));
+  }
+  const std::int64_t n = r.get_int(prefix + "updates");
+  if (n < 0 || n > 1'000'000) r.fail(fmt::format("record '{}updates' is {}", prefix, n));
+  for (std::int64_t i = 0; i < n; ++i)
+    h.updates.emplace_back(r.get<VecX>(fmt::format("{}update/{}/v", prefix, i)),
+                           r.get<VecX>(fmt::format("{}update/{}/w", prefix, i)));
+  return h;
 }
 
 }  // namespace tetfsi

@@ -152,6 +152,15 @@ struct EquilibriumHistory {
   std::vector<std::pair<VecX, VecX>> updates;  ///< keep_matrix, BFGS: the updates so far
 };
 
+class CheckpointWriter;
+class CheckpointReader;
+/// The history's records under `prefix` (max_force, the kept matrix's blocks and offsets,
+/// the BFGS updates), and back: the kept matrix is re-formed by factor_blocks from the same
+/// blocks, so the next solve is the one that would have followed.
+/// @throws InternalError (save) if the kept matrix has no blocks; CheckpointError (load).
+void save_history(const EquilibriumHistory& h, CheckpointWriter& w, const std::string& prefix);
+EquilibriumHistory load_history(const CheckpointReader& r, const std::string& prefix);
+
 struct EquilibriumReport {
   bool converged = false;
   int iterations = 0;         ///< directions Δx computed (the seed's Table I counts these)

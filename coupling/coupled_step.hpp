@@ -26,6 +26,13 @@ class CoupledStepper {
                          PhaseTimes& phases);
 
   const CouplingParams& params() const { return m_params; }
+  /// The scheme's state carried across steps (CouplingScheme::save_state / load_state).
+  void save_state(CheckpointWriter& w, const std::string& prefix) const {
+    m_scheme->save_state(w, prefix);
+  }
+  void load_state(const CheckpointReader& r, const std::string& prefix) {
+    m_scheme->load_state(r, prefix);
+  }
   const std::vector<BodySurface>& surfaces() const { return m_surfaces; }
 
  private:

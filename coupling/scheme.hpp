@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "core/checkpoint.hpp"
 #include "core/enum_names.hpp"
 #include "core/equilibrium.hpp"
 #include "core/timer.hpp"
@@ -116,6 +117,12 @@ class CouplingScheme {
   /// @throws SolverError, MeshError.
   virtual CoupledSolution advance(StepContext& ctx, std::unique_ptr<PredictedFluid>& pred,
                                   CoupledStepReport& rep) = 0;
+  /// What the scheme carries from step to step, as checkpoint records under `prefix`
+  /// (simultaneous: the enclosed regions' target volumes; splitting: the held fluid forces;
+  /// iterated: the equilibrium history with the kept matrix and BFGS updates).
+  virtual void save_state(CheckpointWriter& w, const std::string& prefix) const = 0;
+  /// @throws CheckpointError naming the record if it does not fit.
+  virtual void load_state(const CheckpointReader& r, const std::string& prefix) = 0;
 };
 
 /// The scheme of `params.scheme`.

@@ -293,7 +293,6 @@ class IteratedStep {
     return factor_blocks(std::move(blocks), m_off);
   }
 
-
   StepContext& m_ctx;
   const PredictedFluid& m_pred;
   const CouplingParams& m_params;
@@ -322,6 +321,13 @@ class IteratedScheme final : public CouplingScheme {
     IteratedStep step(ctx, *pred, m_params, rep);
     const VecX x = step.solve(m_history);
     return step.finish(x);
+  }
+
+  void save_state(CheckpointWriter& w, const std::string& prefix) const override {
+    save_history(m_history, w, prefix + "history/");
+  }
+  void load_state(const CheckpointReader& r, const std::string& prefix) override {
+    m_history = load_history(r, prefix + "history/");
   }
 
  private:

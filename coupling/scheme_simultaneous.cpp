@@ -77,6 +77,28 @@ class SimultaneousScheme final : public CouplingScheme {
     return contacts;
   }
 
+ public:
+  void save_state(CheckpointWriter& w, const std::string& prefix) const override {
+    std::vector<std::int64_t> keys;
+    std::vector<double> volumes;
+    for (const auto& [k, v] : m_targets) {
+      keys.push_back(k);
+      volumes.push_back(v);
+    }
+    w.put(prefix + "volume_target_keys", keys);
+    w.put(prefix + "volume_targets", volumes);
+  }
+
+  void load_state(const CheckpointReader& r, const std::string& prefix) override {
+    const auto keys = r.get_vector<std::int64_t>(prefix + "volume_target_keys");
+    const auto volumes = r.get_vector<double>(prefix + "volume_targets");
+    if (keys.size() != volumes.size())
+      r.fail(fmt::format("it has {} volume targets for {} keys", volumes.size(), keys.size()));
+    m_targets.clear();
+    for (size_t i = 0; i < keys.size(); ++i) m_targets[keys[i]] = volumes[i];
+  }
+
+ private:
   CouplingParams m_params;
   VolumeTargets m_targets;  ///< the enclosed regions' volumes when first seen
 };

@@ -58,6 +58,25 @@ class SplittingScheme final : public CouplingScheme {
     check_finite(body, h);
   }
 
+ public:
+  void save_state(CheckpointWriter& w, const std::string& prefix) const override {
+    w.put(prefix + "have_force", m_have_force);
+    w.put(prefix + "held_forces", static_cast<std::int64_t>(m_held_force.size()));
+    for (size_t b = 0; b < m_held_force.size(); ++b)
+      w.put(fmt::format("{}held_force/{}", prefix, b), m_held_force[b]);
+  }
+
+  void load_state(const CheckpointReader& r, const std::string& prefix) override {
+    const std::int64_t n = r.get_int(prefix + "held_forces");
+    if (n < 0 || n > 1'000'000) r.fail(fmt::format("record '{}held_forces' is {}", prefix, n));
+    std::vector<VecX> f;
+    for (std::int64_t b = 0; b < n; ++b)
+      f.push_back(r.get<VecX>(fmt::format("{}held_force/{}", prefix, b)));
+    m_have_force = r.get_bool(prefix + "have_force");
+    m_held_force = std::move(f);
+  }
+
+ private:
   CouplingParams m_params;
   std::vector<VecX> m_held_force;  ///< the fluid's nodal forces of the last step
   bool m_have_force = false;

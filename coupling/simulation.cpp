@@ -199,4 +199,51 @@ std::vector<VecX> FsiSimulation::grid_fluid_forces() const {
                              &m_grid_cache);
 }
 
+void FsiSimulation::save_state(CheckpointWriter& w) const {
+  w.put("sim/kind", std::string(m_grid ? "grid" : m_fluid ? "tet" : "solid"));
+  w.put("sim/two_way", two_way());
+  if (two_way()) w.put("sim/scheme", std::string(to_string(m_stepper->params().scheme)));
+  m_world.save_state(w, "sim/solid/");
+  w.put("sim/fluid_started", m_started);
+  if (m_started && m_fluid) m_fluid->save_state(w, "sim/fluid/");
+  if (m_started && m_grid) {
+    m_grid->save_state(w, "sim/grid/");
+    w.put("sim/grid/cache/valid", m_grid_cache.valid);
+    if (m_grid_cache.valid) {
+      w.put("sim/grid/cache/time", m_grid_cache.time);
+      w.put("sim/grid/cache/Jc", m_grid_cache.Jc);
+      w.put("sim/grid/cache/Jp", m_grid_cache.Jp);
+    }
+  }
+  if (m_stepper) m_stepper->save_state(w, "sim/scheme/");
+}
+
+void FsiSimulation::load_state(const CheckpointReader& r) {
+  const std::string kind = r.get_text("sim/kind");
+  const std::string mine = m_grid ? "grid" : m_fluid ? "tet" : "solid";
+  if (kind != mine)
+    r.fail(fmt::format("it holds a {} simulation, the scene is a {} one: it is from another scene",
+                       kind, mine));
+  if (r.get_bool("sim/two_way") != two_way())
+    r.fail(fmt::format("it is from a {} run, the scene is {}: it is from another scene",
+                       two_way() ? "one-way" : "two-way", two_way() ? "two-way" : "one-way"));
+  if (two_way() && r.get_text("sim/scheme") != to_string(m_stepper->params().scheme))
+    r.fail(fmt::format("it is from the '{}' coupling scheme, the scene's is '{}'",
+                       r.get_text("sim/scheme"), to_string(m_stepper->params().scheme)));
+  m_world.load_state(r, "sim/solid/");
+  m_started = r.get_bool("sim/fluid_started");
+  if (m_started && m_fluid) m_fluid->load_state(r, "sim/fluid/");
+  if (m_started && m_grid) {
+    m_grid->load_state(r, "sim/grid/");
+    m_grid_cache = GridForceCache{};
+    if (r.get_bool("sim/grid/cache/valid")) {
+      m_grid_cache.time = r.get_double("sim/grid/cache/time");
+      m_grid_cache.Jc = r.get_sparse("sim/grid/cache/Jc");
+      m_grid_cache.Jp = r.get_sparse("sim/grid/cache/Jp");
+      m_grid_cache.valid = true;
+    }
+  }
+  if (m_stepper) m_stepper->load_state(r, "sim/scheme/");
+}
+
 }  // namespace tetfsi::coupling

@@ -361,4 +361,53 @@ MatX3 cell_velocities(const GridCells& gc, const VecX& u) {
   return uc;
 }
 
+void GridFluid::save_state(CheckpointWriter& w, const std::string& prefix) const {
+  TETFSI_CHECK(m_initialized, "GridFluid::save_state before initialize");
+  const std::vector<mesh::SolidSurface>& surfaces = m_cells.solids.surfaces();
+  w.put(prefix + "surfaces", static_cast<std::int64_t>(surfaces.size()));
+  for (size_t i = 0; i < surfaces.size(); ++i) {
+    const std::string p = fmt::format("{}surface/{}/", prefix, i);
+    w.put(p + "body", surfaces[i].body);
+    w.put(p + "vertices", surfaces[i].vertices);
+    w.put(p + "triangles", surfaces[i].triangles);
+  }
+  w.put(prefix + "u", m_state.u);
+  w.put(prefix + "p", m_state.p);
+  w.put(prefix + "density", m_state.density);
+  w.put(prefix + "temperature", m_state.temperature);
+  w.put(prefix + "time", m_time);
+}
+
+void GridFluid::load_state(const CheckpointReader& r, const std::string& prefix) {
+  const std::int64_t n = r.get_int(prefix + "surfaces");
+  if (n < 0 || n > 1'000'000) r.fail(fmt::format("record '{}surfaces' is {}", prefix, n));
+  std::vector<mesh::SolidSurface> surfaces(static_cast<size_t>(n));
+  for (size_t i = 0; i < surfaces.size(); ++i) {
+    const std::string p = fmt::format("{}surface/{}/", prefix, i);
+    surfaces[i].body = static_cast<int>(r.get_int(p + "body"));
+    surfaces[i].vertices = r.get<MatX3>(p + "vertices");
+    surfaces[i].triangles = r.get<MatX3i>(p + "triangles");
+    const Index nv = static_cast<Index>(surfaces[i].vertices.rows());
+    if (surfaces[i].triangles.size() > 0 &&
+        (surfaces[i].triangles.minCoeff() < 0 || surfaces[i].triangles.maxCoeff() >= nv))
+      r.fail(fmt::format("record '{}triangles' refers to vertices outside 0..{}", p, nv - 1));
+  }
+  GridState s;
+  s.u = r.get<VecX>(prefix + "u");
+  s.p = r.get<VecX>(prefix + "p");
+  s.density = r.get<VecX>(prefix + "density");
+  s.temperature = r.get<VecX>(prefix + "temperature");
+  const Index nc = m_grid.num_cells(), nf = m_grid.num_faces();
+  if (s.u.size() != nf || s.p.size() != nc || s.density.size() != nc || s.temperature.size() != nc)
+    r.fail(
+        fmt::format("its grid fields (u {}, p {}, density {}, temperature {}) do not fit the "
+                    "scene's grid ({} faces, {} cells): it is from another scene",
+                    s.u.size(), s.p.size(), s.density.size(), s.temperature.size(), nf, nc));
+  const double t = r.get_double(prefix + "time");
+  m_cells = classify_grid(m_grid, m_domain, std::move(surfaces));
+  m_state = std::move(s);
+  m_time = t;
+  m_initialized = true;
+}
+
 }  // namespace tetfsi::fluid

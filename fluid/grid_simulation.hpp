@@ -74,6 +74,14 @@ class GridFluid {
                        const std::vector<SolidSurfaceMotion>& motions, double h,
                        PhaseTimes& phases);
 
+  /// The state the next step reads as records under `prefix` (core/checkpoint.hpp): the
+  /// bodies' surfaces the grid is classified around (classify_grid rebuilds the rest from
+  /// them), u, p, smoke, temperature and the time.
+  void save_state(CheckpointWriter& w, const std::string& prefix) const;
+  /// Restore save_state's records (instead of initialize).
+  /// @throws CheckpointError naming the record if the fields do not fit the grid.
+  void load_state(const CheckpointReader& r, const std::string& prefix);
+
   /// Replace the state (tests: an initial velocity). @throws InputError on a size mismatch.
   void set_state(GridState s);
   const GridState& state() const { return m_state; }

@@ -418,4 +418,37 @@ RefineField FluidSimulation::refinement_field() const {
   };
 }
 
+void FluidSimulation::save_state(CheckpointWriter& w, const std::string& prefix) const {
+  const Impl& I = *m_impl;
+  TETFSI_CHECK(I.initialized, "FluidSimulation::save_state before initialize");
+  mesh::save_mesh(I.mesh, w, prefix + "mesh/");
+  w.put(prefix + "u", I.state.u);
+  w.put(prefix + "p", I.state.p);
+  w.put(prefix + "density", I.state.density);
+  w.put(prefix + "temperature", I.state.temperature);
+  w.put(prefix + "time", I.time);
+}
+
+void FluidSimulation::load_state(const CheckpointReader& r, const std::string& prefix) {
+  TetMesh m = mesh::load_mesh(r, prefix + "mesh/");
+  FluidState s;
+  s.u = r.get<VecX>(prefix + "u");
+  s.p = r.get<VecX>(prefix + "p");
+  s.density = r.get<VecX>(prefix + "density");
+  s.temperature = r.get<VecX>(prefix + "temperature");
+  if (s.u.size() != m.num_faces() || s.p.size() != m.num_tets() ||
+      s.density.size() != m.num_tets() || s.temperature.size() != m.num_tets())
+    r.fail(
+        fmt::format("its fluid fields (u {}, p {}, density {}, temperature {}) do not fit its "
+                    "mesh ({} faces, {} cells)",
+                    s.u.size(), s.p.size(), s.density.size(), s.temperature.size(), m.num_faces(),
+                    m.num_tets()));
+  const double t = r.get_double(prefix + "time");
+  Impl& I = *m_impl;
+  I.mesh = std::move(m);
+  I.state = std::move(s);
+  I.time = t;
+  I.initialized = true;
+}
+
 }  // namespace tetfsi::fluid

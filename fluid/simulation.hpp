@@ -7,6 +7,7 @@
 /// simultaneous coupling (coupling/) replaces the projection by the coupled solve.
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/linear_solver.hpp"
@@ -120,6 +121,14 @@ class FluidSimulation {
 
   /// Replace the state on the current mesh (e.g. an initial velocity field; tests).
   /// @throws InputError if a size does not match the mesh or a value is not finite.
+  /// The state the next step reads as records under `prefix` (core/checkpoint.hpp): the mesh
+  /// (mesh::save_mesh), u, p, smoke, temperature and the time. The parameters come from the
+  /// scene; the pressure solver is made afresh (it carries nothing from step to step).
+  void save_state(CheckpointWriter& w, const std::string& prefix) const;
+  /// Restore save_state's records (instead of initialize).
+  /// @throws CheckpointError naming the record if the fields do not fit the mesh.
+  void load_state(const CheckpointReader& r, const std::string& prefix);
+
   void set_state(FluidState s);
 
   const mesh::TetMesh& mesh() const;

@@ -298,4 +298,69 @@ VecXi cospherical_groups(const TetMesh& m, double rel_tol, Index* num_groups) {
   return id;
 }
 
+void save_mesh(const TetMesh& m, CheckpointWriter& w, const std::string& prefix) {
+  w.put(prefix + "vertices", m.vertices);
+  w.put(prefix + "tets", m.tets);
+  std::vector<std::uint8_t> kind(m.face_kind.size());
+  for (size_t f = 0; f < kind.size(); ++f) kind[f] = static_cast<std::uint8_t>(m.face_kind[f]);
+  w.put(prefix + "face_kind", kind);
+  w.put(prefix + "face_patch", m.face_patch);
+  w.put(prefix + "face_body", m.face_body);
+  w.put(prefix + "face_triangle", m.face_triangle);
+  w.put(prefix + "vertex_body", m.vertex_body);
+  w.put(prefix + "vertex_triangle", m.vertex_triangle);
+  // The barycentric rows only where a body is named (build_tet_mesh zeroes the rest).
+  auto rows_on_bodies = [](const MatX3& bary, const VecXi& body) {
+    MatX3 out((body.array() >= 0).count(), 3);
+    Index k = 0;
+    for (Index i = 0; i < body.size(); ++i)
+      if (body[i] >= 0) out.row(k++) = bary.row(i);
+    return out;
+  };
+  w.put(prefix + "face_bary", rows_on_bodies(m.face_bary, m.face_body));
+  w.put(prefix + "vertex_bary", rows_on_bodies(m.vertex_bary, m.vertex_body));
+}
+
+TetMesh load_mesh(const CheckpointReader& r, const std::string& prefix) {
+  TetMesh m;
+  try {
+    m = build_tet_mesh(r.get<MatX3>(prefix + "vertices"), r.get<MatX4i>(prefix + "tets"));
+  } catch (const CheckpointError&) {
+    throw;
+  } catch (const Error& e) {
+    r.fail(fmt::format("its mesh '{}' is invalid: {}", prefix, e.what()));
+  }
+  auto sized = [&](const std::string& key, Index got, Index want) {
+    if (got != want)
+      r.fail(fmt::format("record '{}{}' has {} rows for {}", prefix, key, got, want));
+  };
+  const std::vector<std::uint8_t> kind = r.get_vector<std::uint8_t>(prefix + "face_kind");
+  sized("face_kind", static_cast<Index>(kind.size()), m.num_faces());
+  for (size_t f = 0; f < kind.size(); ++f) {
+    if (kind[f] > static_cast<std::uint8_t>(FaceKind::Solid))
+      r.fail(fmt::format("record '{}face_kind' has kind {} at face {}", prefix, kind[f], f));
+    m.face_kind[f] = static_cast<FaceKind>(kind[f]);
+  }
+  m.face_patch = r.get<VecXi>(prefix + "face_patch");
+  m.face_body = r.get<VecXi>(prefix + "face_body");
+  m.face_triangle = r.get<VecXi>(prefix + "face_triangle");
+  m.vertex_body = r.get<VecXi>(prefix + "vertex_body");
+  m.vertex_triangle = r.get<VecXi>(prefix + "vertex_triangle");
+  sized("face_patch", static_cast<Index>(m.face_patch.size()), m.num_faces());
+  sized("face_body", static_cast<Index>(m.face_body.size()), m.num_faces());
+  sized("face_triangle", static_cast<Index>(m.face_triangle.size()), m.num_faces());
+  sized("vertex_body", static_cast<Index>(m.vertex_body.size()), m.num_vertices());
+  sized("vertex_triangle", static_cast<Index>(m.vertex_triangle.size()), m.num_vertices());
+  auto scatter = [&](const std::string& key, const VecXi& body, MatX3& bary) {
+    const MatX3 rows = r.get<MatX3>(prefix + key);
+    sized(key, static_cast<Index>(rows.rows()), static_cast<Index>((body.array() >= 0).count()));
+    Index k = 0;
+    for (Index i = 0; i < body.size(); ++i)
+      if (body[i] >= 0) bary.row(i) = rows.row(k++);
+  };
+  scatter("face_bary", m.face_body, m.face_bary);
+  scatter("vertex_bary", m.vertex_body, m.vertex_bary);
+  return m;
+}
+
 }  // namespace tetfsi::mesh

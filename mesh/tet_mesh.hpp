@@ -18,8 +18,10 @@
 ///    from the tet's circumcentre to the face plane, used for Dirichlet (open) faces;
 ///  - local face k of a tet is the face opposite its local vertex k.
 #include <cstdint>
+#include <string>
 #include <vector>
 
+#include "core/checkpoint.hpp"
 #include "core/enum_names.hpp"
 #include "core/types.hpp"
 
@@ -114,6 +116,13 @@ inline Vec3 tet_centroid(const TetMesh& m, Index t) {
 }
 
 /// Total volume Σ V_t (m³).
+/// A mesh as checkpoint records under `prefix` (core/checkpoint.hpp): the vertices, tets, face
+/// tags and vertex provenance; everything else is rebuilt by build_tet_mesh, which is how the
+/// remesher made it, so load_mesh(save_mesh(m)) equals m in every array, bit for bit.
+void save_mesh(const TetMesh& m, CheckpointWriter& w, const std::string& prefix);
+/// @throws CheckpointError naming the record if the tags do not fit the mesh.
+TetMesh load_mesh(const CheckpointReader& r, const std::string& prefix);
+
 double total_volume(const TetMesh& m);
 
 /// Σ over boundary faces of A_f n_f: zero for a closed mesh (a consistency check).

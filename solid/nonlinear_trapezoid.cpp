@@ -101,7 +101,8 @@ VecX TrapezoidalEquilibrium::start() const {
 }
 
 FactoredMatrix factor_inverse(const SparseMatrix& A) {
-  return factor_blocks({std::make_shared<const SparseMatrix>(A)}, {0, static_cast<Index>(A.rows())});
+  return factor_blocks({std::make_shared<const SparseMatrix>(A)},
+                       {0, static_cast<Index>(A.rows())});
 }
 
 EquilibriumReport step_nonlinear(SolidBody& body, double h, const VecX& f_e,

@@ -123,4 +123,52 @@ double SolidWorld::elastic_energy() const {
   return e;
 }
 
+void SolidWorld::save_state(CheckpointWriter& w, const std::string& prefix) const {
+  w.put(prefix + "time", time);
+  w.put(prefix + "bodies", static_cast<std::int64_t>(bodies.size()));
+  for (size_t b = 0; b < bodies.size(); ++b) {
+    const std::string p = fmt::format("{}body/{}/", prefix, b);
+    w.put(p + "name", bodies[b].name());
+    w.put(p + "displacement", bodies[b].displacement);
+    w.put(p + "velocity", bodies[b].velocity);
+  }
+  w.put(prefix + "histories", static_cast<std::int64_t>(m_history.size()));
+  for (size_t b = 0; b < m_history.size(); ++b)
+    save_history(m_history[b], w, fmt::format("{}history/{}/", prefix, b));
+}
+
+void SolidWorld::load_state(const CheckpointReader& r, const std::string& prefix) {
+  const std::int64_t nb = r.get_int(prefix + "bodies");
+  if (nb != static_cast<std::int64_t>(bodies.size()))
+    r.fail(fmt::format("it holds {} bodies, the scene has {}: it is from another scene", nb,
+                       bodies.size()));
+  std::vector<std::pair<MatX3, MatX3>> state;
+  for (size_t b = 0; b < bodies.size(); ++b) {
+    const std::string p = fmt::format("{}body/{}/", prefix, b);
+    const std::string name = r.get_text(p + "name");
+    if (name != bodies[b].name())
+      r.fail(fmt::format("its body {} is '{}', the scene's is '{}': it is from another scene", b,
+                         name, bodies[b].name()));
+    MatX3 d = r.get<MatX3>(p + "displacement"), u = r.get<MatX3>(p + "velocity");
+    if (d.rows() != bodies[b].num_nodes() || u.rows() != bodies[b].num_nodes())
+      r.fail(
+          fmt::format("body '{}' has {} nodes there and {} in the scene: it is from another "
+                      "scene (or mesh)",
+                      name, d.rows(), bodies[b].num_nodes()));
+    state.emplace_back(std::move(d), std::move(u));
+  }
+  const std::int64_t nh = r.get_int(prefix + "histories");
+  if (nh != 0 && nh != nb) r.fail(fmt::format("it holds {} histories for {} bodies", nh, nb));
+  std::vector<EquilibriumHistory> history;
+  for (std::int64_t b = 0; b < nh; ++b)
+    history.push_back(load_history(r, fmt::format("{}history/{}/", prefix, b)));
+  // Everything read: only now change the world.
+  time = r.get_double(prefix + "time");
+  for (size_t b = 0; b < bodies.size(); ++b) {
+    bodies[b].displacement = std::move(state[b].first);
+    bodies[b].velocity = std::move(state[b].second);
+  }
+  m_history = std::move(history);
+}
+
 }  // namespace tetfsi::solid

@@ -4,8 +4,10 @@
 /// linearised trapezoidal rule; kinematic bodies (SolidBody::kinematic) follow their
 /// prescribed motion instead. (The coupled driver in coupling/ replaces it once the fluid
 /// exists; it keeps the same per-body systems.)
+#include <string>
 #include <vector>
 
+#include "core/checkpoint.hpp"
 #include "core/equilibrium.hpp"
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
@@ -60,6 +62,14 @@ class SolidWorld {
 
   double kinetic_energy() const;
   double elastic_energy() const;
+
+  /// The state the next step reads, as records under `prefix` (core/checkpoint.hpp): time,
+  /// every body's d and u (kinematic bodies too: they are set from their motion anyway), and
+  /// the nonlinear integrators' histories. Loads, obstacles and materials come from the scene.
+  void save_state(CheckpointWriter& w, const std::string& prefix) const;
+  /// Restore save_state's records into a world built from the same scene.
+  /// @throws CheckpointError naming the record if the bodies differ (count, names, nodes).
+  void load_state(const CheckpointReader& r, const std::string& prefix);
 
  private:
   bool m_warned_fallback = false;             ///< the CHOLMOD → UMFPACK fallback was logged once

@@ -106,10 +106,12 @@ TEST_SUITE("unit") {
     CHECK(missing.find("'nope'") != std::string::npos);
     const std::string type = test::message_of<CheckpointError>([&] { r.get<MatX4i>("solid/x"); });
     CHECK(type.find("'solid/x' is f64, expected i32") != std::string::npos);
-    const std::string shape = test::message_of<CheckpointError>([&] { r.get<MatX3i>("mesh/tets"); });
+    const std::string shape =
+        test::message_of<CheckpointError>([&] { r.get<MatX3i>("mesh/tets"); });
     CHECK(shape.find("'mesh/tets' has 4 columns, expected 3") != std::string::npos);
-    CHECK(test::message_of<CheckpointError>([&] { r.get_double("solid/x"); })
-              .find("has 3 columns, expected 1") != std::string::npos);
+    CHECK(test::message_of<CheckpointError>([&] {
+            r.get_double("solid/x");
+          }).find("has 3 columns, expected 1") != std::string::npos);
   }
 
   TEST_CASE("a truncated, corrupt, foreign or other-version file is refused, naming the fault") {
@@ -150,8 +152,9 @@ TEST_SUITE("unit") {
     const std::size_t len_at = bytes.find("solid/x") + 7 + 20;
     for (int k = 0; k < 8; ++k) huge[len_at + k] = static_cast<char>(0xFF);
     CHECK(error_of(huge).find("truncated") != std::string::npos);
-    CHECK(test::message_of<CheckpointError>([&] { CheckpointReader r(dir.path / "none.tfck"); })
-              .find("no such file") != std::string::npos);
+    CHECK(test::message_of<CheckpointError>([&] {
+            CheckpointReader r(dir.path / "none.tfck");
+          }).find("no such file") != std::string::npos);
   }
 
   TEST_CASE("a failed write leaves the previous file and no temporary behind") {
