@@ -79,6 +79,14 @@ void prune_checkpoints(const fs::path& out_dir, int step, int keep) {
   }
 }
 
+void remove_earlier_checkpoints(const fs::path& out_dir) {
+  const std::vector<CheckpointFile> files = list_checkpoints(out_dir);
+  if (files.empty()) return;
+  prune_checkpoints(out_dir, -1, 0);  // every step is "later" than -1
+  logger().warn("removed the {} checkpoint(s) of an earlier run in '{}' (this run replaces it)",
+                files.size(), checkpoint_dir(out_dir).string());
+}
+
 json physics_part(const json& resolved) {
   json j = resolved;
   if (!j.is_object()) return j;

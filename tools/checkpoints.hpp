@@ -38,6 +38,11 @@ std::vector<CheckpointFile> list_checkpoints(const std::filesystem::path& out_di
 /// to delete are logged, not thrown.
 void prune_checkpoints(const std::filesystem::path& out_dir, int step, int keep);
 
+/// A fresh run into a folder that holds an earlier run: delete that run's checkpoints (and
+/// leftover temporary files), which `resume` would otherwise take for this run's; logs how
+/// many. Other files in OUT/checkpoints stay.
+void remove_earlier_checkpoints(const std::filesystem::path& out_dir);
+
 /// The resolved scene without what a resumed run may change: output.* (frames, compression,
 /// checkpoints), time.steps and time.end_time (the run's length), and description.
 nlohmann::json physics_part(const nlohmann::json& resolved);

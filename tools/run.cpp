@@ -610,6 +610,7 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
 
   ses.start = now_seconds();
   OutputWriter out(opt.out_dir, scene, world);
+  remove_earlier_checkpoints(opt.out_dir);
   bool initial_ok = true;
   if (fluid) {
     PhaseTimes unused;  // step 0 has no stats row

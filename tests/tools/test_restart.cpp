@@ -453,6 +453,27 @@ TEST_CASE("tetfsi resume: without a checkpoint - a one-line error") {
   CHECK(contains(r.err, "no checkpoint to resume from"));
 }
 
+TEST_CASE("a fresh run replaces an earlier run's checkpoints - a static run ignores the options") {
+  TempDir dir("resume_fresh");
+  write_scene(dir.path, swing_scene(4));
+  Result r = cli(dir.path, "run swing.json --out o --checkpoint-every 1 --progress off");
+  REQUIRE(r.code == 0);
+  CHECK(tetfsi::tools::list_checkpoints(dir.path / "o").size() == 2);
+  r = cli(dir.path, "run swing.json --out o --steps 1 --progress off");
+  REQUIRE(r.code == 0);
+  CHECK(contains(r.err, "removed the 2 checkpoint(s) of an earlier run"));
+  CHECK(tetfsi::tools::list_checkpoints(dir.path / "o").empty());
+  json still = swing_scene(4);
+  still["mode"] = "static";
+  write_scene(dir.path, still, "still.json");
+  r = cli(dir.path,
+          "run still.json --out s --checkpoint-every 1 --wall-time 1:00:00 --progress off");
+  CHECK_MESSAGE(r.code == 0, r.err);
+  CHECK(contains(r.err,
+                 "is static: --checkpoint-every, --keep-checkpoints and --wall-time are ignored"));
+  CHECK_FALSE(fs::exists(dir.path / "s" / "checkpoints"));
+}
+
 TEST_CASE("tetfsi run --wall-time stops with a checkpoint before the time runs out - exit code 0") {
   TempDir dir("resume_walltime");
   json scene = swing_scene(100000000);
