@@ -320,6 +320,37 @@ std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions
   return std::nullopt;
 }
 
+/// The stats row's solver and equilibrium columns from a step's report, and the run's
+/// counters; returns the fluid solves of an iterated coupling scheme (0 otherwise).
+int record_report(const coupling::FsiStepReport& rep, RunRecorder* fluid, StepStats& row,
+                  RunResult& r) {
+  int fluid_solves = 0;
+  if (rep.coupled) {
+    // two-way: the bodies and the fluid advance together (coupling/scheme.hpp)
+    const coupling::CoupledStepReport& c = *rep.coupled;
+    row.solver_iterations = c.solve.iterations + c.solid_iterations;
+    row.solver_residual = c.solve.residual;
+    row.contacts = c.contacts;
+    r.solver_iterations += row.solver_iterations;
+    if (!c.solve.converged) ++r.unconverged_steps;  // the recorder has logged it
+    const bool iterated = coupling::is_iterated(c.scheme);
+    row.equilibrium_iterations = iterated ? c.equilibrium.iterations : 0;
+    row.equilibrium_evaluations = iterated ? c.equilibrium.evaluations : 0;
+    fluid_solves = c.fluid_solves;
+    row.coupled = fluid->coupled_stats();
+  } else {
+    const solid::SolidStepReport& s = *rep.solid;
+    row.solver_iterations = s.iterations;
+    row.solver_residual = s.residual;
+    row.contacts = s.contacts;
+    r.solver_iterations += s.iterations;
+    if (!s.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
+    row.equilibrium_iterations = s.equilibrium_iterations;
+    row.equilibrium_evaluations = s.equilibrium_evaluations;
+  }
+  return fluid_solves;
+}
+
 void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
                  OutputWriter& out, const RunOptions& opt, RunResult& r, Session& ses) {
   solid::SolidWorld& world = sim.world();
@@ -389,29 +420,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
         fluid->record(rep, sim);
         row.fluid = fluid->stats();
       }
-      if (rep.coupled) {
-        // two-way: the bodies and the fluid advance together (coupling/scheme.hpp)
-        const coupling::CoupledStepReport& c = *rep.coupled;
-        row.solver_iterations = c.solve.iterations + c.solid_iterations;
-        row.solver_residual = c.solve.residual;
-        row.contacts = c.contacts;
-        r.solver_iterations += row.solver_iterations;
-        if (!c.solve.converged) ++r.unconverged_steps;  // the recorder has logged it
-        const bool iterated = coupling::is_iterated(c.scheme);
-        row.equilibrium_iterations = iterated ? c.equilibrium.iterations : 0;
-        row.equilibrium_evaluations = iterated ? c.equilibrium.evaluations : 0;
-        fluid_solves = c.fluid_solves;
-        row.coupled = fluid->coupled_stats();
-      } else {
-        const solid::SolidStepReport& s = *rep.solid;
-        row.solver_iterations = s.iterations;
-        row.solver_residual = s.residual;
-        row.contacts = s.contacts;
-        r.solver_iterations += s.iterations;
-        if (!s.converged) ++r.unconverged_steps;  // SolidWorld::step has logged it
-        row.equilibrium_iterations = s.equilibrium_iterations;
-        row.equilibrium_evaluations = s.equilibrium_evaluations;
-      }
+      fluid_solves = record_report(rep, fluid, row, r);
       if (step % every == 0 || step == n) {
         ScopedTimer timer(row.phases, "output");
         write_frame(out, sim, step, t);
