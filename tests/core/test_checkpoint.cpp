@@ -171,4 +171,34 @@ TEST_SUITE("unit") {
     CHECK(e.find("previous checkpoints are kept") != std::string::npos);
     CHECK(bytes_of(p) == before);
   }
+
+  TEST_CASE("scripts/read_checkpoint.py reads the format as documented: every record and CRC") {
+    test::TempDir dir("checkpoint_python");
+    const fs::path p = dir.path / "a.tfck";
+    sample().write(p);
+    const fs::path out = dir.path / "out.txt";
+    const std::string script = std::string(TETFSI_SOURCE_DIR) + "/scripts/read_checkpoint.py";
+    auto run = [&](const std::string& args) {
+      const std::string cmd = fmt::format("/usr/bin/python3 '{}' '{}' {} > '{}' 2>&1", script,
+                                          p.string(), args, out.string());
+      const int rc = std::system(cmd.c_str());
+      return std::make_pair(rc, bytes_of(out));
+    };
+    const auto [rc, listing] = run("");
+    INFO(listing);
+    REQUIRE(rc == 0);
+    for (const char* line : {"solid/x", "float64 3 x 3", "mesh/tets", "int32 2 x 4",
+                             "sparse 4 x 3, 3", "text, 14 chars", "uint8 3"})
+      CHECK(listing.find(line) != std::string::npos);
+    // the values, as numpy prints them
+    CHECK(run("mesh/tets").second.find("2147483647") != std::string::npos);
+    CHECK(run("step").second.find("[123]") != std::string::npos);
+    // and a flipped bit is caught by zlib's CRC-32 too
+    std::string bad = bytes_of(p);
+    bad[bad.find("mesh/tets") + 9 + 28] ^= 1;
+    put_bytes(p, bad);
+    const auto [rc_bad, msg] = run("");
+    CHECK(rc_bad != 0);
+    CHECK(msg.find("record 'mesh/tets' is corrupt") != std::string::npos);
+  }
 }

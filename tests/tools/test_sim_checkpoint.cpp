@@ -102,9 +102,9 @@ struct Case {
 
 void check_restart(const Case& c) {
   CAPTURE(c.scene);
-  const Scene s = load_scene(fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" /
-                                 (std::string(c.scene) + ".json"),
-                             c.overrides);
+  const Scene s =
+      load_scene(fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / (std::string(c.scene) + ".json"),
+                 c.overrides);
   const double dt = s.time.dt;
   PhaseTimes phases;
   coupling::FsiSimulation straight = make(s);
@@ -156,7 +156,8 @@ TEST_SUITE("unit") {
     check_restart({"shell_step", {"fluid.mesh.surface_size=0.06", "fluid.mesh.far_size=0.2"}, 3});
   }
 
-  TEST_CASE("a resumed simulation is the straight one bit for bit: smoke_jet (one-way, kinematic)") {
+  TEST_CASE(
+      "a resumed simulation is the straight one bit for bit: smoke_jet (one-way, kinematic)") {
     check_restart({"smoke_jet", coarse({"fluid.mesh.max_cells=0"}), 3});
   }
 
@@ -186,8 +187,8 @@ TEST_SUITE("unit") {
     CHECK(error_loading(load_scene(scenes / "bar.json", coarse({"coupling.scheme=splitting"})))
               .find("'simultaneous' coupling scheme, the scene's is 'splitting'") !=
           std::string::npos);
-    CHECK(error_loading(load_scene(scenes / "toy.json"))
-              .find("from another scene") != std::string::npos);
+    CHECK(error_loading(load_scene(scenes / "toy.json")).find("from another scene") !=
+          std::string::npos);
     CHECK(error_loading(load_scene(scenes / "smoke_sheets_grid.json"))
               .find("a tet simulation, the scene is a grid one") != std::string::npos);
   }
