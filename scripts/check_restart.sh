@@ -106,9 +106,10 @@ for c in "${cases[@]}"; do
     esac
     code=$(run_stopped "$d/$how" $action $k run "${scene[@]}" --steps $total "${extra[@]}")
     stopped=$(($(wc -l <"$d/$how/stats.csv") - 1))
-    from=$(ls "$d/$how/checkpoints" 2>/dev/null | tail -1)
+    tmp=$(cd "$d/$how/checkpoints" 2>/dev/null && ls -- *.tmp 2>/dev/null)
     "$tetfsi" resume "$d/$how" --progress off >>"$d/$how.log" 2>&1
-    report "$c" $how "$d/$how" " (exit code $code after step $stopped of $total; resumed from ${from:-none})"
+    from=$(/usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1])).get("resumed_from_step"))' "$d/$how/summary.json")
+    report "$c" $how "$d/$how" " (exit code $code after step $stopped of $total; resumed from step $from${tmp:+; killed while writing $tmp})"
   done
 done
 [ $keep -eq 1 ] || rm -rf "$work"
