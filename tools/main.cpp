@@ -148,7 +148,8 @@ int finish_command(const tetfsi::tools::RunResult& r, const std::string& preview
                    const std::filesystem::path& preview) {
   tetfsi::tools::print_summary(r, std::cout);
   if (!preview.empty()) std::cout << "preview: " << preview.string() << "\n";
-  if (r.interrupted && !r.checkpoint.empty())
+  // A signal's stop ends with its error line (which says how to resume); the others here.
+  if (r.interrupted && r.stop_reason != "signal" && !r.checkpoint.empty())
     std::cout << "resume with: " << tetfsi::tools::resume_command(r) << "\n";
   std::cout.flush();
   if (!preview_error.empty() && r.completed) return report_error(preview_error);

@@ -402,9 +402,10 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
       r.interrupted = true;
       r.stop_reason = stop->first;
       r.error =
-          fmt::format("{} after step {}/{} (t = {:.6g} s); the output is complete up to there{}",
+          fmt::format("{} after step {}/{} (t = {:.6g} s); the output is complete up to there; {}",
                       stop->second, step - 1, n, (step - 1) * dt,
-                      last_checkpoint == step - 1 ? "" : "; no checkpoint could be written");
+                      last_checkpoint == step - 1 ? "resume with: " + resume_command(r)
+                                                  : std::string("no checkpoint could be written"));
       return;
     }
     const double t = step * dt;

@@ -312,8 +312,11 @@ TEST_CASE(
   const int code =
       run_until(dir.path, "run swing.json --out o --progress off", "o", 5, "kill -TERM $p");
   CHECK(code == 130);
-  const auto out = read_text(dir.path / "out.txt");
-  CHECK(contains(out, "resume with: tetfsi resume o"));
+  // The last line says how to go on.
+  const auto err = lines_of(read_text(dir.path / "err.txt"));
+  REQUIRE(!err.empty());
+  CHECK(err.back().rfind("error: interrupted after step ", 0) == 0);
+  CHECK(contains(err.back(), "; resume with: tetfsi resume o"));
   const json s = summary_of(dir.path / "o");
   CHECK(s["stop_reason"] == "signal");
   const int stopped = s["steps"].get<int>();
@@ -323,6 +326,25 @@ TEST_CASE(
   const Result r = cli(dir.path, "resume o --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
   check_same_runs(dir.path / "straight", dir.path / "o");
+}
+
+TEST_CASE("tetfsi resume --end-time - and output.checkpoint_every from the scene") {
+  TempDir dir("resume_endtime");
+  write_scene(dir.path, swing_scene(8));
+  run_straight(dir.path, 8);
+  json scene = swing_scene(8);
+  scene["output"]["checkpoint_every"] = 3;
+  write_scene(dir.path, scene, "ck.json");
+  Result r = cli(dir.path, "run ck.json --out o --end-time 0.05 --progress off");
+  REQUIRE_MESSAGE(r.code == 0, r.err);
+  const auto files = tetfsi::tools::list_checkpoints(dir.path / "o");
+  REQUIRE(files.size() == 2);  // steps 3 and 5 (the last)
+  CHECK(files[0].step == 3);
+  CHECK(files[1].step == 5);
+  r = cli(dir.path, "resume o --end-time 0.08 --progress off");
+  REQUIRE_MESSAGE(r.code == 0, r.err);
+  check_same_runs(dir.path / "straight", dir.path / "o");
+  CHECK(json::parse(read_text(dir.path / "o" / "scene.resolved.json"))["time"]["end_time"] == 0.08);
 }
 
 TEST_CASE("tetfsi resume: a STOP file ends the run with exit code 0 and a resume line") {
