@@ -655,7 +655,8 @@ int main(int argc, char** argv) {
       "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"
       "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
       "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
-      "OUT/interface.pvd. Errors: one line 'error: ...', exit code 1.\n");
+      "OUT/interface.pvd; checkpoints (run --checkpoint-every N, or a stopped run) in\n"
+      "OUT/checkpoints/. Errors: one line 'error: ...', exit code 1.\n");
 
   std::string log_level = "info";
   app.add_option("--log-level", log_level,
