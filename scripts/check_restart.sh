@@ -3,7 +3,7 @@
 # For each scene: run 2N steps straight; then run it again and stop after N steps in each of
 # the ways a user stops a run, resume to 2N, and compare with the straight run
 # with compare_runs.py (every VTU/VTP/VTI array and every non-timing stats.csv column, bit for
-# bit; $COMPARE_RUNS, scripts/compare_runs.py or /work/shared/tools/compare_runs.py):
+# bit; scripts/compare_runs.py, or $COMPARE_RUNS):
 #   steps    run --steps N, then resume --steps 2N (the run is extended)
 #   sigterm  SIGTERM at a random step k in 1..N (after stats.csv has k rows)
 #   stopfile a file OUT/STOP at a random step
@@ -29,9 +29,8 @@ while getopts "n:b:k" opt; do
 done
 shift $((OPTIND - 1))
 tetfsi="$PWD/$build/tools/tetfsi"
-# compare_runs.py: $COMPARE_RUNS, else scripts/compare_runs.py, else the team's shared copy.
+# compare_runs.py: $COMPARE_RUNS, else scripts/compare_runs.py.
 compare=${COMPARE_RUNS:-scripts/compare_runs.py}
-[ -f "$compare" ] || compare=/work/shared/tools/compare_runs.py
 [ -x "$tetfsi" ] || { echo "error: no $tetfsi: build first (make build)" >&2; exit 2; }
 [ -f "$compare" ] || { echo "error: no $compare" >&2; exit 2; }
 export OMP_THREAD_LIMIT=1 OMP_NUM_THREADS=1
