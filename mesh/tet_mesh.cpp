@@ -304,11 +304,19 @@ void save_mesh(const TetMesh& m, CheckpointWriter& w, const std::string& prefix)
   std::vector<std::uint8_t> kind(m.face_kind.size());
   for (size_t f = 0; f < kind.size(); ++f) kind[f] = static_cast<std::uint8_t>(m.face_kind[f]);
   w.put(prefix + "face_kind", kind);
-  w.put(prefix + "face_patch", m.face_patch);
-  w.put(prefix + "face_body", m.face_body);
-  w.put(prefix + "face_triangle", m.face_triangle);
-  w.put(prefix + "vertex_body", m.vertex_body);
-  w.put(prefix + "vertex_triangle", m.vertex_triangle);
+  // Mostly −1 (the interior): only the other entries, as (index, value) pairs.
+  auto put_tags = [&](const std::string& key, const VecXi& v) {
+    std::vector<Index> at, value;
+    for (Index i = 0; i < v.size(); ++i)
+      if (v[i] != -1) at.push_back(i), value.push_back(v[i]);
+    w.put(prefix + key + "/at", at);
+    w.put(prefix + key + "/value", value);
+  };
+  put_tags("face_patch", m.face_patch);
+  put_tags("face_body", m.face_body);
+  put_tags("face_triangle", m.face_triangle);
+  put_tags("vertex_body", m.vertex_body);
+  put_tags("vertex_triangle", m.vertex_triangle);
   // The barycentric rows only where a body is named (build_tet_mesh zeroes the rest).
   auto rows_on_bodies = [](const MatX3& bary, const VecXi& body) {
     MatX3 out((body.array() >= 0).count(), 3);
@@ -341,16 +349,23 @@ TetMesh load_mesh(const CheckpointReader& r, const std::string& prefix) {
       r.fail(fmt::format("record '{}face_kind' has kind {} at face {}", prefix, kind[f], f));
     m.face_kind[f] = static_cast<FaceKind>(kind[f]);
   }
-  m.face_patch = r.get<VecXi>(prefix + "face_patch");
-  m.face_body = r.get<VecXi>(prefix + "face_body");
-  m.face_triangle = r.get<VecXi>(prefix + "face_triangle");
-  m.vertex_body = r.get<VecXi>(prefix + "vertex_body");
-  m.vertex_triangle = r.get<VecXi>(prefix + "vertex_triangle");
-  sized("face_patch", static_cast<Index>(m.face_patch.size()), m.num_faces());
-  sized("face_body", static_cast<Index>(m.face_body.size()), m.num_faces());
-  sized("face_triangle", static_cast<Index>(m.face_triangle.size()), m.num_faces());
-  sized("vertex_body", static_cast<Index>(m.vertex_body.size()), m.num_vertices());
-  sized("vertex_triangle", static_cast<Index>(m.vertex_triangle.size()), m.num_vertices());
+  auto get_tags = [&](const std::string& key, Index n) {
+    const std::vector<Index> at = r.get_vector<Index>(prefix + key + "/at");
+    const std::vector<Index> value = r.get_vector<Index>(prefix + key + "/value");
+    sized(key + "/value", static_cast<Index>(value.size()), static_cast<Index>(at.size()));
+    VecXi v = VecXi::Constant(n, -1);
+    for (size_t k = 0; k < at.size(); ++k) {
+      if (at[k] < 0 || at[k] >= n)
+        r.fail(fmt::format("record '{}{}/at' names entry {} of {}", prefix, key, at[k], n));
+      v[at[k]] = value[k];
+    }
+    return v;
+  };
+  m.face_patch = get_tags("face_patch", m.num_faces());
+  m.face_body = get_tags("face_body", m.num_faces());
+  m.face_triangle = get_tags("face_triangle", m.num_faces());
+  m.vertex_body = get_tags("vertex_body", m.num_vertices());
+  m.vertex_triangle = get_tags("vertex_triangle", m.num_vertices());
   auto scatter = [&](const std::string& key, const VecXi& body, MatX3& bary) {
     const MatX3 rows = r.get<MatX3>(prefix + key);
     sized(key, static_cast<Index>(rows.rows()), static_cast<Index>((body.array() >= 0).count()));
