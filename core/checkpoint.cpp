@@ -175,7 +175,8 @@ void CheckpointWriter::write(const fs::path& path) const {
   for (const auto& r : m_records) crcs.push_back(read_at<std::uint32_t>(r, r.size() - 4));
   append(tail, crc32(crcs.data(), sizeof(std::uint32_t) * crcs.size()));
 
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  // Any failure: the temporary file goes, the previous checkpoint stays.
   auto fail = [&](const char* what) {
     const std::string why = std::strerror(errno);
     if (fd >= 0) ::close(fd);
@@ -192,18 +193,10 @@ void CheckpointWriter::write(const fs::path& path) const {
   ok = ok && write_all(fd, tail.data(), tail.size());
   if (!ok) fail("write");
   if (::fsync(fd) != 0) fail("fsync");
-  if (::close(fd) != 0) {
-    const std::string why = std::strerror(errno);
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw Error(fmt::format("cannot write checkpoint '{}' (close: {})", path.string(), why));
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw Error(fmt::format("cannot write checkpoint '{}' (rename: {})", path.string(), why));
-  }
+  const int closed = ::close(fd);
+  fd = -1;
+  if (closed != 0) fail("close");
+  if (::rename(tmp.c_str(), path.c_str()) != 0) fail("rename");
   // The rename itself is durable only once the folder is synced.
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
@@ -330,6 +323,12 @@ std::int64_t CheckpointReader::get_int(const std::string& key) const {
   const std::vector<std::int64_t> v = get_vector<std::int64_t>(key);
   if (v.size() != 1) fail(fmt::format("record '{}' has {} values, expected 1", key, v.size()));
   return v[0];
+}
+
+std::size_t CheckpointReader::get_count(const std::string& key, std::int64_t limit) const {
+  const std::int64_t n = get_int(key);
+  if (n < 0 || n > limit) fail(fmt::format("record '{}' is {}, expected 0..{}", key, n, limit));
+  return static_cast<std::size_t>(n);
 }
 
 std::string CheckpointReader::get_text(const std::string& key) const {

@@ -158,6 +158,8 @@ class CheckpointReader {
   std::int64_t get_int(const std::string& key) const;
   bool get_bool(const std::string& key) const { return get_int(key) != 0; }
   std::string get_text(const std::string& key) const;
+  /// A count (an i64 record) of at most `limit`, as a size. @throws CheckpointError otherwise.
+  std::size_t get_count(const std::string& key, std::int64_t limit = 1'000'000) const;
   SparseMatrix get_sparse(const std::string& key) const;
 
   /// "checkpoint 'FILE': " + what: the prefix of every error about this file.

@@ -308,9 +308,8 @@ EquilibriumHistory load_history(const CheckpointReader& r, const std::string& pr
     }
     h.kept = factor_blocks(std::move(blocks), std::move(offsets));
   }
-  const std::int64_t n = r.get_int(prefix + "updates");
-  if (n < 0 || n > 1'000'000) r.fail(fmt::format("record '{}updates' is {}", prefix, n));
-  for (std::int64_t i = 0; i < n; ++i)
+  const std::size_t n = r.get_count(prefix + "updates");
+  for (std::size_t i = 0; i < n; ++i)
     h.updates.emplace_back(r.get<VecX>(fmt::format("{}update/{}/v", prefix, i)),
                            r.get<VecX>(fmt::format("{}update/{}/w", prefix, i)));
   return h;

@@ -67,10 +67,9 @@ class SplittingScheme final : public CouplingScheme {
   }
 
   void load_state(const CheckpointReader& r, const std::string& prefix) override {
-    const std::int64_t n = r.get_int(prefix + "held_forces");
-    if (n < 0 || n > 1'000'000) r.fail(fmt::format("record '{}held_forces' is {}", prefix, n));
+    const std::size_t n = r.get_count(prefix + "held_forces");
     std::vector<VecX> f;
-    for (std::int64_t b = 0; b < n; ++b)
+    for (std::size_t b = 0; b < n; ++b)
       f.push_back(r.get<VecX>(fmt::format("{}held_force/{}", prefix, b)));
     m_have_force = r.get_bool(prefix + "have_force");
     m_held_force = std::move(f);

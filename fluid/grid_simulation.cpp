@@ -379,9 +379,7 @@ void GridFluid::save_state(CheckpointWriter& w, const std::string& prefix) const
 }
 
 void GridFluid::load_state(const CheckpointReader& r, const std::string& prefix) {
-  const std::int64_t n = r.get_int(prefix + "surfaces");
-  if (n < 0 || n > 1'000'000) r.fail(fmt::format("record '{}surfaces' is {}", prefix, n));
-  std::vector<mesh::SolidSurface> surfaces(static_cast<size_t>(n));
+  std::vector<mesh::SolidSurface> surfaces(r.get_count(prefix + "surfaces"));
   for (size_t i = 0; i < surfaces.size(); ++i) {
     const std::string p = fmt::format("{}surface/{}/", prefix, i);
     surfaces[i].body = static_cast<int>(r.get_int(p + "body"));

@@ -34,6 +34,7 @@
 #include "mesh/quality.hpp"
 #include "solid/world.hpp"
 #include "tools/scene.hpp"
+#include "tools/state_io.hpp"
 
 namespace fs = std::filesystem;
 
@@ -964,24 +965,6 @@ long frame_step_of(const std::string& file) {
   return std::stol(digits);
 }
 
-std::string join_lines(const std::vector<std::string>& v) {
-  std::string s;
-  for (const std::string& x : v) s += x + '\n';
-  return s;
-}
-
-std::vector<std::string> split_lines(const std::string& s) {
-  std::vector<std::string> v;
-  std::size_t start = 0;
-  while (start < s.size()) {
-    const std::size_t end = s.find('\n', start);
-    v.push_back(s.substr(start, end - start));
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  return v;
-}
-
 }  // namespace
 
 void OutputWriter::save_state(CheckpointWriter& w, int through_step) const {
@@ -1007,7 +990,7 @@ void OutputWriter::save_state(CheckpointWriter& w, int through_step) const {
     const std::string key = fmt::format("run/output/pvd/{}/", i);
     w.put(key + "name", st[i]->path().filename().string());
     w.put(key + "times", times);
-    w.put(key + "files", join_lines(files));
+    put_lines(w, key + "files", files);
   }
 }
 
@@ -1026,7 +1009,7 @@ void OutputWriter::load_state(const CheckpointReader& r) {
       r.fail(fmt::format("{}name: '{}', this scene writes '{}'", key, name,
                          st[i]->path().filename().string()));
     const std::vector<double> times = r.get_vector<double>(key + "times");
-    const std::vector<std::string> files = split_lines(r.get_text(key + "files"));
+    const std::vector<std::string> files = get_lines(r, key + "files");
     if (times.size() != files.size())
       r.fail(fmt::format("{}: {} times for {} files", key, times.size(), files.size()));
     std::vector<PvdEntry> entries;

@@ -229,13 +229,13 @@ void visit_fields_coupling(S& s, F&& f) {  // CouplingSummary
 void RunRecorder::save_state(CheckpointWriter& w) const {
   const std::string p = "run/recorder/";
   visit_fields_step(m_stats, RecordSaver{w, p + "step/"});
-  std::string names;
+  std::vector<std::string> names;
   std::vector<double> values;
   for (const auto& [name, value] : m_stats.quality) {
-    names += name + '\n';
+    names.push_back(name);
     values.push_back(value);
   }
-  w.put(p + "step/quality_names", names);
+  put_lines(w, p + "step/quality_names", names);
   w.put(p + "step/quality", values);
   visit_fields_fluid(m_summary, RecordSaver{w, p + "fluid/"});
   w.put(p + "has_coupled_step", m_coupled_stats.has_value());
@@ -248,16 +248,11 @@ void RunRecorder::save_state(CheckpointWriter& w) const {
 void RunRecorder::load_state(const CheckpointReader& r) {
   const std::string p = "run/recorder/";
   visit_fields_step(m_stats, RecordLoader{r, p + "step/"});
-  const std::string names = r.get_text(p + "step/quality_names");
+  const std::vector<std::string> names = get_lines(r, p + "step/quality_names");
   const std::vector<double> values = r.get_vector<double>(p + "step/quality");
+  if (names.size() < values.size()) r.fail(p + "step/quality_names: fewer names than values");
   m_stats.quality.clear();
-  std::size_t start = 0;
-  for (const double v : values) {
-    const std::size_t end = names.find('\n', start);
-    if (end == std::string::npos) r.fail(p + "step/quality_names: fewer names than values");
-    m_stats.quality.emplace_back(names.substr(start, end - start), v);
-    start = end + 1;
-  }
+  for (std::size_t i = 0; i < values.size(); ++i) m_stats.quality.emplace_back(names[i], values[i]);
   visit_fields_fluid(m_summary, RecordLoader{r, p + "fluid/"});
   m_coupled_stats.reset();
   if (r.get_bool(p + "has_coupled_step")) {

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 #include "core/checkpoint.hpp"
 
@@ -48,5 +49,26 @@ struct RecordLoader {
       v = r.get_text(prefix + name);
   }
 };
+
+/// A list of strings (none holding '\n') as one text record, a line each, and back.
+inline void put_lines(CheckpointWriter& w, const std::string& key,
+                      const std::vector<std::string>& lines) {
+  std::string s;
+  for (const std::string& x : lines) s += x + '\n';
+  w.put(key, s);
+}
+
+inline std::vector<std::string> get_lines(const CheckpointReader& r, const std::string& key) {
+  const std::string s = r.get_text(key);
+  std::vector<std::string> v;
+  std::size_t start = 0;
+  while (start < s.size()) {
+    const std::size_t end = s.find('\n', start);
+    v.push_back(s.substr(start, end - start));
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  return v;
+}
 
 }  // namespace tetfsi::tools
