@@ -8,8 +8,8 @@
 ///    around the predicted surfaces x* = X + dⁿ + h uⁿ (kinematic bodies at tⁿ⁺¹); the fluid
 ///    is advected onto it and accelerated to v*; then uⁿ⁺¹ and pⁿ⁺¹ come from one solve
 ///    (coupled_system.hpp), the face velocities from Eq. (8), dⁿ⁺¹ from Eq. (5), then
-///    floor/obstacle collisions (floor contacts are velocity constraints of the solve,
-///    contacts.hpp);
+///    obstacle collisions; floors are unilateral velocity constraints of the solve, solved
+///    again until their active set settles (solid/floor_contact.hpp);
 ///  - **splitting** (scheme_splitting.cpp; the paper's baseline, §4, Fig. 6): each body takes
 ///    its trapezoidal step with the fluid's nodal forces of the previous step held fixed, then
 ///    the fluid mesh is rebuilt around the bodies at tⁿ⁺¹ and the fluid projected with the
@@ -83,9 +83,13 @@ struct CoupledStepReport {
   int solid_iterations = 0;  ///< splitting: the bodies' own solves
   /// Iterated schemes: the equilibrium iteration (iterations = the seed's Table I count).
   EquilibriumReport equilibrium;
-  int fluid_solves = 0;        ///< iterated schemes: fluid solves (residual evaluations + newton's)
-  Index contacts = 0;          ///< nodes in contact with obstacles after the step
-  bool predicted_mesh = true;  ///< the mesh was built around x* (else around xⁿ)
+  int fluid_solves = 0;  ///< iterated schemes: fluid solves (residual evaluations + newton's)
+  Index contacts = 0;    ///< nodes in contact with obstacles after the step
+  /// Floors' active set (solid/floor_contact.hpp): the most solves of one body's (splitting)
+  /// or of the coupled system (simultaneous) in the step; 0 without floors, 1 if it held.
+  int contact_rounds = 0;
+  bool contacts_settled = true;  ///< the active set settled within its max_rounds
+  bool predicted_mesh = true;    ///< the mesh was built around x* (else around xⁿ)
   double solid_kinetic_energy = 0.0, elastic_energy = 0.0;  ///< after the step (J)
   /// Σ_b f_fluid,b · (dⁿ⁺¹ − dⁿ): the work of the fluid's forces of the solution on the free
   /// bodies over the step (J; the divergence check's budget, tools/divergence.hpp)

@@ -1,10 +1,10 @@
 /// @file scheme_simultaneous.cpp
 /// The simultaneous scheme [Chentanez06, §3.3] (scheme.hpp): Eq. (4) per body at dⁿ, the mesh
-/// around x*, one coupled solve of Eq. (7), Eq. (8), Eq. (5), collisions.
-#include "core/dof_elimination.hpp"
+/// around x*, one coupled solve of Eq. (7) per round of the floors' active set, Eq. (8), Eq. (5),
+/// collisions.
 #include "core/error.hpp"
-#include "coupling/contacts.hpp"
 #include "coupling/scheme.hpp"
+#include "solid/floor_contact.hpp"
 #include "solid/integrator.hpp"
 #include "solid/obstacles.hpp"
 
@@ -22,59 +22,54 @@ class SimultaneousScheme final : public CouplingScheme {
     solid::SolidWorld& world = ctx.world;
     const Index nb = static_cast<Index>(world.bodies.size());
     std::vector<CoupledBody> cb(nb);
-    std::vector<std::vector<Contact>> contacts(nb);
+    std::vector<solid::TrapezoidalSystem> sys(nb);
+    std::vector<std::unique_ptr<solid::FloorContacts>> contacts(nb);
     {  // 1. each deformable body's Eq. (4) at dⁿ; kinematic bodies to tⁿ⁺¹
       ScopedTimer timer(ctx.phases, "coupled_assembly");
-      for (Index b = 0; b < nb; ++b) contacts[b] = assemble_body(world, b, ctx.h, cb[b]);
+      for (Index b = 0; b < nb; ++b) {
+        solid::SolidBody& body = world.bodies[b];
+        if (body.is_kinematic()) {
+          body.set_kinematic_state(world.time + ctx.h);
+          continue;
+        }
+        sys[b] = solid::assemble_trapezoidal(body, ctx.h, body.external_forces(world.gravity),
+                                             world.trapezoid);
+        contacts[b] =
+            std::make_unique<solid::FloorContacts>(body, world.obstacles, world.gravity, ctx.h);
+        cb[b].free = true;
+        cb[b].x = body.positions();
+        cb[b].u = flat(body.velocity);
+      }
     }
     // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
     pred = predict_around_predicted(ctx, rep);
-    // 4. the coupled solve, see [Chentanez06, Eq. (7)]
+    // 4. the coupled solve, see [Chentanez06, Eq. (7)], once per round of the floors' active
+    // set (solid/floor_contact.hpp): its multipliers are the fluid-aware floor forces
     SolveVariant variant;
     variant.targets = &m_targets;
-    CoupledSolution sol = pred->solve(cb, m_params.solve, variant);
-    add_solve_phases(ctx.phases, sol.report);
-    // 5. Eq. (5), collisions
+    CoupledSolution sol;
+    for (bool again = true; again;) {
+      for (Index b = 0; b < nb; ++b)
+        if (cb[b].free)
+          contacts[b]->constrain(sys[b], cb[b].A, cb[b].b, cb[b].fixed, cb[b].prescribed);
+      sol = pred->solve(cb, m_params.solve, variant);
+      add_solve_phases(ctx.phases, sol.report);
+      again = false;
+      for (Index b = 0; b < nb; ++b)
+        if (cb[b].free && contacts[b]->update(sol.u[b], &sol.fluid_force[b])) again = true;
+    }
+    // 5. Eq. (5), landing, the other obstacles
     ScopedTimer timer(ctx.phases, "update");
     for (Index b = 0; b < nb; ++b) {
       solid::SolidBody& body = world.bodies[b];
       if (!cb[b].free) continue;
       solid::advance_trapezoidal(body, sol.u[b], ctx.h);
-      land_contacts(body, contacts[b], world.gravity, ctx.h);
-      rep.contacts += static_cast<Index>(contacts[b].size());
-      rep.contacts += solid::resolve_collisions(body, world.obstacles);
+      rep.contacts += contacts[b]->land(body);
+      rep.contact_rounds = std::max(rep.contact_rounds, contacts[b]->report().rounds);
+      rep.contacts_settled = rep.contacts_settled && contacts[b]->report().converged;
       check_finite(body, ctx.h);
     }
     return sol;
-  }
-
- private:
-  /// Body b's Eq. (4) with its floor contacts eliminated (a kinematic body: moved to tⁿ⁺¹).
-  static std::vector<Contact> assemble_body(solid::SolidWorld& world, Index b, double h,
-                                            CoupledBody& cb) {
-    solid::SolidBody& body = world.bodies[b];
-    if (body.is_kinematic()) {
-      body.set_kinematic_state(world.time + h);
-      return {};
-    }
-    solid::TrapezoidalSystem sys =
-        solid::assemble_trapezoidal(body, h, body.external_forces(world.gravity), world.trapezoid);
-    cb.free = true;
-    cb.A = std::move(sys.A);
-    cb.b = std::move(sys.b);
-    cb.fixed = body.fixed_dofs();
-    cb.prescribed = VecX::Zero(body.num_dofs());
-    std::vector<Contact> contacts =
-        floor_contacts(body, world.obstacles, world.gravity, h, cb.prescribed, cb.fixed);
-    std::vector<std::uint8_t> mask(body.num_dofs(), 0);
-    for (const Contact& c : contacts) mask[3 * c.node + c.axis] = 1;
-    if (!contacts.empty())
-      eliminate_dofs(
-          cb.A, mask, [&](Index i) { return body.lumped_mass()[i / 3] / h; }, &cb.b,
-          &cb.prescribed);
-    cb.x = body.positions();
-    cb.u = flat(body.velocity);
-    return contacts;
   }
 
  public:

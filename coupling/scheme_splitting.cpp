@@ -3,6 +3,7 @@
 /// with the fluid's last nodal forces held, then the fluid with the bodies' velocities held.
 #include "core/linear_solver.hpp"
 #include "coupling/scheme.hpp"
+#include "solid/floor_contact.hpp"
 #include "solid/integrator.hpp"
 #include "solid/obstacles.hpp"
 
@@ -49,12 +50,16 @@ class SplittingScheme final : public CouplingScheme {
     for (Index l = 0; l < fe.size(); ++l)
       if (body.is_fixed(l)) fe[l] = 0.0;
     const solid::TrapezoidalSystem sys = solid::assemble_trapezoidal(body, h, fe, world.trapezoid);
-    const std::unique_ptr<LinearSolver> s = factor_symmetric(sys.A);
     VecX u = flat(body.velocity);
-    const SolveReport sr = s->solve(sys.b, u);
-    rep.solid_iterations += sr.iterations;
-    solid::advance_trapezoidal(body, u, h);
-    rep.contacts += solid::resolve_collisions(body, world.obstacles);
+    const solid::BodySolve solve = [&](const SparseMatrix& A, const VecX& rhs, VecX& x) {
+      rep.solid_iterations += factor_symmetric(A)->solve(rhs, x).iterations;
+    };
+    solid::FloorContactReport fr;
+    PhaseTimes within_solid;  // the whole body step is the phase "solid"
+    rep.contacts += solid::step_with_floor_contacts(body, sys, world.obstacles, world.gravity, h,
+                                                    solve, u, within_solid, &fr);
+    rep.contact_rounds = std::max(rep.contact_rounds, fr.rounds);
+    rep.contacts_settled = rep.contacts_settled && fr.converged;
     check_finite(body, h);
   }
 

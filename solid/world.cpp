@@ -4,6 +4,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "solid/floor_contact.hpp"
 
 namespace tetfsi::solid {
 
@@ -68,11 +69,12 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
         sys = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
       }
       VecX u = flat(body.velocity);  // initial guess for iterative backends
-      {
+      // one solve per round of the floor contacts' active set (floor_contact.hpp)
+      const BodySolve solve = [&](const SparseMatrix& A, const VecX& b, VecX& x) {
         ScopedTimer timer(times, "solve");
         auto solver = make_linear_solver(linear_solver, solver_options);
         try {
-          solver->setup(sys.A);
+          solver->setup(A);
         } catch (const SolverError& e) {
           // A = M/h + C + (h/2)K' is SPD unless K' is strongly indefinite (large compression);
           // LU still solves it.
@@ -85,17 +87,18 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
             m_warned_fallback = true;
           }
           solver = make_linear_solver(SolverKind::Umfpack, solver_options);
-          solver->setup(sys.A);
+          solver->setup(A);
         }
-        rep = solver->solve(sys.b, u);
-      }
-      report.converged = report.converged && rep.converged;
-      report.iterations += rep.iterations;
-      report.residual = std::max(report.residual, rep.residual);
-      ScopedTimer timer(times, "update");
-      advance_trapezoidal(body, u, h);  // see [Chentanez06, Eq. (5)]
+        rep = solver->solve(b, x);
+        report.converged = report.converged && rep.converged;
+        report.iterations += rep.iterations;
+        report.residual = std::max(report.residual, rep.residual);
+      };
+      // Eq. (5) [Chentanez06] and the obstacles
+      report.contacts +=
+          step_with_floor_contacts(body, sys, obstacles, gravity, h, solve, u, times);
     }
-    {
+    if (integrator != Integrator::Linearized) {
       ScopedTimer timer(times, "update");
       report.contacts += resolve_collisions(body, obstacles);
     }

@@ -109,7 +109,7 @@ TEST_CASE("shipped toy: a coarse variant lands at the scene's dt without folding
   double contacts = 0.0, elastic = 0.0;
   for (double x : column(csv, "contacts")) contacts = std::max(contacts, x);
   for (double x : column(csv, "elastic_energy")) elastic = std::max(elastic, x);
-  CHECK(contacts >= 20);  // it has landed
-  CHECK(elastic < 8.0);   // the fold showed as 18 J of elastic energy
+  CHECK(contacts >= 5);  // it has landed (nodes on the floor)
+  CHECK(elastic < 8.0);  // the fold showed as 18 J of elastic energy
   for (double x : column(csv, "enclosed_volume_drift")) CHECK(x < 1e-9);
 }
