@@ -5,7 +5,8 @@
 
 Panels (each drawn only from the columns the run wrote; a panel none of whose columns exist,
 or all NaN, is left out): the energy budget, solver iterations, solver residuals, divergence,
-enclosed volume drift, fluid mesh quality, flow (CFL, speed) and seconds per phase. Needs
+enclosed volume drift, fluid mesh quality, flow (CFL, speed), the bodies' heights (lowest
+point and centroid) and rotation from rest, and seconds per phase. Needs
 Debian's python3-matplotlib and python3-numpy (scripts/setup.sh). Errors: one line
 `error: ...` on stderr, exit code 1.
 """
@@ -47,6 +48,21 @@ PANELS = [
     ("flow", "", False, [
         ("cfl", "CFL (max h |u| / cell size)"), ("max_speed", "max speed (m/s)")]),
 ]
+
+
+def body_panels(columns):
+    """The bodies' pose panels, from the columns <body>_lowest, <body>_centroid_height and
+    <body>_rotation_deg (one triple per body, in the header's order)."""
+    bodies = [n[:-len("_rotation_deg")] for n in columns if n.endswith("_rotation_deg")]
+    heights = []
+    for b in bodies:
+        heights += [(f"{b}_lowest", f"{b}: lowest point"),
+                    (f"{b}_centroid_height", f"{b}: centroid")]
+    return [("bodies: height", "m (against gravity)", False, heights),
+            ("bodies: rotation from rest", "degrees", False,
+             [(f"{b}_rotation_deg", b) for b in bodies])]
+
+
 PHASES = ["assemble", "solve", "remesh", "transfer", "forces", "pressure_assembly",
           "pressure_solve", "coupled_assembly", "coupled_solve", "solid", "update", "output"]
 
@@ -105,7 +121,7 @@ def main():
     t = np.array(columns["time"])
 
     panels, skipped = [], []
-    for title, ylabel, log, series in PANELS:
+    for title, ylabel, log, series in PANELS + body_panels(columns):
         present = [(c, label) for c, label in series if usable(columns, c)]
         if title == "enclosed volume drift" and not any(
                 v > 0 for v in columns.get("enclosed_volume", []) if math.isfinite(v)):

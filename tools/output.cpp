@@ -263,6 +263,17 @@ std::string file_safe_name(const std::string& name) {
   return s;
 }
 
+std::string column_safe_name(const std::string& name) {
+  if (name.empty()) return "body";
+  std::string s = name;
+  for (char& c : s) {
+    const bool ok =
+        (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+    if (!ok) c = '_';
+  }
+  return s;
+}
+
 std::string one_line(std::string s) {
   for (char& c : s)
     if (c == '\n' || c == '\r') c = ' ';
@@ -694,11 +705,18 @@ size_t num_quality_columns() {
 
 }  // namespace
 
-const std::vector<std::string>& StatsWriter::columns(bool fluid, bool coupled) {
-  static const std::vector<std::string> c = make_columns(false, false);
-  static const std::vector<std::string> cf = make_columns(true, false);
-  static const std::vector<std::string> cc = make_columns(true, true);
-  return fluid ? (coupled ? cc : cf) : c;
+std::vector<std::string> StatsWriter::body_columns(const std::vector<std::string>& bodies) {
+  std::vector<std::string> v;
+  for (const std::string& b : bodies)
+    for (const char* s : {"_lowest", "_centroid_height", "_rotation_deg"}) v.push_back(b + s);
+  return v;
+}
+
+std::vector<std::string> StatsWriter::columns(bool fluid, bool coupled,
+                                              const std::vector<std::string>& bodies) {
+  std::vector<std::string> v = make_columns(fluid, fluid && coupled);
+  for (std::string& c : body_columns(bodies)) v.push_back(std::move(c));
+  return v;
 }
 
 namespace {
@@ -732,10 +750,10 @@ void truncate_stats(const fs::path& path, const std::string& header, int last) {
 }  // namespace
 
 StatsWriter::StatsWriter(const fs::path& path, bool fluid, bool coupled,
-                         std::optional<int> continue_after)
-    : m_path(path), m_fluid(fluid), m_coupled(fluid && coupled) {
+                         std::optional<int> continue_after, std::vector<std::string> bodies)
+    : m_path(path), m_fluid(fluid), m_coupled(fluid && coupled), m_bodies(std::move(bodies)) {
   std::string header;
-  for (const auto& c : columns(m_fluid, m_coupled)) {
+  for (const auto& c : columns(m_fluid, m_coupled, m_bodies)) {
     if (!header.empty()) header += ',';
     header += c;
   }
@@ -793,6 +811,14 @@ void StatsWriter::write(const StepStats& r) {
       for (size_t k = 0; k < coupling_columns().size(); ++k) line += ",nan";
     }
   }
+  if (r.bodies.empty()) {
+    for (size_t k = 0; k < 3 * m_bodies.size(); ++k) line += ",nan";
+  } else {
+    TETFSI_CHECK(r.bodies.size() == m_bodies.size(), "stats row has {} body poses, expected {}",
+                 r.bodies.size(), m_bodies.size());
+    for (const solid::BodyPose& p : r.bodies)
+      line += fmt::format(",{:.17g},{:.17g},{:.17g}", p.lowest, p.centroid_height, p.rotation_deg);
+  }
   line += '\n';
   if (std::fputs(line.c_str(), m_file) < 0 || std::fflush(m_file) != 0)
     throw InputError(fmt::format("cannot write '{}': {}", m_path.string(), std::strerror(errno)));
@@ -823,6 +849,7 @@ fs::path prepare_out_dir(const fs::path& out, bool resume) {
 }  // namespace
 
 std::vector<std::string> output_file_names(const Scene& scene, const solid::SolidWorld& world) {
+  stats_body_names(world);  // the stats.csv columns, before anything is created
   std::vector<std::string> names;
   for (const solid::SolidBody& b : world.bodies) {
     std::string name = file_safe_name(b.name());
@@ -846,12 +873,29 @@ std::vector<std::string> output_file_names(const Scene& scene, const solid::Soli
   return names;
 }
 
+std::vector<std::string> stats_body_names(const solid::SolidWorld& world) {
+  std::vector<std::string> names;
+  for (const solid::SolidBody& b : world.bodies) {
+    std::string name = column_safe_name(b.name());
+    for (size_t k = 0; k < names.size(); ++k) {
+      if (names[k] == name)
+        throw InputError(fmt::format(
+            "bodies '{}' and '{}' share the stats.csv column name '{}' (characters other than "
+            "letters, digits and '_' become '_'): rename one",
+            world.bodies[k].name(), b.name(), name));
+    }
+    names.push_back(std::move(name));
+  }
+  return names;
+}
+
 OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
                            const solid::SolidWorld& world, std::optional<int> resume_step)
     : m_file_names(output_file_names(scene, world)),
       m_out(prepare_out_dir(out_dir, resume_step.has_value())),
       m_compression(parse_compression(scene.output.compression)),
-      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step) {
+      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
+              stats_body_names(world)) {
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");

@@ -45,6 +45,7 @@
 #include "core/timer.hpp"
 #include "core/types.hpp"
 #include "mesh/tet_mesh.hpp"
+#include "solid/pose.hpp"
 #include "solid/solid_body.hpp"
 
 namespace tetfsi::solid {
@@ -296,6 +297,9 @@ struct StepStats {
   std::optional<FluidStepStats> fluid;
   /// Two-way coupled runs: the coupling figures (a row without them writes "nan" there).
   std::optional<CoupledStepStats> coupled;
+  /// Per body, in body order: its pose after the step (solid::body_pose with
+  /// solid::up_direction(world.gravity)); empty writes "nan" in every body column.
+  std::vector<solid::BodyPose> bodies;
   /// kinetic + elastic + gravity potential (J); the work of applied loads is not included.
   double total_energy() const { return kinetic_energy + elastic_energy + gravity_potential; }
 };
@@ -309,10 +313,13 @@ class StatsWriter {
   /// atomically without the later ones) and appends after them.
   /// @param fluid write the fluid columns too (columns(true))
   /// @param coupled (with `fluid`) a two-way coupled run: columns(true, true)
+  /// @param bodies the bodies' column names (stats_body_names), in body order: three columns
+  ///   each, after every other column (body_columns)
   /// @throws InputError naming the file if it cannot be opened; with `continue_after`, if it
   ///   is missing, its header is not this run's, or its rows do not run 1..continue_after.
   explicit StatsWriter(const std::filesystem::path& path, bool fluid = false, bool coupled = false,
-                       std::optional<int> continue_after = std::nullopt);
+                       std::optional<int> continue_after = std::nullopt,
+                       std::vector<std::string> bodies = {});
   ~StatsWriter();
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
@@ -328,8 +335,16 @@ class StatsWriter {
   /// pressure_residual, divergence_before, divergence, fluid_kinetic_energy, smoke_mass,
   /// inflow_flux, outflow_flux, solid_flux, max_speed, cfl, traces_clamped; with `coupled`
   /// then coupled_iterations, coupled_residual, interface_power, total_energy_coupled,
-  /// enclosed_volume, enclosed_volume_drift (CoupledStepStats).
-  static const std::vector<std::string>& columns(bool fluid = false, bool coupled = false);
+  /// enclosed_volume, enclosed_volume_drift (CoupledStepStats); then the body_columns of
+  /// `bodies`. The columns before the bodies' depend on `fluid` and `coupled` only, so a
+  /// column's position does not depend on the bodies.
+  static std::vector<std::string> columns(bool fluid = false, bool coupled = false,
+                                          const std::vector<std::string>& bodies = {});
+  /// Per body name b (stats_body_names), in order: b_lowest (m: min over the nodes of x · up),
+  /// b_centroid_height (m: the lumped-mass centroid · up) and b_rotation_deg (degrees, 0..180:
+  /// the angle of the rotation of the polar decomposition of Σ m (x − c)(X − C)ᵀ); up =
+  /// −g/|g|, +z without gravity (solid/pose.hpp).
+  static std::vector<std::string> body_columns(const std::vector<std::string>& bodies);
   /// The timed phases that get a column (seconds): assemble, solve, update, output (frames,
   /// and in fluid scenes the quality summary of the fluid mesh), total; with `fluid`, after
   /// update: remesh (gathering the solid surfaces and mesh::remesh), transfer (advection onto
@@ -347,6 +362,7 @@ class StatsWriter {
   std::FILE* m_file = nullptr;
   bool m_fluid = false;
   bool m_coupled = false;
+  std::vector<std::string> m_bodies;  ///< the bodies' column names
 };
 
 /// Owns the output folder of one run: writes scene.resolved.json, the frames and their
@@ -363,8 +379,8 @@ class OutputWriter {
   /// stats.csv keeps its rows up to it (StatsWriter's continue_after) and load_state restores
   /// the collections.
   /// @throws InputError if the folder cannot be created or written, if two body names map
-  ///   to the same file name, or if a body's file name is "fluid" or "interface" in a scene
-  ///   with a fluid.
+  ///   to the same file name or the same stats.csv column name (stats_body_names), or if a
+  ///   body's file name is "fluid" or "interface" in a scene with a fluid.
   OutputWriter(const std::filesystem::path& out_dir, const Scene& scene,
                const solid::SolidWorld& world, std::optional<int> resume_step = std::nullopt);
 
@@ -431,13 +447,25 @@ class OutputWriter {
 };
 
 /// The output file name of each body (file_safe_name), in body order, checked as
-/// OutputWriter does before it creates anything, so that `tetfsi validate` can say it.
-/// @throws InputError if two body names map to the same file name, or a body's file name is
-///   "fluid" or "interface" in a scene with a fluid.
+/// OutputWriter does before it creates anything, so that `tetfsi validate` can say it; the
+/// bodies' stats.csv column names (stats_body_names) are checked too.
+/// @throws InputError if two body names map to the same file name or the same column name,
+///   or a body's file name is "fluid" or "interface" in a scene with a fluid.
 std::vector<std::string> output_file_names(const Scene& scene, const solid::SolidWorld& world);
 
 /// A body name made safe for file names: characters other than [A-Za-z0-9_.-] become '_'
 /// (an empty name becomes "body").
 std::string file_safe_name(const std::string& name);
+
+/// A body name made safe for a stats.csv column: characters other than [A-Za-z0-9_] become
+/// '_' (an empty name becomes "body"), so a column name never holds ',', ';', a quote or a
+/// space.
+std::string column_safe_name(const std::string& name);
+
+/// The name of each body in its stats.csv columns (column_safe_name), in body order, checked
+/// as OutputWriter does before it creates anything.
+/// @throws InputError if two body names map to the same column name ("a-b" and "a.b" both
+///   give a_b): the columns would be ambiguous, so the bodies must be renamed.
+std::vector<std::string> stats_body_names(const solid::SolidWorld& world);
 
 }  // namespace tetfsi::tools

@@ -114,6 +114,18 @@ void fill_energies(const solid::SolidWorld& world, StepStats& row) {
   }
 }
 
+/// The bodies' poses into a stats row (solid::body_pose, up against the world's gravity), and
+/// their extremes over the run into `r`.
+void fill_poses(const solid::SolidWorld& world, StepStats& row, RunResult& r) {
+  const Vec3 up = solid::up_direction(world.gravity);
+  row.bodies.clear();
+  r.pose_ranges.resize(world.bodies.size());
+  for (size_t i = 0; i < world.bodies.size(); ++i) {
+    row.bodies.push_back(solid::body_pose(world.bodies[i], up));
+    r.pose_ranges[i].add(row.bodies.back());
+  }
+}
+
 void fill_final(const solid::SolidWorld& world, RunResult& r) {
   StepStats e;
   fill_energies(world, e);
@@ -127,6 +139,7 @@ void fill_final(const solid::SolidWorld& world, RunResult& r) {
     s.nodes = b.num_nodes();
     s.tets = b.num_tets();
     s.max_displacement = b.num_nodes() > 0 ? b.displacement.rowwise().norm().maxCoeff() : 0.0;
+    if (r.bodies.size() < r.pose_ranges.size()) s.pose = r.pose_ranges[r.bodies.size()];
     r.bodies.push_back(s);
   }
 }
@@ -238,8 +251,9 @@ struct Session {
   std::optional<DivergenceGuard> guard;
 };
 
-/// The layout version of the "run/" records (the file format has its own).
-constexpr int k_run_records_version = 1;
+/// The layout version of the "run/" records (the file format has its own). 2: the bodies'
+/// pose extremes ("run/pose/").
+constexpr int k_run_records_version = 2;
 
 template <class S, class F>
 void visit_equilibrium(S& e, F&& f) {
@@ -262,6 +276,27 @@ void visit_result(S& r, F&& f) {  // the counters of RunResult a resumed run goe
   f("unconverged_steps", r.unconverged_steps);
 }
 
+/// The bodies' pose extremes (RunResult::pose_ranges) as "run/pose/<i>/..." records.
+void save_pose_ranges(const RunResult& r, CheckpointWriter& w) {
+  w.put("run/pose/count", static_cast<std::int64_t>(r.pose_ranges.size()));
+  for (size_t i = 0; i < r.pose_ranges.size(); ++i) {
+    const std::string p = fmt::format("run/pose/{}/", i);
+    w.put(p + "min_lowest", r.pose_ranges[i].min_lowest);
+    w.put(p + "max_rotation_deg", r.pose_ranges[i].max_rotation_deg);
+  }
+}
+
+void load_pose_ranges(const CheckpointReader& ck, size_t bodies, RunResult& r) {
+  const std::size_t n = ck.get_count("run/pose/count");
+  if (n != bodies) ck.fail(fmt::format("run/pose/count: {} bodies, the scene has {}", n, bodies));
+  r.pose_ranges.assign(n, BodyPoseRange{});
+  for (size_t i = 0; i < n; ++i) {
+    const std::string p = fmt::format("run/pose/{}/", i);
+    r.pose_ranges[i].min_lowest = ck.get_double(p + "min_lowest");
+    r.pose_ranges[i].max_rotation_deg = ck.get_double(p + "max_rotation_deg");
+  }
+}
+
 /// The checkpoint after step `step`: the simulation's records ("sim/") and the run's ("run/"),
 /// written atomically to OUT/checkpoints/step_NNNNNN.tfck; then the old ones are pruned.
 fs::path write_checkpoint(const Scene& scene, const coupling::FsiSimulation& sim,
@@ -280,6 +315,7 @@ fs::path write_checkpoint(const Scene& scene, const coupling::FsiSimulation& sim
   w.put("run/last_frame", ses.last_frame);
   w.put("run/wall_s", ses.wall_before + (now_seconds() - ses.start));
   visit_result(r, RecordSaver{w, "run/result/"});
+  save_pose_ranges(r, w);
   w.put("run/has_equilibrium", r.equilibrium.has_value());
   if (r.equilibrium) visit_equilibrium(*r.equilibrium, RecordSaver{w, "run/equilibrium/"});
   w.put("run/has_recorder", rec != nullptr);
@@ -430,6 +466,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
         if (step % every == 0) ses.last_frame = step;
       }
       fill_energies(world, row);
+      fill_poses(world, row, r);
     } catch (const Error& e) {
       progress.finish();
       last_good.restore(world);  // the summary reports the state after the last good step
@@ -532,6 +569,7 @@ void run_static(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* f
   }
   row.phases.add("total", now_seconds() - t0);
   fill_energies(world, row);
+  fill_poses(world, row, r);
   row.step = 1;
   row.time = 1.0;
   row.dt = 1.0;
@@ -747,6 +785,7 @@ RunResult resume_run(const ResumeOptions& ro) {
   std::optional<RunRecorder> fluid;
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
   const solid::SolidWorld& world = sim.world();
+  load_pose_ranges(*ck, world.bodies.size(), r);
   sim.load_state(*ck);  // instead of start(): the state after `step`
   if (fluid) {
     if (!ck->get_bool("run/has_recorder")) ck->fail("run/has_recorder: the run had no fluid");
@@ -809,7 +848,9 @@ std::string summary_json(const RunResult& r) {
     bodies.push_back({{"name", b.name},
                       {"nodes", b.nodes},
                       {"tets", b.tets},
-                      {"max_displacement", b.max_displacement}});
+                      {"max_displacement", b.max_displacement},
+                      {"min_lowest", b.pose.min_lowest},
+                      {"max_rotation_deg", b.pose.max_rotation_deg}});
   j["bodies"] = bodies;
   if (r.fluid) {
     const FluidSummary& f = *r.fluid;

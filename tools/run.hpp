@@ -3,6 +3,7 @@
 /// The run loop behind `tetfsi run`: build the world of a scene, step it, write frames,
 /// stats and a summary (layout in tools/output.hpp), report progress.
 #include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <iosfwd>
 #include <optional>
@@ -11,6 +12,7 @@
 
 #include "core/enum_names.hpp"
 #include "coupling/simulation.hpp"
+#include "solid/pose.hpp"
 #include "solid/world.hpp"
 #include "tools/run_stats.hpp"
 #include "tools/scene.hpp"
@@ -64,12 +66,24 @@ struct ResumeOptions {
   bool fallback = false;
 };
 
+/// The extremes of a body's pose over a run's stats.csv rows (solid/pose.hpp): the lowest
+/// `<body>_lowest` and the largest `<body>_rotation_deg`; NaN before the first row.
+struct BodyPoseRange {
+  double min_lowest = NAN;        ///< m
+  double max_rotation_deg = NAN;  ///< degrees
+  void add(const solid::BodyPose& p) {
+    min_lowest = std::fmin(min_lowest, p.lowest);  // fmin: NaN only if both are
+    max_rotation_deg = std::fmax(max_rotation_deg, p.rotation_deg);
+  }
+};
+
 /// Final state of one body.
 struct BodySummary {
   std::string name;
   Index nodes = 0;
   Index tets = 0;
   double max_displacement = 0.0;  ///< max over nodes of |d| (m)
+  BodyPoseRange pose;             ///< over the run's rows
 };
 
 /// The equilibrium iteration over a run [BatheSonnad80] (core/equilibrium.hpp): runs whose
@@ -115,6 +129,9 @@ struct RunResult {
   double elastic_energy = 0.0;     ///< final, J
   double gravity_potential = 0.0;  ///< final, J
   std::vector<BodySummary> bodies;
+  /// Per body, in body order: its pose extremes over the rows written so far (a resumed run:
+  /// since step 1, through the checkpoint).
+  std::vector<BodyPoseRange> pose_ranges;
   std::optional<FluidSummary> fluid;              ///< set for a scene with a fluid
   std::optional<CouplingSummary> coupling;        ///< set for a two-way coupled run
   std::optional<EquilibriumSummary> equilibrium;  ///< set if the run iterates to equilibrium

@@ -299,6 +299,94 @@ TEST_CASE("tetfsi run: solid.integrator bfgs fills the equilibrium columns and s
   CHECK(lin.out.find("equilibrium:") == std::string::npos);
 }
 
+TEST_CASE(
+    "tetfsi run: stats.csv has each body's lowest point, centroid height and rotation, "
+    "summary.json their extremes") {
+  TempDir dir("body_pose");
+  nlohmann::json s = tiny_scene(4);
+  // A second body turning at 30 deg/s about x through its centre, its name not CSV-safe.
+  nlohmann::json spin = s["bodies"][0];
+  spin["name"] = "spin top";
+  spin["mesh"]["box"]["lo"] = {2, 0, 0};
+  spin["mesh"]["box"]["hi"] = {3, 1, 1};
+  spin["pins"] = nlohmann::json::array();
+  spin["kinematic"] = {{"angular_velocity_deg", {30, 0, 0}}};
+  s["bodies"].push_back(spin);
+  write_scene(dir.path, s);
+  const Result r = run_cli(dir.path, "run tiny.json --out o --progress off");
+  INFO("stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  const auto header = lines_of(read_text(dir.path / "o" / "stats.csv")).at(0);
+  CHECK(
+      header.ends_with(",block_lowest,block_centroid_height,block_rotation_deg,"
+                       "spin_top_lowest,spin_top_centroid_height,spin_top_rotation_deg"));
+  CHECK(header.rfind("step,time,dt,assemble,", 0) == 0);  // the fixed columns first, as before
+  const auto cols = tetfsi::test::read_csv_columns(dir.path / "o" / "stats.csv");
+  for (const char* body : {"block", "spin_top"}) {
+    const std::string b = body;
+    const auto& lowest = cols.at(b + "_lowest");
+    const auto& centroid = cols.at(b + "_centroid_height");
+    const auto& rotation = cols.at(b + "_rotation_deg");
+    REQUIRE(lowest.size() == 4);
+    for (size_t k = 0; k < 4; ++k) {
+      CAPTURE(b);
+      CAPTURE(k);
+      CHECK(std::isfinite(lowest[k]));
+      CHECK(std::isfinite(centroid[k]));
+      CHECK(std::isfinite(rotation[k]));
+      CHECK(lowest[k] <= centroid[k]);
+      CHECK(rotation[k] >= 0.0);
+      CHECK(rotation[k] <= 180.0);
+    }
+  }
+  // The block is pinned at z = 0 and sags under gravity (−z): its lowest nodes stay at 0,
+  // its centroid goes down from 0.5, it barely turns.
+  for (size_t k = 0; k < 4; ++k) {
+    CAPTURE(k);
+    CHECK(cols.at("block_lowest")[k] == 0.0);
+    CHECK(cols.at("block_centroid_height")[k] < 0.5);
+    CHECK(cols.at("block_rotation_deg")[k] < 1.0);
+    // The kinematic body: 0.3° per step about its centre; its lowest corner is
+    // 0.5 (sin θ + cos θ) below the centre.
+    const double deg = 0.3 * static_cast<double>(k + 1), th = deg * M_PI / 180.0;
+    CHECK(std::abs(cols.at("spin_top_rotation_deg")[k] - deg) <= 1e-9);
+    CHECK(std::abs(cols.at("spin_top_centroid_height")[k] - 0.5) <= 1e-12);
+    CHECK(std::abs(cols.at("spin_top_lowest")[k] - (0.5 - 0.5 * (std::sin(th) + std::cos(th)))) <=
+          1e-12);
+  }
+  const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
+  const auto& bodies = summary["bodies"];
+  REQUIRE(bodies.size() == 2);
+  for (size_t i = 0; i < 2; ++i) {
+    const std::string b = i == 0 ? "block" : "spin_top";
+    const auto& lowest = cols.at(b + "_lowest");
+    const auto& rotation = cols.at(b + "_rotation_deg");
+    CHECK(bodies[i]["min_lowest"].get<double>() == *std::min_element(lowest.begin(), lowest.end()));
+    CHECK(bodies[i]["max_rotation_deg"].get<double>() ==
+          *std::max_element(rotation.begin(), rotation.end()));
+  }
+
+  // Two bodies whose names give the same column name: a one-line error before any output.
+  nlohmann::json clash = tiny_scene(2);
+  nlohmann::json other = clash["bodies"][0];
+  clash["bodies"][0]["name"] = "a-b";
+  other["name"] = "a.b";
+  other["mesh"]["box"]["lo"] = {2, 0, 0};
+  other["mesh"]["box"]["hi"] = {3, 1, 1};
+  clash["bodies"].push_back(other);
+  write_scene(dir.path, clash, "clash.json");
+  for (const std::string cmd : {"validate clash.json", "run clash.json --out c"}) {
+    CAPTURE(cmd);
+    const Result c = run_cli(dir.path, cmd + " --log-level warn");
+    INFO("stderr: " << c.err);
+    CHECK(c.code != 0);
+    CHECK(c.err_lines().size() == 1);
+    CHECK(c.err.find("bodies 'a-b' and 'a.b' share the stats.csv column name 'a_b'") !=
+          std::string::npos);
+  }
+  CHECK(!fs::exists(dir.path / "c"));
+}
+
 TEST_CASE("tetfsi run: static mode writes frame 0 and the equilibrium at pseudo-time 1") {
   TempDir dir("static");
   nlohmann::json s = tiny_scene(5);

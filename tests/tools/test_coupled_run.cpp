@@ -133,7 +133,7 @@ void check_coupled_output(const fs::path& out, const std::string& scheme) {
        {"coupled_iterations", "coupled_residual", "interface_power", "fluid_kinetic_energy",
         "kinetic_energy", "elastic_energy", "total_energy_coupled", "enclosed_volume",
         "enclosed_volume_drift", "coupled_assembly", "coupled_solve", "solid", "update", "remesh",
-        "transfer", "forces"}) {
+        "transfer", "forces", "box_lowest", "box_centroid_height", "box_rotation_deg"}) {
     CAPTURE(c);
     REQUIRE(s.count(c) == 1);
     for (double v : s.at(c)) CHECK(std::isfinite(v));
@@ -151,6 +151,9 @@ void check_coupled_output(const fs::path& out, const std::string& scheme) {
     CHECK(at("enclosed_volume_drift") == 0.0);
     CHECK(at("coupled_solve") > 0);
     if (scheme == "splitting") CHECK(at("solid") > 0);
+    CHECK(at("box_lowest") < at("box_centroid_height"));
+    if (i > 0)  // sinks
+      CHECK(at("box_centroid_height") < s.at("box_centroid_height")[static_cast<size_t>(i - 1)]);
   }
 
   // the streams: frames 0..3 in every collection, the same times
@@ -262,7 +265,7 @@ TEST_CASE(
     std::stringstream ss(header);
     for (std::string c; std::getline(ss, c, ',');) cols.push_back(c);
   }
-  CHECK(cols == StatsWriter::columns(true));
+  CHECK(cols == StatsWriter::columns(true, false, {"box"}));
   const auto summary = nlohmann::json::parse(read_text(dir.path / "o" / "summary.json"));
   CHECK_FALSE(summary.contains("coupling"));
   const auto resolved = nlohmann::json::parse(read_text(dir.path / "o" / "scene.resolved.json"));

@@ -582,6 +582,78 @@ TEST_CASE("StatsWriter: header, then one row per step with every column") {
   CHECK(lines[1].find(",0,") != std::string::npos);
 }
 
+TEST_CASE("StatsWriter with bodies: three columns per body after every other column") {
+  TempDir dir("stats_bodies");
+  const fs::path p = dir.path / "stats.csv";
+  const std::vector<std::string> bodies = {"block", "spin_top"};
+  for (const bool fluid : {false, true}) {
+    for (const bool coupled : {false, true}) {
+      CAPTURE(fluid);
+      CAPTURE(coupled);
+      const auto fixed = StatsWriter::columns(fluid, coupled);
+      const auto cols = StatsWriter::columns(fluid, coupled, bodies);
+      // The columns without bodies keep their names and positions; the bodies' come last.
+      REQUIRE(cols.size() == fixed.size() + 6);
+      CHECK(std::vector<std::string>(cols.begin(), cols.begin() + fixed.size()) == fixed);
+      CHECK(std::vector<std::string>(cols.end() - 6, cols.end()) ==
+            std::vector<std::string>{"block_lowest", "block_centroid_height", "block_rotation_deg",
+                                     "spin_top_lowest", "spin_top_centroid_height",
+                                     "spin_top_rotation_deg"});
+    }
+  }
+  {
+    StatsWriter s(p, false, false, std::nullopt, bodies);
+    StepStats r;
+    r.step = 1;
+    r.bodies = {{-0.125, 0.5, 1e-3}, {0.1 + 0.2, 2.0, 179.5}};
+    s.write(r);
+    r.step = 2;
+    r.bodies.clear();  // a row without poses: "nan" in every body column
+    s.write(r);
+    r.bodies = {{0, 0, 0}};  // not one per body
+    CHECK_THROWS_AS(s.write(r), Error);
+  }
+  const auto lines = read_lines(p);
+  REQUIRE(lines.size() == 3);
+  const auto cols = StatsWriter::columns(false, false, bodies);
+  std::string header;
+  for (const auto& c : cols) header += (header.empty() ? "" : ",") + c;
+  CHECK(lines[0] == header);
+  for (const auto& l : lines) CHECK(count_fields(l) == cols.size());
+  CHECK(lines[1].ends_with(",-0.125,0.5,0.001,0.30000000000000004,2,179.5"));  // 17 digits
+  CHECK(lines[2].ends_with(",nan,nan,nan,nan,nan,nan"));
+  // A resumed run with the same bodies continues the file; other bodies are another run.
+  { StatsWriter s(p, false, false, 1, bodies); }
+  CHECK_THROWS_AS(StatsWriter(p, false, false, 1, std::vector<std::string>{"block"}), InputError);
+}
+
+TEST_CASE("column_safe_name and stats_body_names: CSV-safe names, a clash is an input error") {
+  CHECK(column_safe_name("toy") == "toy");
+  CHECK(column_safe_name("my body,1;x.y-z\"q\"") == "my_body_1_x_y_z_q_");
+  CHECK(column_safe_name("") == "body");
+  solid::SolidWorld world;
+  world.bodies.push_back(make_test_body());
+  CHECK(stats_body_names(world) == std::vector<std::string>{"block"});
+  const solid::SolidBody b = make_test_body();
+  world.bodies.emplace_back("a-b", b.rest_mesh(), b.material());
+  world.bodies.emplace_back("a.b", b.rest_mesh(), b.material());  // another file name: a.b.pvd
+  std::string msg;
+  try {
+    stats_body_names(world);
+  } catch (const InputError& e) {
+    msg = e.what();
+  }
+  CHECK(msg.find("bodies 'a-b' and 'a.b' share the stats.csv column name 'a_b'") !=
+        std::string::npos);
+  // OutputWriter (and tetfsi validate, through output_file_names) says it before writing.
+  TempDir dir("stats_clash");
+  Scene scene;
+  scene.name = "unit";
+  CHECK_THROWS_AS(output_file_names(scene, world), InputError);
+  CHECK_THROWS_AS(OutputWriter(dir.path / "run", scene, world), InputError);
+  CHECK(!fs::exists(dir.path / "run"));
+}
+
 TEST_CASE("OutputWriter: layout of an output folder, 3 frames at t = 0, 0.5, 1.25") {
   TempDir dir("layout");
   const fs::path out = dir.path / "run";
