@@ -124,7 +124,7 @@ TEST_SUITE("unit") {
     }
   }
 
-  TEST_CASE("floor contact: a block at rest on the floor stays at rest (no creep, no jitter)") {
+  TEST_CASE("floor contact: a block at rest on the floor stays at rest (no creep or jitter)") {
     // Started at its static equilibrium with the floor holding its bottom: the floor's forces
     // are the reactions, all ≥ 0 and within the friction cone, so nothing should move.
     for (Trapezoid tz : {Trapezoid::Paper, Trapezoid::Midpoint}) {
@@ -201,7 +201,8 @@ TEST_SUITE("unit") {
   }
 
   TEST_CASE(
-      "floor contact: complementarity at every step of a landing, squashing, rebounding ball") {
+      "floor contact: complementarity at every step of a landing and squashing and rebounding "
+      "ball") {
     const ActiveSetRun r = run_active_set(landing_ball(), 250);
     MESSAGE(r.summary());
     CHECK(r.steps_in_contact > 0);
