@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "mesh/generate.hpp"
+#include "solid/obstacles.hpp"
 #include "solid/solid_body.hpp"
 
 namespace tetfsi::solid::testing {
@@ -50,6 +51,31 @@ inline Index closest_node(const SolidBody& b, const Vec3& p) {
     }
   }
   return best;
+}
+
+/// A floor: the plane z = `z`, normal +z, restitution e and Coulomb μ.
+inline Obstacle floor_plane(double z, double e, double mu) {
+  Obstacle o;
+  o.kind = Obstacle::Kind::Plane;
+  o.name = "floor";
+  o.point = Vec3(0, 0, z);
+  o.normal = Vec3::UnitZ();
+  o.restitution = e;
+  o.friction = mu;
+  return o;
+}
+
+/// Centre of mass (m) and its velocity (m/s).
+inline Vec3 com(const SolidBody& b) {
+  return (b.positions().transpose() * b.lumped_mass()) / b.total_mass();
+}
+inline Vec3 com_velocity(const SolidBody& b) {
+  return (b.velocity.transpose() * b.lumped_mass()) / b.total_mass();
+}
+
+/// Kinetic + elastic + gravitational energy (J).
+inline double mechanical_energy(const SolidBody& b, const Vec3& gravity) {
+  return b.kinetic_energy() + b.elastic_energy() + b.gravity_potential(gravity);
 }
 
 inline Mat3 rotation(const Vec3& axis, double angle) {

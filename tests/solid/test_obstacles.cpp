@@ -24,25 +24,6 @@ SolidBody unit_tet() {
   return SolidBody("tet", tet, make_material(1000.0, 1e5, 0.3));
 }
 
-Obstacle floor_plane(double z, double e, double mu) {
-  Obstacle o;
-  o.kind = Obstacle::Kind::Plane;
-  o.name = "floor";
-  o.point = Vec3(0, 0, z);
-  o.normal = Vec3::UnitZ();
-  o.restitution = e;
-  o.friction = mu;
-  return o;
-}
-
-/// Centre of mass (m) and its velocity (m/s).
-Vec3 com(const SolidBody& b) {
-  return (b.positions().transpose() * b.lumped_mass()) / b.total_mass();
-}
-Vec3 com_velocity(const SolidBody& b) {
-  return (b.velocity.transpose() * b.lumped_mass()) / b.total_mass();
-}
-
 }  // namespace
 
 TEST_SUITE("unit") {

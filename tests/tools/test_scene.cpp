@@ -352,6 +352,22 @@ TEST_CASE("out-of-range values say what the range is") {
                       {"transform.scale: must be in [1e-6, 1e6]"});
 }
 
+TEST_CASE("floors: restitution and friction and the plane refused out of range or not finite") {
+  // restitution > 1 and friction < 0 are checked above (and friction > 100 in test_robustness)
+  check_edit_rejected([](json& j) { j["obstacles"][0]["restitution"] = -0.1; },
+                      {"obstacles[0].restitution: must be in [0, 1]", "-0.1"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["restitution"] = std::nan(""); },
+                      {"obstacles[0].restitution: expected a finite number"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["friction"] = std::nan(""); },
+                      {"obstacles[0].friction: expected a finite number"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["normal"][2] = std::nan(""); },
+                      {"obstacles[0].normal", "expected a finite number"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["point"][2] = std::nan(""); },
+                      {"obstacles[0].point", "expected a finite number"});
+  check_edit_rejected([](json& j) { j["obstacles"][0]["restitution"] = "bouncy"; },
+                      {"obstacles[0].restitution: expected a number"});
+}
+
 TEST_CASE("mesh files resolve against the scene's folder and must exist") {
   const TempDir dir;
   dir.write("meshes/ball.off", "");
