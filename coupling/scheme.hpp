@@ -86,7 +86,7 @@ struct CoupledStepReport {
   int fluid_solves = 0;  ///< iterated schemes: fluid solves (residual evaluations + newton's)
   Index contacts = 0;    ///< nodes in contact with obstacles after the step
   /// Floors' active set (solid/floor_contact.hpp): the most solves of one body's (splitting)
-  /// or of the coupled system (simultaneous) in the step; 0 without floors, 1 if it held.
+  /// or of the coupled system (simultaneous) in the step; 1 if the set held at once.
   int contact_rounds = 0;
   bool contacts_settled = true;  ///< the active set settled within its max_rounds
   bool predicted_mesh = true;    ///< the mesh was built around x* (else around xⁿ)

@@ -35,14 +35,15 @@ namespace tetfsi::solid {
 /// A node on a floor during one step.
 struct FloorContact {
   Index node = -1;
-  int axis = 0;           ///< the floor's normal is sign · e_axis
+  int axis = 0;  ///< the floor's normal is sign · e_axis
   double sign = 1.0;
   double gap = 0.0;       ///< signed distance above the floor at tⁿ (m)
   double incoming = 0.0;  ///< normal velocity at tⁿ (< 0: approaching)
   const Obstacle* obstacle = nullptr;
-  double force = 0.0;     ///< λ, the floor's normal force of the last solve (N)
-  bool slip = false;      ///< sliding (friction force below), else sticking
+  double force = 0.0;            ///< λ, the floor's normal force of the last solve (N)
+  bool slip = false;             ///< sliding (friction force below), else sticking
   Vec3 friction = Vec3::Zero();  ///< sliding: the friction force on the node (N)
+  int switches = 0;              ///< stick/slip changes this step (2: at the cone's edge)
 };
 
 /// What the active set did in one step.
@@ -61,8 +62,8 @@ class FloorContacts {
  public:
   /// The starting set: every node whose ballistic prediction xⁿ + h uⁿ + ½ h² g is below a
   /// floor (one floor per node, the first that applies; pinned DOFs excluded).
-  FloorContacts(const SolidBody& body, const std::vector<Obstacle>& obstacles,
-                const Vec3& gravity, double h);
+  FloorContacts(const SolidBody& body, const std::vector<Obstacle>& obstacles, const Vec3& gravity,
+                double h);
 
   bool empty() const { return m_contacts.empty(); }
   Index size() const { return static_cast<Index>(m_contacts.size()); }
@@ -96,7 +97,8 @@ class FloorContacts {
   double m_h;
   const TrapezoidalSystem* m_sys = nullptr;
   std::vector<FloorContact> m_contacts;
-  std::vector<std::uint8_t> m_released;  ///< per node: released this step (not re-added)
+  /// per node: releases and re-additions this step (odd: released)
+  std::vector<std::uint8_t> m_released;
   FloorContactReport m_report;
 };
 

@@ -668,9 +668,9 @@ namespace {
 
 /// The coupling columns (CoupledStepStats), after the fluid columns.
 const std::vector<std::string>& coupling_columns() {
-  static const std::vector<std::string> c = {"coupled_iterations", "coupled_residual",
-                                             "interface_power",    "total_energy_coupled",
-                                             "enclosed_volume",    "enclosed_volume_drift"};
+  static const std::vector<std::string> c = {
+      "coupled_iterations", "coupled_residual",      "interface_power", "total_energy_coupled",
+      "enclosed_volume",    "enclosed_volume_drift", "contact_rounds"};
   return c;
 }
 
@@ -804,9 +804,9 @@ void StatsWriter::write(const StepStats& r) {
   if (m_coupled) {
     if (r.coupled) {
       const CoupledStepStats& c = *r.coupled;
-      line += fmt::format(",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.6g}", c.iterations, c.residual,
+      line += fmt::format(",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.6g},{}", c.iterations, c.residual,
                           c.interface_power, c.total_energy, c.enclosed_volume,
-                          c.enclosed_volume_drift);
+                          c.enclosed_volume_drift, c.contact_rounds);
     } else {
       for (size_t k = 0; k < coupling_columns().size(); ++k) line += ",nan";
     }

@@ -272,6 +272,10 @@ struct CoupledStepStats {
   double total_energy = NAN;
   double enclosed_volume = 0.0;  ///< m³, Σ over enclosed regions of their volume after the step
   double enclosed_volume_drift = 0.0;  ///< max over enclosed regions of |after − target| / target
+  /// contact_rounds: the solves of the step's floor active set (solid/floor_contact.hpp): the
+  /// simultaneous scheme's coupled solves, splitting's most of one body's; 1 when the set
+  /// held at once, 0 in the iterated schemes (floors projected after the step).
+  int contact_rounds = 0;
 };
 
 /// One row of stats.csv.

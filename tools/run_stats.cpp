@@ -111,6 +111,7 @@ void RunRecorder::record_coupled_step(const coupling::CoupledStepReport& rep, do
   c.residual = rep.solve.residual;
   c.interface_power = rep.solve.interface_power;
   c.total_energy = rep.total_energy();
+  c.contact_rounds = rep.contact_rounds;
   for (const coupling::EnclosedRegion& e : rep.solve.enclosed) {
     c.enclosed_volume += e.after;
     if (e.target > 0)

@@ -853,11 +853,12 @@ TEST_CASE("StatsWriter of a coupled run: its phases and the coupling columns") {
                                            "coupled_solve", "solid", "update", "output", "total"});
   // the fluid columns with the coupled phases, then the coupling columns
   CHECK(cols.size() ==
-        fluid_cols.size() - StatsWriter::phase_columns(true).size() + phases.size() + 6);
-  const std::vector<std::string> tail(cols.end() - 6, cols.end());
+        fluid_cols.size() - StatsWriter::phase_columns(true).size() + phases.size() + 7);
+  const std::vector<std::string> tail(cols.end() - 7, cols.end());
   CHECK(tail == std::vector<std::string>{"coupled_iterations", "coupled_residual",
                                          "interface_power", "total_energy_coupled",
-                                         "enclosed_volume", "enclosed_volume_drift"});
+                                         "enclosed_volume", "enclosed_volume_drift",
+                                         "contact_rounds"});
   const mesh::TetMesh m = make_fluid_mesh();
   {
     StatsWriter s(p, true, true);
