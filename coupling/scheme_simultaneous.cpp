@@ -47,12 +47,17 @@ class SimultaneousScheme final : public CouplingScheme {
     // set (solid/floor_contact.hpp): its multipliers are the fluid-aware floor forces
     SolveVariant variant;
     variant.targets = &m_targets;
+    // The rounds' P = C + Jᵀ diag(A)⁻¹ J differ only at the contact DOFs: the first round's
+    // AMG preconditions the later ones (measured on paddle below).
+    CoupledOptions opt = m_params.solve;
+    SolveCache rounds_amg;
+    opt.reuse = &rounds_amg;
     CoupledSolution sol;
     for (bool again = true; again;) {
       for (Index b = 0; b < nb; ++b)
         if (cb[b].free)
           contacts[b]->constrain(sys[b], cb[b].A, cb[b].b, cb[b].fixed, cb[b].prescribed);
-      sol = pred->solve(cb, m_params.solve, variant);
+      sol = pred->solve(cb, opt, variant);
       add_solve_phases(ctx.phases, sol.report);
       again = false;
       for (Index b = 0; b < nb; ++b)

@@ -2,6 +2,7 @@
 """A run's stats.csv as a page of plots over time (what `tetfsi plot OUT` runs).
 
     /usr/bin/python3 scripts/plot_stats.py OUT/stats.csv -o OUT/stats.png [--title NAME]
+        [--panels WORD,...]
 
 Panels (each drawn only from the columns the run wrote; a panel none of whose columns exist,
 or all NaN, is left out): the energy budget, solver iterations, solver residuals, divergence,
@@ -100,7 +101,11 @@ def main():
     parser.add_argument("stats", help="stats.csv of a run")
     parser.add_argument("-o", "--output", required=True, help="the PNG to write")
     parser.add_argument("--title", default="", help="the page's title (the scene's name)")
+    parser.add_argument("--panels", default="",
+                        help="only the panels whose titles contain one of these comma-separated "
+                             "words, e.g. 'height,rotation' (default: every panel)")
     args = parser.parse_args()
+    wanted = [w.strip() for w in args.panels.split(",") if w.strip()]
 
     logging.getLogger("matplotlib").setLevel(logging.ERROR)
     warnings.filterwarnings("ignore")
@@ -122,6 +127,8 @@ def main():
 
     panels, skipped = [], []
     for title, ylabel, log, series in PANELS + body_panels(columns):
+        if wanted and not any(w in title for w in wanted):
+            continue
         present = [(c, label) for c, label in series if usable(columns, c)]
         if title == "enclosed volume drift" and not any(
                 v > 0 for v in columns.get("enclosed_volume", []) if math.isfinite(v)):
@@ -131,10 +138,13 @@ def main():
                        if any(v > 0 for v in columns[c] if math.isfinite(v))]
         (panels if present else skipped).append((title, ylabel, log, present))
     phases = [p for p in PHASES if usable(columns, p)]
-    if phases:
-        panels.append(("seconds per phase", "s per step", False, phases))
-    else:
-        skipped.append(("seconds per phase", "", False, []))
+    if not wanted or any(w in "seconds per phase" for w in wanted):
+        if phases:
+            panels.append(("seconds per phase", "s per step", False, phases))
+        else:
+            skipped.append(("seconds per phase", "", False, []))
+    if not panels:
+        fail(f"no panel of {args.stats} matches --panels '{args.panels}'")
 
     ncols = 2
     nrows = max(1, math.ceil(len(panels) / ncols))

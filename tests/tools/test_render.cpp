@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -310,4 +311,22 @@ TEST_CASE(
   CHECK(contains(s.out, "left out (no data): "));
   CHECK(contains(s.out, "fluid mesh quality"));
   CHECK(fs::exists(solid.path / "sag.png"));
+
+  // --panels keeps the panels whose titles contain one of its words (the README's motion
+  // figures); none matching is a one-line error.
+  const std::string script = std::string(TETFSI_SOURCE_DIR) + "/scripts/plot_stats.py";
+  const fs::path csv = solid.path / "o" / "stats.csv", log = solid.path / "panels.log";
+  const std::string cmd = "/usr/bin/python3 " + script + " " + csv.string() + " -o " +
+                          (solid.path / "pose.png").string() + " --panels height,rotation > " +
+                          log.string() + " 2>&1";
+  CHECK(std::system(cmd.c_str()) == 0);
+  CHECK(contains(tetfsi::test::read_text(log),
+                 "2 panels (bodies: height, bodies: rotation from rest)"));
+  CHECK(read_png(solid.path / "pose.png").variance() > 50.0);
+  const std::string bad = "/usr/bin/python3 " + script + " " + csv.string() + " -o " +
+                          (solid.path / "x.png").string() + " --panels nothing > " + log.string() +
+                          " 2>&1";
+  CHECK(std::system(bad.c_str()) != 0);
+  CHECK(contains(tetfsi::test::read_text(log), "error: no panel of"));
+  CHECK_FALSE(fs::exists(solid.path / "x.png"));
 }
