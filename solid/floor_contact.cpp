@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "core/dof_elimination.hpp"
 #include "core/error.hpp"
@@ -17,6 +18,26 @@ int floor_axis(const Obstacle& o) {
   for (int a = 0; a < 3; ++a)
     if (std::abs(std::abs(o.normal[a]) - 1.0) < 1e-12) return a;
   return -1;
+}
+
+/// Node i against obstacle o, if o is a floor and the node's normal DOF is free: its gap,
+/// approach speed and starting friction state — sliding if it already moves along the floor
+/// (its force set once a solve gives its normal force), else sticking.
+std::optional<FloorContact> floor_contact(const SolidBody& body, const MatX3& x, Index i,
+                                          const Obstacle& o) {
+  const int axis = floor_axis(o);
+  if (axis < 0 || body.is_fixed(3 * i + axis)) return std::nullopt;
+  FloorContact c;
+  c.node = i;
+  c.axis = axis;
+  c.sign = o.normal[axis] > 0 ? 1.0 : -1.0;
+  c.gap = c.sign * (x(i, axis) - o.point[axis]);
+  c.incoming = c.sign * body.velocity(i, axis);
+  c.obstacle = &o;
+  Vec3 ut = body.velocity.row(i).transpose();
+  ut[axis] = 0.0;
+  c.slip = o.friction == 0.0 || ut.norm() > 0.0;
+  return c;
 }
 
 /// Row i of the symmetric A times u.
@@ -43,23 +64,11 @@ FloorContacts::FloorContacts(const SolidBody& body, const std::vector<Obstacle>&
   const MatX3 x = body.positions();
   for (Index i = 0; i < body.num_nodes(); ++i) {
     for (const Obstacle& o : obstacles) {
-      const int axis = floor_axis(o);
-      if (axis < 0 || body.is_fixed(3 * i + axis)) continue;
-      FloorContact c;
-      c.node = i;
-      c.axis = axis;
-      c.sign = o.normal[axis] > 0 ? 1.0 : -1.0;
-      c.gap = c.sign * (x(i, axis) - o.point[axis]);
-      c.incoming = c.sign * body.velocity(i, axis);
-      c.obstacle = &o;
-      // a node already sliding starts sliding (its friction force set by the first solve's
-      // normal force), else sticking
-      Vec3 ut = body.velocity.row(i).transpose();
-      ut[axis] = 0.0;
-      c.slip = o.friction == 0.0 || ut.norm() > 0.0;
-      const double pred = c.gap + h * c.incoming + 0.5 * h * h * c.sign * gravity[axis];
+      const std::optional<FloorContact> c = floor_contact(body, x, i, o);
+      if (!c) continue;
+      const double pred = c->gap + h * c->incoming + 0.5 * h * h * c->sign * gravity[c->axis];
       if (pred >= 0.0) continue;
-      m_contacts.push_back(c);
+      m_contacts.push_back(*c);
       break;
     }
   }
@@ -186,20 +195,13 @@ bool FloorContacts::add_penetrating(const VecX& u) {
   for (Index i = 0; i < m_body.num_nodes(); ++i) {
     if (in[i]) continue;
     for (const Obstacle& o : m_obstacles) {
-      const int axis = floor_axis(o);
-      if (axis < 0 || m_body.is_fixed(3 * i + axis)) continue;
-      FloorContact c;
-      c.node = i;
-      c.axis = axis;
-      c.sign = o.normal[axis] > 0 ? 1.0 : -1.0;
-      c.gap = c.sign * (x(i, axis) - o.point[axis]);
-      c.incoming = c.sign * m_body.velocity(i, axis);
-      c.obstacle = &o;
-      c.slip = o.friction == 0.0;
-      const double after = c.gap + 0.5 * m_h * (c.incoming + c.sign * u[3 * i + axis]);
+      std::optional<FloorContact> c = floor_contact(m_body, x, i, o);
+      if (!c) continue;
+      c->slip = o.friction == 0.0;  // found by a solve: it starts sticking
+      const double after = c->gap + 0.5 * m_h * (c->incoming + c->sign * u[3 * i + c->axis]);
       if (after >= -k_gap_tol) continue;
       if (m_released[i] % 2 == 1) ++m_released[i];  // back in
-      m_contacts.push_back(c);
+      m_contacts.push_back(*c);
       ++m_report.added;
       added = true;
       break;
