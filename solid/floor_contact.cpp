@@ -149,6 +149,10 @@ bool FloorContacts::update(const VecX& u, const VecX* f) {
   auto residual = [&](Index dof) {  // the constraint's force on the DOF: A u − b − f
     return row_dot(m_sys->A, dof, u) - m_sys->b[dof] - (f ? (*f)[dof] : 0.0);
   };
+  // The last solve before the cap only adds nodes below the floor: the step then ends with
+  // none there (a projection would move a node by up to a step's travel and can invert the
+  // elements above it), at worst with an adhesive force or an unsettled friction state.
+  const bool closing = m_report.rounds >= max_rounds - 1;
   bool changed = false;
   std::vector<FloorContact> kept;
   for (FloorContact c : m_contacts) {
@@ -156,35 +160,40 @@ bool FloorContacts::update(const VecX& u, const VecX* f) {
     c.force = c.sign * residual(3 * n + c.axis);
     // adhesive: let it go (twice per step at most: the active set then ends)
     if (c.force < 0.0 && m_released[n] < 2 * k_releases) {
-      ++m_released[n];
-      ++m_report.released;
       changed = true;
-      continue;
+      if (!closing) {
+        ++m_released[n];
+        ++m_report.released;
+        continue;
+      }
     }
     // the floor's net normal force once the node has landed (its u_n then 0)
     const double un = c.sign * u[3 * n + c.axis];
     const double net = std::max(0.0, c.force - mass[n] * un / m_h);
-    const bool was_slip = c.slip;
     Vec3 rt = Vec3::Zero();  // sticking: the tangential force that holds it
     if (!c.slip)
       for (int t = 0; t < 3; ++t)
         if (t != c.axis && !m_body.is_fixed(3 * n + t)) rt[t] = residual(3 * n + t);
     // a change of state always solves again; the force's own convergence for a few solves
-    const bool redo = update_friction(c, c.obstacle->friction * net, u.segment<3>(3 * n), rt);
-    if (redo && (c.slip != was_slip || m_report.rounds < k_friction_rounds)) changed = true;
+    FloorContact next = c;
+    const bool redo = update_friction(next, c.obstacle->friction * net, u.segment<3>(3 * n), rt);
+    if (redo && (next.slip != c.slip || m_report.rounds < k_friction_rounds)) changed = true;
+    if (!closing) c = next;
     kept.push_back(c);
   }
   m_contacts = std::move(kept);
-  changed = add_penetrating(u) || changed;
-  if (changed && m_report.rounds >= max_rounds) {
+  const bool added = add_penetrating(u);
+  if (!closing) return changed || added;
+  if (added && m_report.rounds < max_rounds) return true;  // the closing solve
+  if (changed || added) {
     m_report.converged = false;
     logger().warn(
         "body '{}': its floor contacts did not settle in {} solves ({} released, {} added); the "
-        "last set is kept and nodes left below a floor are projected onto it",
-        m_body.name(), max_rounds, m_report.released, m_report.added);
-    return false;
+        "last set is kept{}",
+        m_body.name(), m_report.rounds, m_report.released, m_report.added,
+        added ? " and nodes left below a floor are projected onto it" : "");
   }
-  return changed;
+  return false;
 }
 
 bool FloorContacts::add_penetrating(const VecX& u) {

@@ -87,7 +87,8 @@ class FloorContacts {
   /// the other obstacles (resolve_collisions). Returns the nodes in contact, each once.
   Index land(SolidBody& body) const;
 
-  /// Solves per step before the set is taken as it is (a warning in the report).
+  /// Solves per step at most; the last one only adds nodes below the floor (none is left
+  /// there), and an unsettled set is kept with a warning (report().converged false).
   static constexpr int max_rounds = 12;
 
  private:
