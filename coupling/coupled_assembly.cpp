@@ -251,8 +251,18 @@ CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt
   VecX r = second_row(in, sys, r_prescribed, rep);
   find_enclosed(in, opt, sys);
   stack_right_hand_sides(sys, std::move(r), hydro);
+  add_contact(sys, opt);
   rep.assembly_s = now_seconds() - t0;
   return sys;
+}
+
+void add_contact(CoupledSystem& sys, const CoupledOptions& opt) {
+  if (!opt.contact || opt.contact->empty()) return;
+  TETFSI_REQUIRE(InputError, opt.contact->A.rows() == sys.ns && opt.contact->b.size() == sys.ns,
+                 "coupled solve: the contact system has {} DOFs for {} free DOFs",
+                 opt.contact->A.rows(), sys.ns);
+  sys.Ac = opt.contact->A;
+  sys.bs += opt.contact->b;
 }
 
 void remove_pinned_flux(const CoupledSystem& sys, VecX& r, CoupledReport& rep) {

@@ -43,6 +43,9 @@ SparseMatrix assemble_K(const CoupledSystem& sys, const VecX& rowscale) {
       for (SparseMatrix::InnerIterator it(A, c); it; ++it)
         kt.emplace_back(sys.dof0[b] + it.row(), sys.dof0[b] + it.col(), it.value());
   }
+  for (Index c = 0; c < sys.Ac.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(sys.Ac, c); it; ++it)
+      kt.emplace_back(it.row(), it.col(), it.value());
   for (Index c = 0; c < sys.J.outerSize(); ++c)
     for (SparseMatrix::InnerIterator it(sys.J, c); it; ++it) {
       kt.emplace_back(it.row(), ns + it.col(), -it.value());
@@ -60,16 +63,34 @@ SparseMatrix assemble_K(const CoupledSystem& sys, const VecX& rowscale) {
   return K;
 }
 
-/// Each free body's A factorized once: x = A⁻¹ rhs (block diagonal).
+/// The free bodies' blocks stacked, with the contact between them.
+SparseMatrix stacked_A(const CoupledSystem& sys) {
+  std::vector<SparseMatrix> blocks(sys.nb);
+  for (Index b = 0; b < sys.nb; ++b)
+    if ((*sys.bodies)[b].free) blocks[b] = sys.body_A(b);
+  return solid::stack_blocks(blocks, sys.dof0) + sys.Ac;
+}
+
+/// Each free body's A factorized once: x = A⁻¹ rhs (block diagonal); with contact between
+/// the bodies (sys.Ac), their stacked matrix factorized as one.
 class BodySolve {
  public:
   explicit BodySolve(const CoupledSystem& sys) : m_sys(sys), m_fac(sys.nb) {
     const std::vector<CoupledBody>& bodies = *sys.bodies;
+    if (sys.Ac.nonZeros() > 0) {
+      m_all = factor_symmetric(stacked_A(sys));
+      return;
+    }
     for (Index b = 0; b < sys.nb; ++b)
       if (bodies[b].free) m_fac[b] = factor_symmetric(sys.body_A(b));
   }
   void operator()(const VecX& rhs, VecX& x) const {
     x.resize(m_sys.ns);
+    if (m_all) {
+      x.setZero();
+      m_all->solve(rhs, x);
+      return;
+    }
     for (Index b = 0; b < m_sys.nb; ++b) {
       if (!m_fac[b]) continue;
       const Index n = m_sys.dof0[b + 1] - m_sys.dof0[b];
@@ -82,6 +103,7 @@ class BodySolve {
  private:
   const CoupledSystem& m_sys;
   std::vector<std::unique_ptr<LinearSolver>> m_fac;
+  std::unique_ptr<LinearSolver> m_all;
 };
 
 /// The AMG V-cycle on P = C + Jᵀ diag(A)⁻¹ J, or the cache's (the caller vouches that P is
@@ -99,6 +121,7 @@ AmgPreconditioner* amg_for(const CoupledSystem& sys, const CoupledOptions& opt,
     if (bodies[b].free)
       dinv.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) =
           sys.body_A(b).diagonal().cwiseInverse();
+  if (sys.Ac.nonZeros() > 0) dinv = stacked_A(sys).diagonal().cwiseInverse();
   // (the grid's paper form: P from the second row's operator on both sides, symmetric)
   const SparseMatrix Pm =
       sys.symmetric ? SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() * sys.J))

@@ -66,6 +66,7 @@
 #include "fluid/operators.hpp"
 #include "fluid/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
+#include "solid/contact.hpp"
 
 namespace tetfsi::coupling {
 
@@ -126,6 +127,10 @@ struct CoupledOptions {
   /// schur_amg: if set, the AMG setup of the first solve is kept here and reused by later
   /// solves with this cache (see SolveCache: only for the same P).
   SolveCache* reuse = nullptr;
+  /// Contact between the bodies (solid/contact.hpp): its matrix joins the solid block (the
+  /// bodies it couples are then factorised together) and its right-hand side the bodies'.
+  /// Over the stacked free DOFs; null or empty: none.
+  const solid::ContactSystem* contact = nullptr;
 };
 
 /// Enclosed regions' targets, keyed by the region's first (body, triangle) pair, kept by
@@ -262,6 +267,9 @@ struct CoupledSystem {
   const SparseMatrix& body_A(Index b) const {
     return static_cast<Index>(A.size()) > b && A[b].size() ? A[b] : (*bodies)[b].A;
   }
+  /// ns × ns: contact between the bodies (CoupledOptions::contact), added to the blocks;
+  /// empty (no nonzeros): none
+  SparseMatrix Ac;
   std::vector<VecX> R2;          ///< second block row right-hand sides (1 + #enclosed)
   std::vector<Index> enclosed;   ///< region ids of the enclosed regions
   std::vector<Cavity> cavities;  ///< per enclosed region
@@ -279,6 +287,9 @@ void remove_pinned_flux(const CoupledSystem& sys, VecX& r, CoupledReport& rep);
 /// sys.bs from the free bodies' b plus `hydro`; sys.R2 from the step's row r and one unit net
 /// flux column per enclosed region (sys.enclosed must be set).
 void stack_right_hand_sides(CoupledSystem& sys, VecX r, const VecX& hydro);
+/// sys.Ac and the contact's right-hand side into sys.bs from opt.contact (if any).
+/// @throws InputError if its size is not the free DOFs'.
+void add_contact(CoupledSystem& sys, const CoupledOptions& opt);
 
 /// Solutions per right-hand side: u (ns), p = Z Pa + P (Z the Schur solver's coarse space of
 /// body-held region constants; Pa empty otherwise).

@@ -269,6 +269,7 @@ CoupledSystem assemble_grid_coupled(const GridCoupledInput& in, const CoupledOpt
   VecX r = second_row(in, d, sys, r_prescribed, rep);
   find_enclosed(in, opt, sys);
   stack_right_hand_sides(sys, std::move(r), hydro);
+  add_contact(sys, opt);
   rep.assembly_s = now_seconds() - t0;
   return sys;
 }

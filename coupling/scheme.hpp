@@ -89,7 +89,9 @@ struct CoupledStepReport {
   /// or of the coupled system (simultaneous) in the step; 1 if the set held at once.
   int contact_rounds = 0;
   bool contacts_settled = true;  ///< the active set settled within its max_rounds
-  bool predicted_mesh = true;    ///< the mesh was built around x* (else around xⁿ)
+  /// Contact between bodies (solid::SolidWorld::contact enabled): the step's set and figures.
+  std::optional<solid::ContactReport> body_contact;
+  bool predicted_mesh = true;  ///< the mesh was built around x* (else around xⁿ)
   double solid_kinetic_energy = 0.0, elastic_energy = 0.0;  ///< after the step (J)
   /// Σ_b f_fluid,b · (dⁿ⁺¹ − dⁿ): the work of the fluid's forces of the solution on the free
   /// bodies over the step (J; the divergence check's budget, tools/divergence.hpp)

@@ -2,8 +2,11 @@
 /// The simultaneous scheme [Chentanez06, §3.3] (scheme.hpp): Eq. (4) per body at dⁿ, the mesh
 /// around x*, one coupled solve of Eq. (7) per round of the floors' active set, Eq. (8), Eq. (5),
 /// collisions.
+#include <optional>
 #include "core/error.hpp"
 #include "coupling/scheme.hpp"
+
+#include "solid/contact.hpp"
 #include "solid/floor_contact.hpp"
 #include "solid/integrator.hpp"
 #include "solid/obstacles.hpp"
@@ -11,6 +14,24 @@
 namespace tetfsi::coupling {
 
 namespace {
+
+/// The free bodies' DOFs stacked in body order (as the coupled solve stacks them), their
+/// fixed and prescribed velocities; the others' known uⁿ⁺¹.
+std::vector<solid::BodyDofs> stacked_dofs(const solid::SolidWorld& world,
+                                          const std::vector<CoupledBody>& cb,
+                                          const std::vector<VecX>& known) {
+  std::vector<solid::BodyDofs> dofs(cb.size());
+  Index at = 0;
+  for (size_t b = 0; b < cb.size(); ++b) {
+    if (!cb[b].free) {
+      dofs[b] = {-1, nullptr, &known[b]};
+      continue;
+    }
+    dofs[b] = {at, &cb[b].fixed, &cb[b].prescribed};
+    at += world.bodies[b].num_dofs();
+  }
+  return dofs;
+}
 
 class SimultaneousScheme final : public CouplingScheme {
  public:
@@ -24,6 +45,11 @@ class SimultaneousScheme final : public CouplingScheme {
     std::vector<CoupledBody> cb(nb);
     std::vector<solid::TrapezoidalSystem> sys(nb);
     std::vector<std::unique_ptr<solid::FloorContacts>> contacts(nb);
+    std::optional<solid::BodyContacts> touching;  // contact between the bodies (xⁿ, uⁿ)
+    if (world.contact.enabled) {
+      ScopedTimer timer(ctx.phases, "contact");
+      touching.emplace(world.bodies, world.contact, world.gravity, ctx.h);
+    }
     {  // 1. each deformable body's Eq. (4) at dⁿ; kinematic bodies to tⁿ⁺¹
       ScopedTimer timer(ctx.phases, "coupled_assembly");
       for (Index b = 0; b < nb; ++b) {
@@ -41,6 +67,13 @@ class SimultaneousScheme final : public CouplingScheme {
         cb[b].u = flat(body.velocity);
       }
     }
+    // the kinematic bodies' uⁿ⁺¹ (the free bodies' entries are the rounds' solutions)
+    std::vector<VecX> known(nb);
+    Index ns = 0;
+    for (Index b = 0; b < nb; ++b) {
+      known[b] = flat(world.bodies[b].velocity);
+      if (cb[b].free) ns += world.bodies[b].num_dofs();
+    }
     // 2. the mesh around x* = X + dⁿ + h uⁿ (or xⁿ), 3. transfer, forces: v*
     pred = predict_around_predicted(ctx, rep);
     // 4. the coupled solve, see [Chentanez06, Eq. (7)], once per round of the floors' active
@@ -53,15 +86,27 @@ class SimultaneousScheme final : public CouplingScheme {
     SolveCache rounds_amg;
     opt.reuse = &rounds_amg;
     CoupledSolution sol;
+    solid::ContactSystem between;  // the contacts' part of the solid block
     for (bool again = true; again;) {
       for (Index b = 0; b < nb; ++b)
         if (cb[b].free)
           contacts[b]->constrain(sys[b], cb[b].A, cb[b].b, cb[b].fixed, cb[b].prescribed);
+      if (touching) {
+        ScopedTimer timer(ctx.phases, "contact");
+        between = touching->system(stacked_dofs(world, cb, known), ns);
+        opt.contact = &between;
+      }
       sol = pred->solve(cb, opt, variant);
       add_solve_phases(ctx.phases, sol.report);
       again = false;
       for (Index b = 0; b < nb; ++b)
         if (cb[b].free && contacts[b]->update(sol.u[b], &sol.fluid_force[b])) again = true;
+      if (touching) {
+        ScopedTimer timer(ctx.phases, "contact");
+        for (Index b = 0; b < nb; ++b)
+          if (cb[b].free) known[b] = sol.u[b];
+        if (touching->update(known)) again = true;
+      }
     }
     // 5. Eq. (5), landing, the other obstacles
     ScopedTimer timer(ctx.phases, "update");
@@ -73,6 +118,12 @@ class SimultaneousScheme final : public CouplingScheme {
       rep.contact_rounds = std::max(rep.contact_rounds, contacts[b]->report().rounds);
       rep.contacts_settled = rep.contacts_settled && contacts[b]->report().converged;
       check_finite(body, ctx.h);
+    }
+    if (touching) {
+      ScopedTimer contact_timer(ctx.phases, "contact");
+      touching->land(world.bodies);
+      touching->measure(world.bodies);
+      rep.body_contact = touching->report();
     }
     return sol;
   }

@@ -1,6 +1,8 @@
 #include "solid/world.hpp"
 
 #include <algorithm>
+#include <memory>
+#include <optional>
 
 #include "core/error.hpp"
 #include "core/log.hpp"
@@ -30,12 +32,47 @@ void SolidWorld::set_kinematic_states() {
   }
 }
 
+void SolidWorld::solve_linear(const SparseMatrix& A, const VecX& b, VecX& x,
+                              const std::string& what, SolidStepReport& report) {
+  auto solver = make_linear_solver(linear_solver, solver_options);
+  try {
+    solver->setup(A);
+  } catch (const SolverError& e) {
+    // A = M/h + C + (h/2)K' is SPD unless K' is strongly indefinite (large compression);
+    // LU still solves it.
+    if (linear_solver != SolverKind::Cholmod) throw;
+    if (!m_warned_fallback) {
+      logger().warn(
+          "{}: cholmod failed ({}): A is not positive definite; falling back to umfpack "
+          "(warned once)",
+          what, e.what());
+      m_warned_fallback = true;
+    }
+    solver = make_linear_solver(SolverKind::Umfpack, solver_options);
+    solver->setup(A);
+  }
+  const SolveReport rep = solver->solve(b, x);
+  report.converged = report.converged && rep.converged;
+  report.iterations += rep.iterations;
+  report.residual = std::max(report.residual, rep.residual);
+  if (!rep.converged)
+    logger().warn("{}: linear solve ({}) did not converge: relative residual {:.3g}", what,
+                  rep.backend, rep.residual);
+}
+
 SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
-  SolidStepReport report;
-  const double t_new = time + h;
   for (const SolidBody& body : bodies) {
     if (body.is_kinematic()) check_kinematic(body);
   }
+  if (contact.enabled) {
+    TETFSI_REQUIRE(InputError, integrator == Integrator::Linearized,
+                   "contact between bodies needs solid.integrator \"linearized\" (got \"{}\"): "
+                   "remove the contact section or change the integrator",
+                   to_string(integrator));
+    return step_together(h, times);
+  }
+  SolidStepReport report;
+  const double t_new = time + h;
   if (m_history.size() != bodies.size()) m_history.resize(bodies.size());
   for (size_t bi = 0; bi < bodies.size(); ++bi) {
     SolidBody& body = bodies[bi];
@@ -44,7 +81,6 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
       body.set_kinematic_state(t_new);  // exact: evaluated at t, not integrated
       continue;
     }
-    SolveReport rep;  // the linearized integrator's linear solve
     if (integrator != Integrator::Linearized) {
       // iterated to equilibrium, the body advanced: see [BatheSonnad80, Eqs. (1)–(13)]
       EquilibriumOptions opt = equilibrium;
@@ -60,7 +96,6 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
                      body.name(), to_string(integrator), er.failure, time, h);
       report.equilibrium_iterations = std::max(report.equilibrium_iterations, er.iterations);
       report.equilibrium_evaluations += er.evaluations;
-      rep.converged = true;
     } else {
       TrapezoidalSystem sys;
       {
@@ -72,27 +107,7 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
       // one solve per round of the floor contacts' active set (floor_contact.hpp)
       const BodySolve solve = [&](const SparseMatrix& A, const VecX& b, VecX& x) {
         ScopedTimer timer(times, "solve");
-        auto solver = make_linear_solver(linear_solver, solver_options);
-        try {
-          solver->setup(A);
-        } catch (const SolverError& e) {
-          // A = M/h + C + (h/2)K' is SPD unless K' is strongly indefinite (large compression);
-          // LU still solves it.
-          if (linear_solver != SolverKind::Cholmod) throw;
-          if (!m_warned_fallback) {
-            logger().warn(
-                "body '{}': cholmod failed ({}): A is not positive definite; falling "
-                "back to umfpack (warned once)",
-                body.name(), e.what());
-            m_warned_fallback = true;
-          }
-          solver = make_linear_solver(SolverKind::Umfpack, solver_options);
-          solver->setup(A);
-        }
-        rep = solver->solve(b, x);
-        report.converged = report.converged && rep.converged;
-        report.iterations += rep.iterations;
-        report.residual = std::max(report.residual, rep.residual);
+        solve_linear(A, b, x, fmt::format("body '{}'", body.name()), report);
       };
       // Eq. (5) [Chentanez06] and the obstacles
       report.contacts +=
@@ -106,11 +121,96 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
                    "body '{}': state became non-finite at step with h = {}; reduce time.dt or "
                    "raise rayleigh damping",
                    body.name(), h);
-    if (!rep.converged)
-      logger().warn("body '{}': linear solve ({}) did not converge: relative residual {:.3g}",
-                    body.name(), rep.backend, rep.residual);
   }
   time = t_new;
+  return report;
+}
+
+SolidStepReport SolidWorld::step_together(double h, PhaseTimes& times) {
+  SolidStepReport report;
+  const Index nb = static_cast<Index>(bodies.size());
+  std::optional<BodyContacts> contacts;
+  {
+    ScopedTimer timer(times, "contact");  // before kinematic bodies move: xⁿ, uⁿ
+    contacts.emplace(bodies, contact, gravity, h);
+  }
+  std::vector<TrapezoidalSystem> sys(nb);
+  std::vector<std::unique_ptr<FloorContacts>> floors(nb);
+  std::vector<Index> dof0(nb + 1, 0);
+  for (Index b = 0; b < nb; ++b) {
+    SolidBody& body = bodies[b];
+    dof0[b + 1] = dof0[b];
+    if (body.is_kinematic()) {
+      ScopedTimer timer(times, "update");
+      body.set_kinematic_state(time + h);
+      continue;
+    }
+    ScopedTimer timer(times, "assemble");
+    // A u = b, see [Chentanez06, Eq. (4)], with f_p = 0 (no fluid here).
+    sys[b] = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
+    floors[b] = std::make_unique<FloorContacts>(body, obstacles, gravity, h);
+    dof0[b + 1] += body.num_dofs();
+  }
+  const Index ns = dof0[nb];
+  std::vector<SparseMatrix> A(nb);
+  std::vector<VecX> rhs(nb), prescribed(nb), u(nb);
+  std::vector<std::vector<std::uint8_t>> fixed(nb);
+  std::vector<BodyDofs> dofs(nb);
+  VecX x(ns);
+  for (Index b = 0; b < nb; ++b) {
+    u[b] = flat(bodies[b].velocity);  // kinematic: uⁿ⁺¹; the others: the guess
+    if (floors[b]) x.segment(dof0[b], u[b].size()) = u[b];
+  }
+  for (bool again = true; again;) {
+    for (Index b = 0; b < nb; ++b)
+      if (floors[b]) {
+        floors[b]->constrain(sys[b], A[b], rhs[b], fixed[b], prescribed[b]);
+        dofs[b] = {dof0[b], &fixed[b], &prescribed[b]};
+      } else {
+        dofs[b] = {-1, nullptr, &u[b]};
+      }
+    ContactSystem cs;
+    {
+      ScopedTimer timer(times, "contact");
+      cs = contacts->system(dofs, ns);
+    }
+    {
+      ScopedTimer timer(times, "solve");
+      SparseMatrix K = stack_blocks(A, dof0) + cs.A;
+      VecX r = cs.b;
+      for (Index b = 0; b < nb; ++b)
+        if (floors[b]) r.segment(dof0[b], rhs[b].size()) += rhs[b];
+      solve_linear(K, r, x, "the bodies in contact", report);
+    }
+    again = false;
+    for (Index b = 0; b < nb; ++b)
+      if (floors[b]) {
+        u[b] = x.segment(dof0[b], bodies[b].num_dofs());
+        if (floors[b]->update(u[b], nullptr)) again = true;
+      }
+    ScopedTimer timer(times, "contact");
+    if (contacts->update(u)) again = true;
+  }
+  {
+    ScopedTimer timer(times, "update");
+    for (Index b = 0; b < nb; ++b) {
+      if (!floors[b]) continue;
+      advance_trapezoidal(bodies[b], u[b], h);  // [Chentanez06, Eq. (5)]
+      report.contacts += floors[b]->land(bodies[b]);
+    }
+    contacts->land(bodies);
+  }
+  {
+    ScopedTimer timer(times, "contact");
+    contacts->measure(bodies);
+  }
+  for (const SolidBody& body : bodies)
+    TETFSI_REQUIRE(SolverError, body.displacement.allFinite() && body.velocity.allFinite(),
+                   "body '{}': state became non-finite at step with h = {}; reduce time.dt or "
+                   "raise rayleigh damping",
+                   body.name(), h);
+  report.body_contact = contacts->report();  // (optional)
+  time += h;
   return report;
 }
 

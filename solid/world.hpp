@@ -4,6 +4,7 @@
 /// linearised trapezoidal rule; kinematic bodies (SolidBody::kinematic) follow their
 /// prescribed motion instead. (The coupled driver in coupling/ replaces it once the fluid
 /// exists; it keeps the same per-body systems.)
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,7 @@
 #include "core/equilibrium.hpp"
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
+#include "solid/contact.hpp"
 #include "solid/integrator.hpp"
 #include "solid/nonlinear_trapezoid.hpp"
 #include "solid/obstacles.hpp"
@@ -27,6 +29,8 @@ struct SolidStepReport {
   /// count) and the residual evaluations summed over bodies.
   int equilibrium_iterations = 0;
   int equilibrium_evaluations = 0;
+  /// Contact between bodies (SolidWorld::contact enabled): the step's set and figures.
+  std::optional<ContactReport> body_contact;
 };
 
 class SolidWorld {
@@ -42,6 +46,9 @@ class SolidWorld {
   /// `equilibrium`'s tolerances (its `method` is taken from the integrator).
   Integrator integrator = Integrator::Linearized;
   EquilibriumOptions equilibrium;
+  /// Contact between bodies and self-contact (contact.hpp); with it, the deformable bodies are
+  /// solved together in one system (linearised integrator only).
+  ContactParams contact;
   /// Simulated time (s): advanced by h at the end of every successful `step`. Kinematic
   /// bodies are evaluated at it (set_kinematic_states).
   double time = 0.0;
@@ -72,6 +79,11 @@ class SolidWorld {
   void load_state(const CheckpointReader& r, const std::string& prefix);
 
  private:
+  /// The linearised step of every body together with the contacts between them.
+  SolidStepReport step_together(double h, PhaseTimes& times);
+  /// A x = b by linear_solver (CHOLMOD falling back to UMFPACK), into `report`.
+  void solve_linear(const SparseMatrix& A, const VecX& b, VecX& x, const std::string& what,
+                    SolidStepReport& report);
   bool m_warned_fallback = false;             ///< the CHOLMOD → UMFPACK fallback was logged once
   std::vector<EquilibriumHistory> m_history;  ///< per body, nonlinear integrators
 };

@@ -713,10 +713,20 @@ std::vector<std::string> StatsWriter::body_columns(const std::vector<std::string
 }
 
 std::vector<std::string> StatsWriter::columns(bool fluid, bool coupled,
-                                              const std::vector<std::string>& bodies) {
+                                              const std::vector<std::string>& bodies,
+                                              bool contact) {
   std::vector<std::string> v = make_columns(fluid, fluid && coupled);
   for (std::string& c : body_columns(bodies)) v.push_back(std::move(c));
+  if (contact)
+    for (const std::string& c : contact_columns()) v.push_back(c);
   return v;
+}
+
+const std::vector<std::string>& StatsWriter::contact_columns() {
+  static const std::vector<std::string> c = {"contact_pairs",  "contact_min_gap",
+                                             "contact_force",  "contact_crossings",
+                                             "contact_solves", "contact_s"};
+  return c;
 }
 
 namespace {
@@ -750,10 +760,15 @@ void truncate_stats(const fs::path& path, const std::string& header, int last) {
 }  // namespace
 
 StatsWriter::StatsWriter(const fs::path& path, bool fluid, bool coupled,
-                         std::optional<int> continue_after, std::vector<std::string> bodies)
-    : m_path(path), m_fluid(fluid), m_coupled(fluid && coupled), m_bodies(std::move(bodies)) {
+                         std::optional<int> continue_after, std::vector<std::string> bodies,
+                         bool contact)
+    : m_path(path),
+      m_fluid(fluid),
+      m_coupled(fluid && coupled),
+      m_bodies(std::move(bodies)),
+      m_contact(contact) {
   std::string header;
-  for (const auto& c : columns(m_fluid, m_coupled, m_bodies)) {
+  for (const auto& c : columns(m_fluid, m_coupled, m_bodies, m_contact)) {
     if (!header.empty()) header += ',';
     header += c;
   }
@@ -818,6 +833,14 @@ void StatsWriter::write(const StepStats& r) {
                  r.bodies.size(), m_bodies.size());
     for (const solid::BodyPose& p : r.bodies)
       line += fmt::format(",{:.17g},{:.17g},{:.17g}", p.lowest, p.centroid_height, p.rotation_deg);
+  }
+  if (m_contact) {
+    if (r.contact)
+      line += fmt::format(",{},{:.17g},{:.17g},{},{},{:.6g}", r.contact->pairs, r.contact->min_gap,
+                          r.contact->force, r.contact->crossings, r.contact->rounds,
+                          r.contact->seconds);
+    else
+      for (size_t k = 0; k < contact_columns().size(); ++k) line += ",nan";
   }
   line += '\n';
   if (std::fputs(line.c_str(), m_file) < 0 || std::fflush(m_file) != 0)
@@ -895,7 +918,7 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
       m_out(prepare_out_dir(out_dir, resume_step.has_value())),
       m_compression(parse_compression(scene.output.compression)),
       m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
-              stats_body_names(world)) {
+              stats_body_names(world), world.contact.enabled) {
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");

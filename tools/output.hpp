@@ -278,6 +278,16 @@ struct CoupledStepStats {
   int contact_rounds = 0;
 };
 
+/// Contact between bodies (the scene's `contact`): a stats.csv row's last columns.
+struct ContactStepStats {
+  Index pairs = 0;       ///< contact_pairs: constraints in the set after the step
+  double min_gap = NAN;  ///< contact_min_gap: smallest surface distance (m, capped at 4 d̂)
+  double force = 0.0;    ///< contact_force: Σ of the pairs' normal forces (N)
+  Index crossings = 0;   ///< contact_crossings: pairs found crossed by the continuous check
+  int rounds = 0;        ///< contact_solves: solves of the step with the contacts in them
+  double seconds = 0.0;  ///< contact_s: detection and assembly (s)
+};
+
 /// One row of stats.csv.
 struct StepStats {
   int step = 0;       ///< step number, 1-based (0 would be the initial state)
@@ -304,6 +314,8 @@ struct StepStats {
   /// Per body, in body order: its pose after the step (solid::body_pose with
   /// solid::up_direction(world.gravity)); empty writes "nan" in every body column.
   std::vector<solid::BodyPose> bodies;
+  /// Scenes with contact between bodies: their figures (contact_columns), after the bodies'.
+  std::optional<ContactStepStats> contact;
   /// kinetic + elastic + gravity potential (J); the work of applied loads is not included.
   double total_energy() const { return kinetic_energy + elastic_energy + gravity_potential; }
 };
@@ -323,7 +335,7 @@ class StatsWriter {
   ///   is missing, its header is not this run's, or its rows do not run 1..continue_after.
   explicit StatsWriter(const std::filesystem::path& path, bool fluid = false, bool coupled = false,
                        std::optional<int> continue_after = std::nullopt,
-                       std::vector<std::string> bodies = {});
+                       std::vector<std::string> bodies = {}, bool contact = false);
   ~StatsWriter();
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
@@ -340,10 +352,15 @@ class StatsWriter {
   /// inflow_flux, outflow_flux, solid_flux, max_speed, cfl, traces_clamped; with `coupled`
   /// then coupled_iterations, coupled_residual, interface_power, total_energy_coupled,
   /// enclosed_volume, enclosed_volume_drift (CoupledStepStats); then the body_columns of
-  /// `bodies`. The columns before the bodies' depend on `fluid` and `coupled` only, so a
-  /// column's position does not depend on the bodies.
+  /// `bodies`; with `contact` (contact between bodies) then contact_columns. The columns
+  /// before the bodies' depend on `fluid` and `coupled` only, so a column's position does not
+  /// depend on the bodies.
   static std::vector<std::string> columns(bool fluid = false, bool coupled = false,
-                                          const std::vector<std::string>& bodies = {});
+                                          const std::vector<std::string>& bodies = {},
+                                          bool contact = false);
+  /// contact_pairs, contact_min_gap, contact_force, contact_crossings, contact_solves,
+  /// contact_s (ContactStepStats).
+  static const std::vector<std::string>& contact_columns();
   /// Per body name b (stats_body_names), in order: b_lowest (m: min over the nodes of x · up),
   /// b_centroid_height (m: the lumped-mass centroid · up) and b_rotation_deg (degrees, 0..180:
   /// the angle of the rotation of the polar decomposition of Σ m (x − c)(X − C)ᵀ); up =
@@ -367,6 +384,7 @@ class StatsWriter {
   bool m_fluid = false;
   bool m_coupled = false;
   std::vector<std::string> m_bodies;  ///< the bodies' column names
+  bool m_contact = false;
 };
 
 /// Owns the output folder of one run: writes scene.resolved.json, the frames and their

@@ -268,6 +268,16 @@ void visit_equilibrium(S& e, F&& f) {
 }
 
 template <class S, class F>
+void visit_contact(S& c, F&& f) {  // ContactSummary
+  f("min_gap", c.min_gap);
+  f("max_pairs", c.max_pairs);
+  f("max_force", c.max_force);
+  f("steps_in_contact", c.steps_in_contact);
+  f("crossings", c.crossings);
+  f("seconds", c.seconds);
+}
+
+template <class S, class F>
 void visit_result(S& r, F&& f) {  // the counters of RunResult a resumed run goes on from
   f("steps_done", r.steps_done);
   f("end_time", r.end_time);
@@ -316,6 +326,8 @@ fs::path write_checkpoint(const Scene& scene, const coupling::FsiSimulation& sim
   w.put("run/wall_s", ses.wall_before + (now_seconds() - ses.start));
   visit_result(r, RecordSaver{w, "run/result/"});
   save_pose_ranges(r, w);
+  w.put("run/has_contact", r.contact.has_value());
+  if (r.contact) visit_contact(*r.contact, RecordSaver{w, "run/contact/"});
   w.put("run/has_equilibrium", r.equilibrium.has_value());
   if (r.equilibrium) visit_equilibrium(*r.equilibrium, RecordSaver{w, "run/equilibrium/"});
   w.put("run/has_recorder", rec != nullptr);
@@ -361,6 +373,20 @@ std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions
 int record_report(const coupling::FsiStepReport& rep, RunRecorder* fluid, StepStats& row,
                   RunResult& r) {
   int fluid_solves = 0;
+  const std::optional<solid::ContactReport>& bc =
+      rep.coupled ? rep.coupled->body_contact : rep.solid->body_contact;
+  row.contact.reset();
+  if (bc) {
+    ContactStepStats c;
+    c.pairs = bc->active;
+    c.min_gap = bc->min_gap;
+    c.force = bc->force;
+    c.crossings = bc->crossings;
+    c.rounds = bc->rounds;
+    c.seconds = row.phases.get("contact");
+    row.contact = c;
+    if (r.contact) r.contact->add(c);
+  }
   if (rep.coupled) {
     // two-way: the bodies and the fluid advance together (coupling/scheme.hpp)
     const coupling::CoupledStepReport& c = *rep.coupled;
@@ -634,6 +660,10 @@ coupling::FsiSimulation build_simulation(const Scene& scene, RunResult& r,
   r.build_s += now_seconds() - t;
   logger().info("scene '{}': {} bod{} built in {:.3g} s", scene.name, world0.bodies.size(),
                 world0.bodies.size() == 1 ? "y" : "ies", now_seconds() - t);
+  if (world0.contact.enabled) {
+    r.contact.emplace();
+    r.contact->gap = world0.contact.gap;
+  }
   coupling::FsiSimulation sim = make_simulation(scene, std::move(world0));
   if (sim.has_fluid()) fluid.emplace(sim);
   return sim;
@@ -786,6 +816,9 @@ RunResult resume_run(const ResumeOptions& ro) {
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
   const solid::SolidWorld& world = sim.world();
   load_pose_ranges(*ck, world.bodies.size(), r);
+  if (ck->get_bool("run/has_contact") != r.contact.has_value())
+    ck->fail("run/has_contact: the run's scene and the checkpoint's differ in contact");
+  if (r.contact) visit_contact(*r.contact, RecordLoader{*ck, "run/contact/"});
   sim.load_state(*ck);  // instead of start(): the state after `step`
   if (fluid) {
     if (!ck->get_bool("run/has_recorder")) ck->fail("run/has_recorder: the run had no fluid");
@@ -852,6 +885,16 @@ std::string summary_json(const RunResult& r) {
                       {"min_lowest", b.pose.min_lowest},
                       {"max_rotation_deg", b.pose.max_rotation_deg}});
   j["bodies"] = bodies;
+  if (r.contact) {
+    const ContactSummary& c = *r.contact;
+    j["contact"] = {{"gap", c.gap},
+                    {"min_gap", c.min_gap},
+                    {"steps_in_contact", c.steps_in_contact},
+                    {"max_pairs", c.max_pairs},
+                    {"max_force", c.max_force},
+                    {"crossings", c.crossings},
+                    {"seconds", c.seconds}};
+  }
   if (r.fluid) {
     const FluidSummary& f = *r.fluid;
     j["fluid"] = {{"remeshes", f.remeshes},
@@ -927,6 +970,14 @@ void print_summary(const RunResult& r, std::ostream& out) {
                      r.kinetic_energy + r.elastic_energy + r.gravity_potential);
   for (const auto& b : r.bodies)
     out << fmt::format("body '{}': max |d| = {:.6g} m\n", b.name, b.max_displacement);
+  if (r.contact) {
+    const ContactSummary& c = *r.contact;
+    out << fmt::format(
+        "contact: gap {:.3g} m; smallest gap {:.3g} m ({:.3g} of the gap); {} steps in contact, "
+        "at most {} pairs, largest total force {:.3g} N, {} crossings caught; {:.3g} s\n",
+        c.gap, c.min_gap, c.min_gap / c.gap, c.steps_in_contact, c.max_pairs, c.max_force,
+        c.crossings, c.seconds);
+  }
   if (r.fluid && r.fluid->remeshes > 0) {
     const FluidSummary& f = *r.fluid;
     out << fmt::format(

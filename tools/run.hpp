@@ -2,6 +2,7 @@
 /// @file run.hpp
 /// The run loop behind `tetfsi run`: build the world of a scene, step it, write frames,
 /// stats and a summary (layout in tools/output.hpp), report progress.
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include "coupling/simulation.hpp"
 #include "solid/pose.hpp"
 #include "solid/world.hpp"
+#include "tools/output.hpp"
 #include "tools/run_stats.hpp"
 #include "tools/scene.hpp"
 
@@ -77,6 +79,25 @@ struct BodyPoseRange {
   }
 };
 
+/// Contact between bodies over a run (the scene's `contact`, solid/contact.hpp).
+struct ContactSummary {
+  double gap = 0.0;          ///< d̂ (m)
+  double min_gap = NAN;      ///< the smallest contact_min_gap of the rows (m)
+  Index max_pairs = 0;       ///< the most pairs in one step
+  double max_force = 0.0;    ///< the largest contact_force (N)
+  int steps_in_contact = 0;  ///< steps with at least one pair
+  Index crossings = 0;       ///< pairs found crossed, summed
+  double seconds = 0.0;      ///< contact_s summed
+  void add(const ContactStepStats& c) {
+    min_gap = std::fmin(min_gap, c.min_gap);
+    max_pairs = std::max(max_pairs, c.pairs);
+    max_force = std::max(max_force, c.force);
+    steps_in_contact += c.pairs > 0 ? 1 : 0;
+    crossings += c.crossings;
+    seconds += c.seconds;
+  }
+};
+
 /// Final state of one body.
 struct BodySummary {
   std::string name;
@@ -133,6 +154,7 @@ struct RunResult {
   /// since step 1, through the checkpoint).
   std::vector<BodyPoseRange> pose_ranges;
   std::optional<FluidSummary> fluid;              ///< set for a scene with a fluid
+  std::optional<ContactSummary> contact;          ///< set for a scene with contact
   std::optional<CouplingSummary> coupling;        ///< set for a two-way coupled run
   std::optional<EquilibriumSummary> equilibrium;  ///< set if the run iterates to equilibrium
 

@@ -796,6 +796,7 @@ json resolve(const Scene& s) {
   }
   if (s.fluid) j["fluid"] = fluid_json(*s.fluid);
   if (s.coupling) j["coupling"] = coupling_keys().write(*s.coupling);
+  if (s.contact) j["contact"] = contact_keys().write(*s.contact);
   return j;
 }
 
@@ -827,6 +828,10 @@ Scene parse_scene(const json& j, const fs::path& file) {
   if (Parser::has(root, "solver")) p.read(Parser::child(root, "solver"), solver_keys(), s.solver);
   if (Parser::has(root, "solid")) s.solid = p.solid(Parser::child(root, "solid"));
   if (Parser::has(root, "static")) p.read(Parser::child(root, "static"), static_keys(), s.statics);
+  if (Parser::has(root, "contact")) {
+    s.contact.emplace();
+    p.read(Parser::child(root, "contact"), contact_keys(), *s.contact);
+  }
 
   // A fluid-only scene (smoke in a box) needs no body; otherwise there is nothing to simulate.
   const bool has_fluid = Parser::has(root, "fluid");
@@ -874,8 +879,22 @@ Scene parse_scene(const json& j, const fs::path& file) {
     const auto given = [&](const char* key) {
       return given_solid && Parser::has(Parser::child(root, "solid"), key);
     };
-    if (!given("integrator") && !given("trapezoid") && !s.two_way() && s.mode == Mode::Dynamic)
+    if (!given("integrator") && !given("trapezoid") && !s.contact && !s.two_way() &&
+        s.mode == Mode::Dynamic)
       s.solid.integrator = solid::Integrator::Newton;
+  }
+
+  // Contact between bodies acts inside the linearised step's solve (solid/contact.hpp).
+  if (s.contact && s.mode == Mode::Dynamic) {
+    if (s.two_way() && s.coupling->params.scheme != coupling::Scheme::Simultaneous &&
+        s.coupling->params.scheme != coupling::Scheme::Splitting)
+      p.fail("contact", fmt::format("contact between bodies works with coupling.scheme "
+                                    "'simultaneous' or 'splitting', not '{}'",
+                                    s.coupling->scheme_name()));
+    if (!s.two_way() && s.solid.integrator != solid::Integrator::Linearized)
+      p.fail("contact", fmt::format("contact between bodies needs solid.integrator 'linearized' "
+                                    "(the default with contact), not '{}'",
+                                    solid::to_string(s.solid.integrator)));
   }
 
   // A two-way coupled step integrates the bodies itself, as its scheme says.
@@ -1151,6 +1170,30 @@ std::vector<Index> select_nodes(const NodeSelection& sel, const MatX3& rest,
 
 }  // namespace
 
+namespace {
+
+/// The scene's contact section with its gap resolved (the default from the fluid's surface
+/// cell size, the grid's cell, or the bodies' median surface edge) and validated.
+solid::ContactParams contact_params(const Scene& scene, const std::vector<solid::SolidBody>& bodies,
+                                    const std::string& file) {
+  const ContactSpec& c = *scene.contact;
+  solid::ContactParams p;
+  p.enabled = true;
+  p.friction = c.friction;
+  p.restitution = c.restitution;
+  p.self = c.self;
+  p.stiffness = c.stiffness;
+  double size = solid::median_surface_edge(bodies);
+  if (scene.fluid)
+    size = scene.fluid->grid_spec ? scene.fluid->grid_spec->h.minCoeff()
+                                  : scene.fluid->sizing.surface_size;
+  p.gap = c.gap.value_or(solid::default_contact_gap(bodies, size));
+  solid::validate(p, bodies, file);
+  return p;
+}
+
+}  // namespace
+
 solid::SolidWorld build_world(const Scene& scene) {
   const std::string file = display_name(scene.file);
   solid::SolidWorld world;
@@ -1220,6 +1263,7 @@ solid::SolidWorld build_world(const Scene& scene) {
     if (o.kind == solid::Obstacle::Kind::Plane) o.normal.normalize();
     world.obstacles.push_back(o);
   }
+  if (scene.contact) world.contact = contact_params(scene, world.bodies, file);
   return world;
 }
 

@@ -264,6 +264,15 @@ struct SolidSpec {
   EquilibriumOptions equilibrium;
 };
 
+/// The scene key `contact`: contact between bodies and self-contact (solid/contact.hpp).
+struct ContactSpec {
+  std::optional<double> gap;  ///< d̂ (m); unset: solid::default_contact_gap
+  double friction = 0.0;
+  double restitution = 0.0;
+  bool self = true;
+  double stiffness = 1e4;
+};
+
 struct StaticSpec {
   int load_steps = 1;
   double rel_tol = 1e-9;
@@ -325,6 +334,7 @@ struct Scene {
   std::vector<solid::Obstacle> obstacles;
   std::optional<FluidSpec> fluid;        ///< set if the scene has a "fluid" section
   std::optional<CouplingSpec> coupling;  ///< set iff `fluid` is (resolved default, see above)
+  std::optional<ContactSpec> contact;    ///< set if the scene has a "contact" section
   /// True if the run couples the fluid and the bodies both ways (a dynamic fluid scene whose
   /// coupling scheme is not "none").
   bool two_way() const { return fluid && coupling && coupling->two_way && mode == Mode::Dynamic; }

@@ -336,7 +336,11 @@ const Section<Scene>& top_level_keys() {
                    .default_text = "none"}),
        sub<Scene>({.key = "coupling",
                    .type = KeyType::Object,
-                   .doc = "how the fluid and the bodies interact (fluid scenes only)"})}};
+                   .doc = "how the fluid and the bodies interact (fluid scenes only)"}),
+       sub<Scene>({.key = "contact",
+                   .type = KeyType::Object,
+                   .doc = "contact between the bodies and self-contact, keeping a gap",
+                   .default_text = "none: bodies pass through each other"})}};
   return s;
 }
 
@@ -497,6 +501,44 @@ const Section<StaticSpec>& static_keys() {
        rel_tol_row<StaticSpec>("Newton's relative residual", &StaticSpec::rel_tol),
        max_iterations_row<StaticSpec>("Newton iterations per load step",
                                       &StaticSpec::max_iterations)}};
+  return s;
+}
+
+const Section<ContactSpec>& contact_keys() {
+  using C = ContactSpec;
+  static const Section<C> s{
+      "contact",
+      "contact between the bodies and each body's self-contact (README \"Bodies that touch\"): "
+      "surfaces keep at least `gap` apart, with Coulomb friction",
+      {{{.key = "gap",
+         .type = KeyType::Number,
+         .doc = "d: the distance surfaces keep apart; below a third of the thinnest body",
+         .unit = "m",
+         .range = k_positive,
+         .default_text = "a fifth of fluid.mesh.surface_size (solid-only: of the median surface "
+                         "edge), at most a third of the thinnest body"},
+        [](const C& c) { return c.gap ? json(*c.gap) : json(); },
+        [](C& c, const json& v) { c.gap = v.get<double>(); }},
+       bind<C>({.key = "friction",
+                .type = KeyType::Number,
+                .doc = "Coulomb's coefficient between surfaces",
+                .range = k_non_negative},
+               TETFSI_AT(friction)),
+       bind<C>({.key = "restitution",
+                .type = KeyType::Number,
+                .doc = "separating speed after a contact at most this times the approach speed",
+                .range = between(0, 1)},
+               TETFSI_AT(restitution)),
+       bind<C>({.key = "self",
+                .type = KeyType::Boolean,
+                .doc = "each body's surface against itself (a sheet folding onto itself)"},
+               TETFSI_AT(self)),
+       bind<C>({.key = "stiffness",
+                .type = KeyType::Number,
+                .doc = "the penalty relative to the pair's inertia, k = stiffness m/h^2: the gap "
+                       "closes by 2/stiffness of the step's penetration",
+                .range = at_least(10)},
+               TETFSI_AT(stiffness))}};
   return s;
 }
 
@@ -1358,18 +1400,18 @@ std::string key_value_text(const json& v) {
 
 const std::vector<KeySection>& scene_key_sections() {
   static const std::vector<KeySection> sections = {
-      rows_of(top_level_keys()),   rows_of(time_keys()),           rows_of(output_keys()),
-      rows_of(solver_keys()),      rows_of(solid_keys()),          rows_of(static_keys()),
-      rows_of(body_keys()),        rows_of(mesh_keys()),           rows_of(mesh_box_keys()),
-      rows_of(mesh_sphere_keys()), rows_of(mesh_shell_keys()),     rows_of(mesh_hollow_box_keys()),
-      rows_of(mesh_tube_keys()),   rows_of(transform_keys()),      rows_of(material_keys()),
-      rows_of(pin_keys()),         rows_of(load_keys()),           rows_of(selection_box_keys()),
-      rows_of(kinematic_keys()),   rows_of(plane_obstacle_keys()), rows_of(box_obstacle_keys()),
-      rows_of(fluid_keys()),       rows_of(domain_keys()),         rows_of(patch_keys()),
-      rows_of(fluid_mesh_keys()),  rows_of(fluid_grid_keys()),     rows_of(buoyancy_keys()),
-      rows_of(decay_keys()),       rows_of(transfer_keys()),       rows_of(fluid_solver_keys()),
-      rows_of(source_keys()),      rows_of(source_box_keys()),     rows_of(refine_keys()),
-      rows_of(coupling_keys())};
+      rows_of(top_level_keys()),       rows_of(time_keys()),        rows_of(output_keys()),
+      rows_of(solver_keys()),          rows_of(solid_keys()),       rows_of(static_keys()),
+      rows_of(contact_keys()),         rows_of(body_keys()),        rows_of(mesh_keys()),
+      rows_of(mesh_box_keys()),        rows_of(mesh_sphere_keys()), rows_of(mesh_shell_keys()),
+      rows_of(mesh_hollow_box_keys()), rows_of(mesh_tube_keys()),   rows_of(transform_keys()),
+      rows_of(material_keys()),        rows_of(pin_keys()),         rows_of(load_keys()),
+      rows_of(selection_box_keys()),   rows_of(kinematic_keys()),   rows_of(plane_obstacle_keys()),
+      rows_of(box_obstacle_keys()),    rows_of(fluid_keys()),       rows_of(domain_keys()),
+      rows_of(patch_keys()),           rows_of(fluid_mesh_keys()),  rows_of(fluid_grid_keys()),
+      rows_of(buoyancy_keys()),        rows_of(decay_keys()),       rows_of(transfer_keys()),
+      rows_of(fluid_solver_keys()),    rows_of(source_keys()),      rows_of(source_box_keys()),
+      rows_of(refine_keys()),          rows_of(coupling_keys())};
   return sections;
 }
 

@@ -157,6 +157,7 @@ const Section<OutputSpec>& output_keys();
 const Section<SolverSpec>& solver_keys();
 const Section<SolidSpec>& solid_keys();
 const Section<StaticSpec>& static_keys();
+const Section<ContactSpec>& contact_keys();
 const Section<BodySpec>& body_keys();
 const Section<MeshSpec>& mesh_keys();
 const Section<MeshSpec>& mesh_box_keys();
