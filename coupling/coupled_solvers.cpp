@@ -78,7 +78,8 @@ class BodySolve {
   explicit BodySolve(const CoupledSystem& sys) : m_sys(sys), m_fac(sys.nb) {
     const std::vector<CoupledBody>& bodies = *sys.bodies;
     if (sys.Ac.nonZeros() > 0) {
-      m_all = factor_symmetric(stacked_A(sys));
+      m_stacked = stacked_A(sys);  // kept: the factorisation refers to it
+      m_all = factor_symmetric(m_stacked);
       return;
     }
     for (Index b = 0; b < sys.nb; ++b)
@@ -103,6 +104,7 @@ class BodySolve {
  private:
   const CoupledSystem& m_sys;
   std::vector<std::unique_ptr<LinearSolver>> m_fac;
+  SparseMatrix m_stacked;
   std::unique_ptr<LinearSolver> m_all;
 };
 

@@ -45,19 +45,12 @@ class SimultaneousScheme final : public CouplingScheme {
     std::vector<CoupledBody> cb(nb);
     std::vector<solid::TrapezoidalSystem> sys(nb);
     std::vector<std::unique_ptr<solid::FloorContacts>> contacts(nb);
-    std::optional<solid::BodyContacts> touching;  // contact between the bodies (xⁿ, uⁿ)
-    if (world.contact.enabled) {
-      ScopedTimer timer(ctx.phases, "contact");
-      touching.emplace(world.bodies, world.contact, world.gravity, ctx.h);
-    }
+    std::optional<solid::BodyContacts> touching;  // contact between the bodies
     {  // 1. each deformable body's Eq. (4) at dⁿ; kinematic bodies to tⁿ⁺¹
       ScopedTimer timer(ctx.phases, "coupled_assembly");
       for (Index b = 0; b < nb; ++b) {
         solid::SolidBody& body = world.bodies[b];
-        if (body.is_kinematic()) {
-          body.set_kinematic_state(world.time + ctx.h);
-          continue;
-        }
+        if (body.is_kinematic()) continue;
         sys[b] = solid::assemble_trapezoidal(body, ctx.h, body.external_forces(world.gravity),
                                              world.trapezoid);
         contacts[b] =
@@ -66,6 +59,12 @@ class SimultaneousScheme final : public CouplingScheme {
         cb[b].x = body.positions();
         cb[b].u = flat(body.velocity);
       }
+      if (world.contact.enabled) {  // at xⁿ, uⁿ: before the kinematic bodies move
+        ScopedTimer contact_timer(ctx.phases, "contact");
+        touching.emplace(world.bodies, world.contact, world.gravity, ctx.h);
+      }
+      for (solid::SolidBody& body : world.bodies)
+        if (body.is_kinematic()) body.set_kinematic_state(world.time + ctx.h);
     }
     // the kinematic bodies' uⁿ⁺¹ (the free bodies' entries are the rounds' solutions)
     std::vector<VecX> known(nb);

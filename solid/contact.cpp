@@ -29,6 +29,9 @@ constexpr double k_eps_v = 1e-3;
 /// An edge pair whose closest point is within this fraction of an edge's end is left to the
 /// point–triangle pairs.
 constexpr double k_end_fraction = 1e-6;
+/// An edge pair is redundant with a point–triangle pair between its edges' ends whose normal
+/// is within this cosine of its own (about 25°).
+constexpr double k_same_normal = 0.0;
 /// Solves of a step in which adhesive pairs are released; later solves only add (the set is
 /// then monotone and settles; a pair added late holds at most until the step ends).
 constexpr int k_release_rounds = 3;
@@ -48,7 +51,9 @@ double thinnest(const SolidBody& b) {
   return (P.colwise().maxCoeff() - P.colwise().minCoeff()).minCoeff();
 }
 
-Vec3 row(const MatX3& x, Index i) { return x.row(i).transpose(); }
+Vec3 row(const MatX3& x, Index i) {
+  return x.row(i).transpose();
+}
 
 /// f₁(y)/y of [Li20, Eq. (14)]: 2/ε − y/ε² below ε, 1/y above.
 double f1_over_y(double y) {
@@ -70,8 +75,7 @@ void validate(const ContactParams& p, const std::vector<SolidBody>& bodies,
                    where, p.gap, b.name(), t);
   }
   TETFSI_REQUIRE(InputError, std::isfinite(p.friction) && p.friction >= 0.0,
-                 "{}: contact.friction {} must be >= 0 (Coulomb's coefficient)", where,
-                 p.friction);
+                 "{}: contact.friction {} must be >= 0 (Coulomb's coefficient)", where, p.friction);
   TETFSI_REQUIRE(InputError,
                  std::isfinite(p.restitution) && p.restitution >= 0.0 && p.restitution <= 1.0,
                  "{}: contact.restitution {} must be in [0, 1]", where, p.restitution);
@@ -87,7 +91,8 @@ double median_surface_edge(const std::vector<SolidBody>& bodies) {
     const MatX3i& T = b.boundary_triangles();
     const MatX3& X = b.rest_positions();
     for (Index t = 0; t < T.rows(); ++t)
-      for (int k = 0; k < 3; ++k) len.push_back((row(X, T(t, k)) - row(X, T(t, (k + 1) % 3))).norm());
+      for (int k = 0; k < 3; ++k)
+        len.push_back((row(X, T(t, k)) - row(X, T(t, (k + 1) % 3))).norm());
   }
   if (len.empty()) return 0.0;
   std::nth_element(len.begin(), len.begin() + len.size() / 2, len.end());
@@ -126,8 +131,8 @@ BodyContacts::BodyContacts(const std::vector<SolidBody>& bodies, const ContactPa
     s.free = !body.is_kinematic();
     s.held.assign(body.num_nodes(), 0);
     for (Index i = 0; i < body.num_nodes(); ++i)
-      s.held[i] = !s.free || (body.is_fixed(3 * i) && body.is_fixed(3 * i + 1) &&
-                              body.is_fixed(3 * i + 2));
+      s.held[i] =
+          !s.free || (body.is_fixed(3 * i) && body.is_fixed(3 * i + 1) && body.is_fixed(3 * i + 2));
     std::set<std::array<Index, 2>> edges;
     std::set<Index> points;
     for (Index t = 0; t < s.tris.rows(); ++t)
@@ -273,8 +278,8 @@ Vec3 combine(const std::array<double, 4>& c, const std::array<Vec3, 4>& p) {
 
 double BodyContacts::pair_distance(bool ee, Index ba, Index pa, Index bb, Index pb,
                                    const std::vector<MatX3>& x) const {
-  const Stencil st = stencil(ee, ba, pa, bb, pb, m_surf[bb].tris, m_surf[ba].edges,
-                             m_surf[bb].edges);
+  const Stencil st =
+      stencil(ee, ba, pa, bb, pb, m_surf[bb].tris, m_surf[ba].edges, m_surf[bb].edges);
   std::array<Vec3, 4> p;
   for (int i = 0; i < 4; ++i) p[i] = row(x[st.body[i]], st.node[i]);
   std::array<double, 4> c;
@@ -284,8 +289,8 @@ double BodyContacts::pair_distance(bool ee, Index ba, Index pa, Index bb, Index 
 
 bool BodyContacts::try_pair(bool ee, Index ba, Index pa, Index bb, Index pb,
                             const std::vector<MatX3>& x1, ContactPair& cp, double& g1) const {
-  const Stencil st = stencil(ee, ba, pa, bb, pb, m_surf[bb].tris, m_surf[ba].edges,
-                             m_surf[bb].edges);
+  const Stencil st =
+      stencil(ee, ba, pa, bb, pb, m_surf[bb].tris, m_surf[ba].edges, m_surf[bb].edges);
   bool any_free = false;
   for (int i = 0; i < 4; ++i) any_free |= !m_surf[st.body[i]].held[st.node[i]];
   if (!any_free) return false;
@@ -299,20 +304,23 @@ bool BodyContacts::try_pair(bool ee, Index ba, Index pa, Index bb, Index pb,
   const double d1 = closest(ee, p1, cp.c, dir);
   // an edge pair whose closest point is an end is a point's contact (point–triangle)
   if (ee && (std::min({cp.c[0], cp.c[1], -cp.c[2], -cp.c[3]}) <= k_end_fraction)) return false;
-  if (d1 >= m_params.gap) {  // far at the end: did the path come close (or cross)?
-    const double tol = k_ccd_fraction * m_params.gap;
-    const double t = ee ? ccd_edge_edge(p0[0], p0[1], p0[2], p0[3], p1[0], p1[1], p1[2], p1[3], tol)
-                        : ccd_point_triangle(p0[0], p0[1], p0[2], p0[3], p1[0], p1[1], p1[2],
-                                             p1[3], tol);
-    if (t < 0.0) return false;
+  // Did the path come close (within a tenth of d̂: a crossing passes there)? Then the
+  // constraint is taken where it did, before any crossing: its normal points to the side
+  // the pair came from [Bridson02].
+  const double tol = k_ccd_fraction * m_params.gap;
+  const double t =
+      ee ? ccd_edge_edge(p0[0], p0[1], p0[2], p0[3], p1[0], p1[1], p1[2], p1[3], tol)
+         : ccd_point_triangle(p0[0], p0[1], p0[2], p0[3], p1[0], p1[1], p1[2], p1[3], tol);
+  if (d1 >= m_params.gap && t < 0.0) return false;
+  if (t >= 0.0) {
+    std::array<Vec3, 4> pt;
+    for (int i = 0; i < 4; ++i) pt[i] = p0[i] + t * (p1[i] - p0[i]);
+    closest(ee, pt, cp.c, dir);
+    if (ee && (std::min({cp.c[0], cp.c[1], -cp.c[2], -cp.c[3]}) <= k_end_fraction)) return false;
   }
   if (!(dir.norm() > 0.0)) return false;  // degenerate primitives
   cp.n = dir.normalized();
-  // oriented to the side the pair was on at tⁿ
-  if (cp.n.dot(combine(cp.c, p0)) < 0.0) {
-    cp.n = -cp.n;
-    cp.crossed = true;
-  }
+  cp.crossed = t >= 0.0 && cp.n.dot(combine(cp.c, p1)) < 0.0;
   g1 = cp.n.dot(combine(cp.c, p1)) - m_params.gap;
   if (g1 >= 0.0) return false;  // satisfied there
   cp.edge_edge = ee;
@@ -365,7 +373,29 @@ bool BodyContacts::add_violated(const std::vector<MatX3>& x1) {
     m_pairs.push_back(cp);
   };
   for (const auto& [key, best] : point_best) add(best.second);
-  for (const ContactPair& cp : edges) add(cp);
+  // Edge pairs catch edges that meet away from any vertex (two sheets crossed in an X). Where
+  // an end of one edge already has a point–triangle constraint against a triangle of the
+  // other's end, the two faces are in contact and the edge pair would constrain the same
+  // motion along another normal (redundant constraints that share a load unevenly).
+  using Node = std::array<Index, 2>;
+  std::map<std::pair<Node, Node>, Vec3> faced;  // (point, a vertex of its triangle): normal
+  for (const ContactPair& p : m_pairs)
+    if (!p.edge_edge)
+      for (int i = 1; i < 4; ++i)
+        faced[{{p.node_body[0], p.node[0]}, {p.node_body[i], p.node[i]}}] = p.n;
+  auto same_contact = [&](const Node& a, const Node& b, const Vec3& n) {
+    const auto it = faced.find({a, b});
+    return it != faced.end() && std::abs(it->second.dot(n)) >= k_same_normal;
+  };
+  for (const ContactPair& cp : edges) {
+    bool covered = false;
+    for (int i = 0; i < 2; ++i)
+      for (int j = 2; j < 4; ++j) {
+        const Node a{cp.node_body[i], cp.node[i]}, b{cp.node_body[j], cp.node[j]};
+        covered |= same_contact(a, b, cp.n) || same_contact(b, a, cp.n);
+      }
+    if (!covered) add(cp);
+  }
   return m_pairs.size() > before;
 }
 
@@ -391,7 +421,8 @@ ContactSystem BodyContacts::system(const std::vector<BodyDofs>& dofs, Index ns) 
       for (int a = 0; a < 3; ++a) {
         const Index j = 3 * p.node[i] + a;
         const bool known = bd.dof0 < 0 || (bd.fixed && (*bd.fixed)[j]);
-        d.push_back({known ? -1 : bd.dof0 + j, known && bd.known ? (*bd.known)[j] : 0.0, p.c[i], a});
+        d.push_back(
+            {known ? -1 : bd.dof0 + j, known && bd.known ? (*bd.known)[j] : 0.0, p.c[i], a});
       }
     }
     // penalty: (h/2) k a aᵀ on the free DOFs, −k (g₀ + (h/2) a_kᵀ u_k) a on the right
@@ -485,15 +516,16 @@ bool BodyContacts::update(const std::vector<VecX>& u) {
   if (added && m_report.rounds < max_rounds) return true;
   if (changed || added) {
     m_report.converged = false;
-    logger().warn("body contacts did not settle in {} solves ({} released, {} added); the last "
-                  "set is kept",
-                  m_report.rounds, m_report.released, m_report.added);
+    logger().warn(
+        "body contacts did not settle in {} solves ({} released, {} added); the last "
+        "set is kept",
+        m_report.rounds, m_report.released, m_report.added);
   }
   return false;
 }
 
 void BodyContacts::land(std::vector<SolidBody>& bodies) const {
-  for (int sweep = 0; sweep < 4; ++sweep)
+  for (int sweep = 0; sweep < 60; ++sweep)
     for (const ContactPair& p : m_pairs) {
       double v = 0.0, w = 0.0;
       for (int i = 0; i < p.nodes; ++i) {
@@ -523,7 +555,8 @@ void BodyContacts::measure(const std::vector<SolidBody>& bodies) {
   double gap = reach;
   candidates(x, x, 0.5 * reach, [&](bool ee, Index ba, Index pa, Index bb, Index pb) {
     if (excluded(ee, ba, pa, bb, pb)) return;
-    gap = std::min(gap, pair_distance(ee, ba, pa, bb, pb, x));
+    const double d = pair_distance(ee, ba, pa, bb, pb, x);
+    gap = std::min(gap, d);
   });
   m_report.min_gap = gap;
 }

@@ -21,11 +21,12 @@
 /// An active pair acts by a penalty force f_i = −k g c_i n, k = κ m̄ / h² with m̄ the pair's
 /// effective mass (1/m̄ = Σ c_i²/m_i over its free nodes): in A uⁿ⁺¹ = b it adds
 /// (h/2) k (c ⊗ n)(c ⊗ n)ᵀ to A (coupling the two bodies' blocks) and −k g₀ (c ⊗ n) to b, so
-/// the gap closes to within (2/κ) of the penetration the step would otherwise make
-/// (κ = 10⁴ by default: 0.2 µm of 1 mm). The set is a primal–dual active set as the floors'
-/// (floor_contact.hpp): after each solve a pair whose force λ = −k g would pull (adhesion) is
-/// released, at most twice per step, and a pair the solve moves below d̂ (or across) is added,
-/// until neither happens.
+/// for a body whose inertia dominates its stiffness at this step the gap closes to within
+/// about 2/κ of the penetration the step would otherwise make (κ = 10⁴ by default). (Scaling
+/// k by the bodies' stiffness as well was measured to make impacts less stable, not more.) The set
+/// is a primal–dual active set as the floors' (floor_contact.hpp): after each solve a pair whose
+/// force λ = −k g would pull (adhesion) is released, at most twice per step, and a pair the solve
+/// moves below d̂ (or across) is added, until neither happens.
 ///
 /// Friction: Coulomb by the normal force of the previous solve, as the lagged smoothed
 /// friction of Incremental Potential Contact [Li20, Eqs. (13)–(16)]: a tangential force
@@ -74,19 +75,19 @@ double median_surface_edge(const std::vector<SolidBody>& bodies);
 /// One contact constraint of a step (file comment).
 struct ContactPair {
   bool edge_edge = false;
-  std::array<Index, 2> body{};      ///< the two primitives' bodies
-  std::array<Index, 2> prim{};      ///< point (surface node) / edge, then triangle / edge
-  int nodes = 0;                    ///< 4 (both kinds)
-  std::array<Index, 4> node{};      ///< node i of body node_body[i]
+  std::array<Index, 2> body{};  ///< the two primitives' bodies
+  std::array<Index, 2> prim{};  ///< point (surface node) / edge, then triangle / edge
+  int nodes = 0;                ///< 4 (both kinds)
+  std::array<Index, 4> node{};  ///< node i of body node_body[i]
   std::array<Index, 4> node_body{};
-  std::array<double, 4> c{};        ///< weights c_i
-  Vec3 n = Vec3::UnitZ();           ///< unit normal, second primitive → first
-  double g0 = 0.0;                  ///< nᵀ Σ c_i (xⁿ_i + h/2 uⁿ_i) − d̂ (m)
-  double k = 0.0;                   ///< penalty (N/m)
-  double force = 0.0;               ///< λ of the last solve (N)
-  double eta = 0.0;                 ///< friction viscosity μ λ f₁(|v_t|)/|v_t| (N s/m)
-  double approach = 0.0;            ///< −nᵀ Σ c_i uⁿ_i: > 0 approaching (m/s)
-  bool crossed = false;             ///< found across the other primitive (CCD)
+  std::array<double, 4> c{};  ///< weights c_i
+  Vec3 n = Vec3::UnitZ();     ///< unit normal, second primitive → first
+  double g0 = 0.0;            ///< nᵀ Σ c_i (xⁿ_i + h/2 uⁿ_i) − d̂ (m)
+  double k = 0.0;             ///< penalty (N/m)
+  double force = 0.0;         ///< λ of the last solve (N)
+  double eta = 0.0;           ///< friction viscosity μ λ f₁(|v_t|)/|v_t| (N s/m)
+  double approach = 0.0;      ///< −nᵀ Σ c_i uⁿ_i: > 0 approaching (m/s)
+  bool crossed = false;       ///< found across the other primitive (CCD)
 };
 
 /// What the contacts did in one step.
@@ -174,7 +175,8 @@ class BodyContacts {
   double m_h;
   std::vector<MatX3> m_x0, m_u0;
   std::vector<Surface> m_surf;
-  std::vector<double> m_self_reach;  ///< per body: excluded() below this rest distance
+  std::vector<double> m_self_reach;
+  ///< per body: excluded() below this rest distance
   std::vector<ContactPair> m_pairs;
   std::map<std::array<Index, 5>, int> m_released;  ///< per pair key: releases this step
   ContactReport m_report;

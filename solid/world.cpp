@@ -129,28 +129,29 @@ SolidStepReport SolidWorld::step(double h, PhaseTimes& times) {
 SolidStepReport SolidWorld::step_together(double h, PhaseTimes& times) {
   SolidStepReport report;
   const Index nb = static_cast<Index>(bodies.size());
-  std::optional<BodyContacts> contacts;
-  {
-    ScopedTimer timer(times, "contact");  // before kinematic bodies move: xⁿ, uⁿ
-    contacts.emplace(bodies, contact, gravity, h);
-  }
   std::vector<TrapezoidalSystem> sys(nb);
   std::vector<std::unique_ptr<FloorContacts>> floors(nb);
   std::vector<Index> dof0(nb + 1, 0);
   for (Index b = 0; b < nb; ++b) {
     SolidBody& body = bodies[b];
     dof0[b + 1] = dof0[b];
-    if (body.is_kinematic()) {
-      ScopedTimer timer(times, "update");
-      body.set_kinematic_state(time + h);
-      continue;
-    }
+    if (body.is_kinematic()) continue;
     ScopedTimer timer(times, "assemble");
     // A u = b, see [Chentanez06, Eq. (4)], with f_p = 0 (no fluid here).
     sys[b] = assemble_trapezoidal(body, h, body.external_forces(gravity), trapezoid);
     floors[b] = std::make_unique<FloorContacts>(body, obstacles, gravity, h);
     dof0[b + 1] += body.num_dofs();
   }
+  std::optional<BodyContacts> contacts;
+  {
+    ScopedTimer timer(times, "contact");  // before kinematic bodies move: xⁿ, uⁿ
+    contacts.emplace(bodies, contact, gravity, h);
+  }
+  for (SolidBody& body : bodies)
+    if (body.is_kinematic()) {
+      ScopedTimer timer(times, "update");
+      body.set_kinematic_state(time + h);
+    }
   const Index ns = dof0[nb];
   std::vector<SparseMatrix> A(nb);
   std::vector<VecX> rhs(nb), prescribed(nb), u(nb);
