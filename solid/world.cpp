@@ -196,7 +196,7 @@ SolidStepReport SolidWorld::step_together(double h, PhaseTimes& times) {
     ScopedTimer timer(times, "update");
     for (Index b = 0; b < nb; ++b) {
       if (!floors[b]) continue;
-      advance_trapezoidal(bodies[b], u[b], h);  // [Chentanez06, Eq. (5)]
+      advance_trapezoidal(bodies[b], u[b], h);  // see [Chentanez06, Eq. (5)]
       report.contacts += floors[b]->land(bodies[b]);
     }
     contacts->land(bodies);

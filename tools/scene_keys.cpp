@@ -512,7 +512,7 @@ const Section<ContactSpec>& contact_keys() {
       "surfaces keep at least `gap` apart, with Coulomb friction",
       {{{.key = "gap",
          .type = KeyType::Number,
-         .doc = "d: the distance surfaces keep apart; below a third of the thinnest body",
+         .doc = "d: the distance surfaces keep apart; less than the thinnest body is thick",
          .unit = "m",
          .range = k_positive,
          .default_text = "a fifth of fluid.mesh.surface_size (solid-only: of the median surface "
