@@ -886,10 +886,9 @@ Scene parse_scene(const json& j, const fs::path& file) {
 
   // Contact between bodies acts inside the linearised step's solve (solid/contact.hpp).
   if (s.contact && s.mode == Mode::Dynamic) {
-    if (s.two_way() && s.coupling->params.scheme != coupling::Scheme::Simultaneous &&
-        s.coupling->params.scheme != coupling::Scheme::Splitting)
+    if (s.two_way() && s.coupling->params.scheme != coupling::Scheme::Simultaneous)
       p.fail("contact", fmt::format("contact between bodies works with coupling.scheme "
-                                    "'simultaneous' or 'splitting', not '{}'",
+                                    "'simultaneous' (or 'none'), not '{}'",
                                     s.coupling->scheme_name()));
     if (!s.two_way() && s.solid.integrator != solid::Integrator::Linearized)
       p.fail("contact", fmt::format("contact between bodies needs solid.integrator 'linearized' "
