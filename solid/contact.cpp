@@ -312,14 +312,18 @@ bool BodyContacts::try_pair(bool ee, Index ba, Index pa, Index bb, Index pb,
       ee ? ccd_edge_edge(p0[0], p0[1], p0[2], p0[3], p1[0], p1[1], p1[2], p1[3], tol)
          : ccd_point_triangle(p0[0], p0[1], p0[2], p0[3], p1[0], p1[1], p1[2], p1[3], tol);
   if (d1 >= m_params.gap && t < 0.0) return false;
+  std::array<Vec3, 4> at = p1;  // where the constraint is taken
   if (t >= 0.0) {
-    std::array<Vec3, 4> pt;
-    for (int i = 0; i < 4; ++i) pt[i] = p0[i] + t * (p1[i] - p0[i]);
-    closest(ee, pt, cp.c, dir);
+    for (int i = 0; i < 4; ++i) at[i] = p0[i] + t * (p1[i] - p0[i]);
+    closest(ee, at, cp.c, dir);
     if (ee && (std::min({cp.c[0], cp.c[1], -cp.c[2], -cp.c[3]}) <= k_end_fraction)) return false;
   }
   if (!(dir.norm() > 0.0)) return false;  // degenerate primitives
   cp.n = dir.normalized();
+  // A point meets a triangle from outside its body (boundary triangles face outwards): a
+  // touch from behind is the point leaving the other body through its far side on a path
+  // that went through it (a long predicted step), not a contact.
+  if (!ee && cp.n.dot((at[2] - at[1]).cross(at[3] - at[1])) < 0.0) return false;
   cp.crossed = t >= 0.0 && cp.n.dot(combine(cp.c, p1)) < 0.0;
   g1 = cp.n.dot(combine(cp.c, p1)) - m_params.gap;
   if (g1 >= 0.0) return false;  // satisfied there

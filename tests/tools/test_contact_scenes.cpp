@@ -99,7 +99,7 @@ TEST_SUITE("unit") {
                                       << " steps in contact");
     for (size_t i = 0; i < gap.size(); ++i) {
       INFO("step " << i + 1);
-      CHECK(gap[i] > 0.02 * r.contact->gap);
+      CHECK(gap[i] > 0.01 * r.contact->gap);
       CHECK(energy[i] <= energy[0] * (1.0 + 1e-3));
     }
     CHECK(r.contact->steps_in_contact >= 50);
