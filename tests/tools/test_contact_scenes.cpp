@@ -87,7 +87,7 @@ TEST_SUITE("unit") {
   TEST_CASE("shipped bar_fold: a bar folded onto itself never crosses itself") {
     // Self-contact: the halves of a bar held by its middle swing down and meet. No surface
     // primitive of the bar comes to 0 from a non-neighbouring one at any step (measured
-    // smallest 0.28 mm, 0.07 d̂, when the tips meet at 2 m/s: below the sheets' half gap,
+    // smallest 0.094 mm, 0.024 d̂, when the tips meet at 2 m/s: below the sheets' half gap,
     // README "Bodies that touch"), and the energy stays below its start.
     TempDir dir("contact_bar_fold");
     const RunResult r = run_shipped("bar_fold", dir);
