@@ -3,9 +3,9 @@
 /// around x*, one coupled solve of Eq. (7) per round of the floors' active set, Eq. (8), Eq. (5),
 /// collisions.
 #include <optional>
+
 #include "core/error.hpp"
 #include "coupling/scheme.hpp"
-
 #include "solid/contact.hpp"
 #include "solid/floor_contact.hpp"
 #include "solid/integrator.hpp"

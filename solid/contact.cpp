@@ -29,9 +29,6 @@ constexpr double k_eps_v = 1e-3;
 /// An edge pair whose closest point is within this fraction of an edge's end is left to the
 /// point–triangle pairs.
 constexpr double k_end_fraction = 1e-6;
-/// An edge pair is redundant with a point–triangle pair between its edges' ends whose normal
-/// is within this cosine of its own (about 25°).
-constexpr double k_same_normal = 0.0;
 /// Solves of a step in which adhesive pairs are released; later solves only add (the set is
 /// then monotone and settles; a pair added late holds at most until the step ends).
 constexpr int k_release_rounds = 3;
@@ -382,21 +379,17 @@ bool BodyContacts::add_violated(const std::vector<MatX3>& x1) {
   // other's end, the two faces are in contact and the edge pair would constrain the same
   // motion along another normal (redundant constraints that share a load unevenly).
   using Node = std::array<Index, 2>;
-  std::map<std::pair<Node, Node>, Vec3> faced;  // (point, a vertex of its triangle): normal
+  std::set<std::pair<Node, Node>> faced;  // (point, a vertex of its triangle)
   for (const ContactPair& p : m_pairs)
     if (!p.edge_edge)
       for (int i = 1; i < 4; ++i)
-        faced[{{p.node_body[0], p.node[0]}, {p.node_body[i], p.node[i]}}] = p.n;
-  auto same_contact = [&](const Node& a, const Node& b, const Vec3& n) {
-    const auto it = faced.find({a, b});
-    return it != faced.end() && std::abs(it->second.dot(n)) >= k_same_normal;
-  };
+        faced.insert({{p.node_body[0], p.node[0]}, {p.node_body[i], p.node[i]}});
   for (const ContactPair& cp : edges) {
     bool covered = false;
     for (int i = 0; i < 2; ++i)
       for (int j = 2; j < 4; ++j) {
         const Node a{cp.node_body[i], cp.node[i]}, b{cp.node_body[j], cp.node[j]};
-        covered |= same_contact(a, b, cp.n) || same_contact(b, a, cp.n);
+        covered |= faced.count({a, b}) > 0 || faced.count({b, a}) > 0;
       }
     if (!covered) add(cp);
   }
@@ -471,22 +464,15 @@ bool BodyContacts::update(const std::vector<VecX>& u) {
   // Adhesion below this is kept (redundant constraints share a load unevenly; releasing
   // their slightly adhesive members only makes the set churn): 1e-3 of the largest force.
   double scale = 0.0;
-  for (const ContactPair& p : m_pairs) {
+  for (ContactPair& p : m_pairs) {  // λ = −k g(uⁿ⁺¹)
     double g = p.g0;
     for (int i = 0; i < p.nodes; ++i)
       g += 0.5 * m_h * p.c[i] * p.n.dot(u[p.node_body[i]].segment<3>(3 * p.node[i]));
-    scale = std::max(scale, -p.k * g);
+    p.force = -p.k * g;
+    scale = std::max(scale, p.force);
   }
   const double adhesion_tol = k_adhesion_tol * scale;
   for (ContactPair p : m_pairs) {
-    double g = p.g0;
-    Vec3 v = Vec3::Zero();
-    for (int i = 0; i < p.nodes; ++i) {
-      const Vec3 ui = u[p.node_body[i]].segment<3>(3 * p.node[i]);
-      g += 0.5 * m_h * p.c[i] * p.n.dot(ui);
-      v += p.c[i] * ui;
-    }
-    p.force = -p.k * g;
     int& rel = m_released[{p.edge_edge, p.body[0], p.prim[0], p.body[1], p.prim[1]}];
     if (p.force < -adhesion_tol && rel < k_releases && m_report.rounds <= k_release_rounds) {
       changed = true;
@@ -497,6 +483,8 @@ bool BodyContacts::update(const std::vector<VecX>& u) {
       }
     }
     if (m_params.friction > 0.0) {
+      Vec3 v = Vec3::Zero();  // the relative velocity
+      for (int i = 0; i < p.nodes; ++i) v += p.c[i] * u[p.node_body[i]].segment<3>(3 * p.node[i]);
       const Vec3 vt = v - p.n * p.n.dot(v);
       const double eta = m_params.friction * std::max(0.0, p.force) * f1_over_y(vt.norm());
       if (std::abs(eta - p.eta) > 1e-2 * std::max(eta, p.eta) &&
