@@ -84,6 +84,7 @@ struct ContactPair {
   Vec3 n = Vec3::UnitZ();     ///< unit normal, second primitive → first
   double g0 = 0.0;            ///< nᵀ Σ c_i (xⁿ_i + h/2 uⁿ_i) − d̂ (m)
   double k = 0.0;             ///< penalty (N/m)
+  double lambda0 = 0.0;       ///< augmented-Lagrangian offset: λ = λ₀ − k g (N)
   double force = 0.0;         ///< λ of the last solve (N)
   double eta = 0.0;           ///< friction viscosity μ λ f₁(|v_t|)/|v_t| (N s/m)
   double approach = 0.0;      ///< −nᵀ Σ c_i uⁿ_i: > 0 approaching (m/s)
@@ -162,6 +163,14 @@ class BodyContacts {
   /// The pair's constraint `cp` if it is violated at x1 (g1 < 0: its gap there minus d̂).
   bool try_pair(bool ee, Index ba, Index pa, Index bb, Index pb, const std::vector<MatX3>& x1,
                 ContactPair& cp, double& g1) const;
+  /// Is point p0[0] behind triangle p0[1..3] of body bb at the start of the step, under it and
+  /// less than half the body's thickness deep?
+  bool inside_at_start(Index bb, const std::array<Vec3, 4>& p0) const;
+  /// The rest of pair `cp` (n and c set) and g1, its gap at p1 minus d̂; false if g1 ≥ 0.
+  bool fill_pair(bool ee, std::array<Index, 2> body, std::array<Index, 2> prim,
+                 const std::array<Index, 4>& node, const std::array<Index, 4>& node_body,
+                 const std::array<Vec3, 4>& p0, const std::array<Vec3, 4>& p1, ContactPair& cp,
+                 double& g1) const;
   double pair_distance(bool ee, Index ba, Index pa, Index bb, Index pb,
                        const std::vector<MatX3>& x) const;
   bool excluded(bool ee, Index ba, Index pa, Index bb, Index pb) const;
@@ -176,6 +185,7 @@ class BodyContacts {
   std::vector<MatX3> m_x0, m_u0;
   std::vector<Surface> m_surf;
   std::vector<double> m_self_reach;
+  std::vector<double> m_depth;  ///< per body: how deep a point inside it counts (inside_at_start)
   ///< per body: excluded() below this rest distance
   std::vector<ContactPair> m_pairs;
   std::map<std::array<Index, 5>, int> m_released;  ///< per pair key: releases this step

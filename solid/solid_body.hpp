@@ -31,6 +31,8 @@ class SolidBody {
   const MatX3i& boundary_triangles() const { return m_boundary; }
   const Material& material() const { return m_material; }
   const StvkElasticity& elasticity() const { return m_elasticity; }
+  /// The Jacobian the integrators use (StvkElasticity::set_tangent).
+  void set_tangent(Tangent t) { m_elasticity.set_tangent(t); }
   /// Lumped mass per node (#V, kg): each tet gives ρ V0 / 4 to each of its nodes.
   const VecX& lumped_mass() const { return m_mass; }
   /// Total mass (kg) = ρ · rest volume.

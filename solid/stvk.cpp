@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include "core/error.hpp"
@@ -46,12 +47,20 @@ using Mat12 = Eigen::Matrix<double, 12, 12>;
 
 /// Element Jacobian K'_e = ∂²W_e/∂x² (12 × 12, rows/cols 3a + k), from
 /// dP = dF S + F dS, dS = λ tr(dE) I + 2μ dE, dE = ½(dFᵀF + FᵀdF), with dF = e_k g_aᵀ.
+/// The initial-stress term dF S uses S₊ (the tensile part of S) with Tangent::Definite.
 inline Mat12 tet_jacobian(const TetState& s, const Eigen::Matrix<double, 3, 4>& g, double v0,
-                          const LameParameters& lame) {
+                          const LameParameters& lame, Tangent tangent) {
   Mat12 K;
+  Mat3 S = s.S;
+  if (tangent == Tangent::Definite) {
+    const Eigen::SelfAdjointEigenSolver<Mat3> eig(s.S);
+    if (eig.eigenvalues().minCoeff() < 0.0)
+      S = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
+          eig.eigenvectors().transpose();
+  }
   for (int a = 0; a < 4; ++a) {
     const Vec3 ga = g.col(a);
-    const Vec3 sga = s.S * ga;
+    const Vec3 sga = S * ga;
     for (int k = 0; k < 3; ++k) {
       const Vec3 fk = s.F.row(k).transpose();  // Fᵀ e_k
       // dE = ½(g_a (Fᵀe_k)ᵀ + (Fᵀe_k) g_aᵀ)
@@ -166,7 +175,7 @@ void StvkElasticity::forces_and_jacobian(const MatX3& x, VecX& forces,
     const Eigen::Matrix<double, 3, 4> h = v0 * s.P * g;
     for (int a = 0; a < 4; ++a) forces.segment<3>(3 * tet[a]) += h.col(a);
     // K' = ∂K/∂d, see [Chentanez06, Eq. (16)]
-    const Mat12 ke = tet_jacobian(s, g, v0, m_lame);
+    const Mat12 ke = tet_jacobian(s, g, v0, m_lame, m_tangent);
     const Index* slot = m_slot.data() + static_cast<std::size_t>(t) * 144;
     for (int i = 0; i < 12; ++i)
       for (int j = 0; j < 12; ++j) values[slot[12 * i + j]] += ke(i, j);

@@ -10,10 +10,19 @@
 /// left-hand side of M a + C u + K(d) = f), and K' = ∂K/∂d is its Jacobian (symmetric).
 #include <vector>
 
+#include "core/enum_names.hpp"
 #include "core/types.hpp"
 #include "solid/material.hpp"
 
 namespace tetfsi::solid {
+
+/// Which Jacobian K' the integrators use (scene key solid.tangent).
+enum class Tangent {
+  Exact,     ///< ∂²W/∂x², indefinite where an element is strongly compressed
+  Definite,  ///< the initial-stress part keeps only S's tensile principal stresses: K' ⪰ 0
+};
+inline constexpr EnumNames<Tangent, 2> k_tangent_names{
+    "tangent", {{{Tangent::Exact, "exact"}, {Tangent::Definite, "definite"}}}};
 
 /// Per-tet output fields (#T each).
 struct TetFields {
@@ -44,10 +53,19 @@ class StvkElasticity {
   /// Strain, stress and volume-ratio fields at x.
   TetFields tet_fields(const MatX3& x) const;
 
+  /// The Jacobian jacobian() and forces_and_jacobian() return (Exact by default). Definite
+  /// replaces S by S₊ = Q max(Λ, 0) Qᵀ in the initial-stress term g_aᵀ S g_b I of K'_e: the
+  /// material term is ⪰ 0, so K' is too, and the step's matrix M/h + C + (h/2) K' stays SPD
+  /// however hard an element is compressed. Only the matrix changes, not the forces: a
+  /// linearised step's equilibrium is the same, Newton converges linearly instead.
+  void set_tangent(Tangent t) { m_tangent = t; }
+  Tangent tangent() const { return m_tangent; }
+
  private:
   Index m_num_nodes;
   MatX4i m_tets;
   LameParameters m_lame;
+  Tangent m_tangent = Tangent::Exact;
   std::vector<Mat3> m_dm_inv;  ///< Dm⁻¹ per tet
   VecX m_rest_volume;          ///< V0 per tet
   /// Sparsity pattern of K' (3#V × 3#V, values zero), built once in the constructor.

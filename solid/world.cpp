@@ -183,6 +183,15 @@ SolidStepReport SolidWorld::step_together(double h, PhaseTimes& times) {
         if (floors[b]) r.segment(dof0[b], rhs[b].size()) += rhs[b];
       solve_linear(K, r, x, "the bodies in contact", report);
     }
+    if (logger().should_log(spdlog::level::debug)) {
+      double ke = 0.0;
+      for (Index b = 0; b < nb; ++b)
+        if (floors[b])
+          for (Index i = 0; i < bodies[b].num_nodes(); ++i)
+            ke += 0.5 * bodies[b].lumped_mass()[i] * x.segment<3>(dof0[b] + 3 * i).squaredNorm();
+      logger().debug("contact solve: t = {:.4g}, {} pairs, |x| max {:.3g}, kinetic {:.4g} J", time,
+                     contacts->report().active, x.cwiseAbs().maxCoeff(), ke);
+    }
     again = false;
     for (Index b = 0; b < nb; ++b)
       if (floors[b]) {

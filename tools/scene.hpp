@@ -259,6 +259,8 @@ struct SolidSpec {
   /// How bodies that step alone are integrated (SolidWorld::integrator).
   solid::Integrator integrator = solid::Integrator::Linearized;
   std::string trapezoid = "paper";  ///< "paper" [Chentanez06, Eq. (4)] or "midpoint"; linearized
+  /// K' of every integrator (StvkElasticity::set_tangent); default Definite with `contact`.
+  solid::Tangent tangent = solid::Tangent::Exact;
   /// The equilibrium iteration's options (SolidWorld::equilibrium; `method` is unused here:
   /// it comes from `integrator`, or from the coupling scheme). reform "run" = keep_matrix.
   EquilibriumOptions equilibrium;

@@ -432,6 +432,14 @@ const Section<SolidSpec>& solid_keys() {
                                       "another integrator or an iterated coupling scheme)"},
                               solid::k_trapezoid_names),
                        TETFSI_AT(trapezoid)),
+       bind_enum<SolidSpec>(
+           {.key = "tangent",
+            .doc = "the Jacobian K' of every integrator: `exact` (d²W/dx²), or `definite`: its "
+                   "initial-stress term keeps only the tensile principal stresses, so the "
+                   "step's matrix stays positive definite when elements are crushed (README "
+                   "\"Bodies that touch\"). Default: `definite` with `contact`, else `exact`",
+            .default_text = "by scene"},
+           solid::k_tangent_names, TETFSI_AT(tangent)),
        bind<SolidSpec>(
            {.key = "rtol",
             .type = KeyType::Number,

@@ -121,26 +121,37 @@ SolidBody box(const std::string& name, double bottom, double E, double height = 
 
 /// What a fall onto the thin sheet did (see the tunnelling test).
 struct Fall {
-  double lowest = 1e300;       ///< the faller's lowest node over every step (m)
-  double min_gap = 1e300;      ///< report.min_gap over every step (m)
   double impact_lowest = 0.0;  ///< lowest node after the impact step (m)
   Index impact_crossings = 0;  ///< crossings caught in the impact step
-  Index crossings = 0;         ///< over the run
-  double final_lowest = 0.0;   ///< lowest node at the end (m)
-  int first_below = -1;        ///< the first step ending with a node below the sheet's top
+  /// The lowest any node came over the sheet's footprint (|x|, |y| < 0.1 m) in any step (m):
+  /// below 0 is into or through the sheet; a box that slid off its edge is not over it.
+  double deepest_over = 1e300;
+  double min_gap = 1e300;  ///< report.min_gap over every step (m)
+  Index crossings = 0;     ///< over the run
+  Vec3 final_centroid = Vec3::Zero();
   std::string summary() const {
     return fmt::format(
         "impact step: lowest node {:.4g} m, {} crossings caught; over 30 steps: lowest node "
-        "{:.4g} m (first below the sheet's top at step {}), min_gap {:.4g} m, {} crossings; "
-        "final lowest node {:.4g} m",
-        impact_lowest, impact_crossings, lowest, first_below, min_gap, crossings, final_lowest);
+        "over the sheet {:.4g} m, min_gap {:.4g} m, {} crossings; final centroid ({:.3f}, "
+        "{:.3f}, {:.4f}) m",
+        impact_lowest, impact_crossings, deepest_over, min_gap, crossings, final_centroid.x(),
+        final_centroid.y(), final_centroid.z());
   }
 };
+
+/// The lowest node of `b` over the square |x|, |y| < half (1e300 if none is).
+double lowest_over(const SolidBody& b, double half) {
+  const MatX3 x = b.positions();
+  double z = 1e300;
+  for (Index i = 0; i < x.rows(); ++i)
+    if (std::abs(x(i, 0)) < half && std::abs(x(i, 1)) < half) z = std::min(z, x(i, 2));
+  return z;
+}
 
 /// A 4 cm box (2 × 2 × 2 cells, β = 1e-3) of Young's modulus E, centred on the sheet or
 /// offset by 5 mm in y, falling at 6 m/s from 30 cm onto a
 /// pinned sheet 20 × 20 × 1 cm (top z = 0), d̂ = 2 mm, h = 1/30 s (0.2 m per step: 20 sheet
-/// thicknesses), 30 steps.
+/// thicknesses), 30 steps; the bodies' tangent as in scenes with contact (definite).
 Fall fall_on_sheet(double E, bool centred) {
   const double gap = 2e-3, h = 1.0 / 30.0;
   SolidWorld w = contact_world(gap, 0.0, 0.0);
@@ -150,6 +161,7 @@ Fall fall_on_sheet(double E, bool centred) {
   w.bodies.push_back(make_box_body("faller", Vec3(-0.02, y0, 0.3), Vec3(0.02, y0 + 0.04, 0.34),
                                    Vec3i(2, 2, 2), make_material(1000.0, E, 0.3, 0.0, 1e-3)));
   w.bodies[1].velocity.col(2).setConstant(-6.0);
+  for (SolidBody& body : w.bodies) body.set_tangent(Tangent::Definite);
   const SolidBody& b = w.bodies[1];
   PhaseTimes times;
   Fall f;
@@ -157,17 +169,16 @@ Fall fall_on_sheet(double E, bool centred) {
   for (int n = 0; n < 30; ++n) {
     const SolidStepReport r = w.step(h, times);
     const ContactReport& c = *r.body_contact;
-    f.lowest = std::min(f.lowest, lowest(b));
+    f.deepest_over = std::min(f.deepest_over, lowest_over(b, 0.1));
     f.min_gap = std::min(f.min_gap, c.min_gap);
     f.crossings += c.crossings;
-    if (f.first_below < 0 && lowest(b) < 0.0) f.first_below = n;
     if (!impact && c.active > 0) {
       impact = true;
       f.impact_lowest = lowest(b);
       f.impact_crossings = c.crossings;
     }
   }
-  f.final_lowest = lowest(b);
+  f.final_centroid = com(b);
   return f;
 }
 
@@ -413,33 +424,41 @@ TEST_SUITE("unit") {
     CHECK(unsettled == 0);
   }
 
+  TEST_CASE("body contact: a box that starts a step inside a slab is pushed out through its top") {
+    // The box's bottom starts 1 mm inside a 1 cm pinned slab (the penalty of a previous step
+    // can leave a node that deep): its bottom nodes are behind the slab's top triangles, which
+    // a path into the slab would never meet; the pairs push them out through the face they
+    // are under (without that rule the box sank through the slab). Asserted after 5 steps of
+    // 4 ms: every node above the top by ≥ 0.5 d̂ (measured 5.2 mm: the push-out throws the box
+    // up); no node ever past the slab's middle (measured deepest −1.9 mm, in the first step).
+    const double gap = 2e-3, h = 4e-3;
+    SolidWorld w = contact_world(gap, 0.0, 0.0);
+    w.bodies.push_back(
+        pinned_slab("slab", Vec3(-0.04, -0.04, -0.01), Vec3(0.04, 0.04, 0.0), Vec3i(4, 4, 1)));
+    w.bodies.push_back(box("block", -1e-3, 1e6, 0.02, Vec3i(3, 3, 2)));
+    const SolidBody& b = w.bodies[1];
+    PhaseTimes times;
+    double deepest = lowest(b);
+    for (int n = 0; n < 5; ++n) {
+      w.step(h, times);
+      deepest = std::min(deepest, lowest(b));
+    }
+    MESSAGE("lowest node after 5 steps " << lowest(b) << " m, deepest " << deepest << " m");
+    CHECK(lowest(b) >= 0.5 * gap);
+    CHECK(deepest > -5e-3);
+  }
+
   TEST_CASE("body contact: no tunnelling through a thin sheet at h = 1/30") {
     // fall_on_sheet: 6 m/s, 0.2 m per step onto a 1 cm sheet; the step before the impact ends
     // 9.5 cm above it and the next ballistic prediction 12 cm below it, so only the continuous
     // detection can catch it. Four fallers: E = 1e5 or 1e7, centred on the sheet's middle node
-    // or offset by 5 mm in y.
+    // or offset by 5 mm in y. The impact step keeps every faller at d̂ (measured: 1.81 to
+    // 1.92 mm), and no node ever goes below the sheet's top over it in the 30 steps (measured:
+    // ≥ 1.37 mm). Frictionless, two fallers pick up a sideways drift from the impact and slide
+    // off the sheet's edge (reported: their final centroid), which is not a crossing.
     //
-    // CHECKed: the impact step catches every faller above the sheet's top, with crossings
-    // caught (measured: lowest node 0.39 to 1.87 mm, 38 to 101 crossings).
-    //
-    // SUSPECTED BUG, checked with WARN so that the suite stays green (make them CHECKs once
-    // fixed): the impact step itself leaves the offset E = 1e5 box 0.39 mm from the sheet
-    // (< 0.5 d̂), and in the bounces after it three of the four fallers end up through the
-    // sheet. Measured (first step ending below the sheet's top; lowest node ever / final
-    // lowest node / min_gap ever, m):
-    //   E = 1e5 centred: never;   0.00138 / 0.00195 / 0.00138 (holds)
-    //   E = 1e5 offset:  step 2;  −0.0080 / −0.0015 / 9.6e-5
-    //   E = 1e7 centred: step 4;  −0.028 / −0.026 / 1.3e-5
-    //   E = 1e7 offset:  step 10; −0.0199 / −0.0188 / 1.2e-5
-    // The outcome is chaotic: the same offset E = 1e7 box with its rest corners one rounding
-    // apart (−0.015 + 0.04 against 0.025) held (final lowest node 1.93 mm) in an earlier draft.
-    // E = 1e7 centred, step 4 driven by hand: the last solve leaves a corner node 0.21 mm
-    // inside the sheet, its pair with the sheet's top triangle in the set with g = −2.21 mm
-    // (λ = 13 N); a round earlier it was −0.36 mm, before update() released 15 "adhesive"
-    // pairs; update() only adds pairs not yet in the set, so the violated member ends the
-    // step. Next step the node is inside at tⁿ, its pairs are oriented to that side, and by
-    // step 8 the box is torn through the sheet (nodes 2.1 cm below it, volume ratios up to
-    // 6.9).
+    // Before the definite tangent (solid.tangent) three of the four went through the sheet
+    // in the bounces after the impact (a crushed element's indefinite K' in the step's matrix).
     for (const double E : {1e5, 1e7})
       for (const bool centred : {true, false}) {
         const Fall f = fall_on_sheet(E, centred);
@@ -447,11 +466,8 @@ TEST_SUITE("unit") {
         CAPTURE(centred);
         MESSAGE(fmt::format("E = {:.0e}, {}: {}", E, centred ? "centred" : "offset", f.summary()));
         CHECK(f.impact_crossings > 0);
-        CHECK(f.impact_lowest > 0.0);
-        WARN(f.impact_lowest >= 0.5 * 2e-3);
-        WARN(f.min_gap >= 0.5 * 2e-3);
-        WARN(f.lowest >= 0.0);
-        WARN(f.final_lowest > 0.0);
+        CHECK(f.impact_lowest >= 0.5 * 2e-3);
+        CHECK(f.deepest_over >= 0.5 * 2e-3);
       }
   }
 

@@ -84,11 +84,11 @@ TEST_SUITE("unit") {
     CHECK(up.back() - lo.back() == doctest::Approx(0.01 + d).epsilon(0.05));
   }
 
-  TEST_CASE("shipped bar_fold: a bar folded onto itself never crosses itself") {
+  TEST_CASE("shipped bar_fold: a bar folded onto itself keeps half the gap") {
     // Self-contact: the halves of a bar held by its middle swing down and meet. No surface
-    // primitive of the bar comes to 0 from a non-neighbouring one at any step (measured
-    // smallest 0.094 mm, 0.024 d̂, when the tips meet at 2 m/s: below the sheets' half gap,
-    // README "Bodies that touch"), and the energy stays below its start.
+    // primitive of the bar comes within half the gap of a non-neighbouring one at any step
+    // (measured smallest 2.5 mm of d̂ = 4 mm, 0.625 d̂; 0.094 mm before the resting pairs'
+    // augmented-Lagrangian offsets), and the energy stays below its start.
     TempDir dir("contact_bar_fold");
     const RunResult r = run_shipped("bar_fold", dir);
     const fs::path csv = dir.path / "stats.csv";
@@ -99,21 +99,26 @@ TEST_SUITE("unit") {
                                       << " steps in contact");
     for (size_t i = 0; i < gap.size(); ++i) {
       INFO("step " << i + 1);
-      CHECK(gap[i] > 0.01 * r.contact->gap);
+      CHECK(gap[i] >= 0.5 * r.contact->gap);
       CHECK(energy[i] <= energy[0] * (1.0 + 1e-3));
     }
     CHECK(r.contact->steps_in_contact >= 50);
   }
 
-  TEST_CASE("shipped ball_block: the ball lands on the soft block without tunnelling") {
-    // The ball falls 0.45 m (3 m/s at impact, 3 cm per step at h = 0.01 s, 60 % of its
-    // radius): it never goes below the block's top, the surfaces keep half the gap (measured
-    // 0.82 d̂), and it rebounds by the bodies' elasticity (restitution 0: measured below).
+  TEST_CASE("shipped ball_block: the ball lands on the soft block at h = 1/30 and rebounds") {
+    // The ball falls 0.45 m (2.9 m/s at impact, 10 cm per step at the paper's h = 1/30 s,
+    // twice its radius): it never goes below the block's top (the block sags under it), the
+    // surfaces keep more than a third of the gap at every step (measured 0.457 d̂, at the
+    // impact), the energy never exceeds its start, and it rebounds by the bodies' elasticity
+    // (restitution 0): measured 0.038 m (0.067 m at h = 0.01 s, 0.086–0.088 m at 0.005 and
+    // 0.0025 s: the paper's linearised trapezoid damps the rest at 1/30, README "Bodies that
+    // touch"). Before the definite tangent (solid.tangent) it diverged 5 steps after landing.
     TempDir dir("contact_ball_block");
     const RunResult r = run_shipped("ball_block", dir);
     const fs::path csv = dir.path / "stats.csv";
     const std::vector<double> gap = column(csv, "contact_min_gap");
     const std::vector<double> low = column(csv, "ball_lowest");
+    const std::vector<double> energy = column(csv, "total_energy");
     size_t first = 0;
     while (first < gap.size() && column(csv, "contact_pairs")[first] == 0) ++first;
     REQUIRE(first < gap.size());
@@ -127,10 +132,24 @@ TEST_SUITE("unit") {
                                                  << rebound << " m of a 0.45 m drop");
     for (size_t i = 0; i < gap.size(); ++i) {
       INFO("step " << i + 1);
-      CHECK(gap[i] >= 0.5 * r.contact->gap);
+      CHECK(gap[i] >= 0.35 * r.contact->gap);
       CHECK(low[i] > 0.1 - 0.05);  // the block's top sags under it, the ball stays above it
+      CHECK(energy[i] <= energy[0] * (1.0 + 1e-3));
     }
+    CHECK(rebound > 0.02);  // it does rebound (measured 0.038 m)
     CHECK(rebound < 0.45);  // energy bounded: below the drop
+    CHECK(r.steps_done == 45);
+  }
+
+  TEST_CASE("solid.tangent: definite by default with contact and exact without") {
+    const Scene with = load_scene(scene_file("ball_block"));
+    CHECK(with.solid.tangent == solid::Tangent::Definite);
+    const Scene exact = load_scene(scene_file("ball_block"), {"solid.tangent=exact"});
+    CHECK(exact.solid.tangent == solid::Tangent::Exact);
+    const Scene without = load_scene(scene_file("bar"));
+    CHECK(without.solid.tangent == solid::Tangent::Exact);
+    CHECK_THROWS_WITH_AS(load_scene(scene_file("ball_block"), {"solid.tangent=psd"}),
+                         doctest::Contains("solid.tangent"), InputError);
   }
 
   TEST_CASE("shipped smoke_sheets_touch loads and runs two-way with contact between its sheets") {
