@@ -1197,7 +1197,8 @@ TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolv
   CHECK_FALSE(d.solid.equilibrium.keep_matrix);
   CHECK(d.resolved["solid"] == json::parse(R"({ "integrator": "newton",
       "rtol": 1e-3, "etol": 1e-5, "stol": 0.5, "max_iterations": 30, "max_updates": 20,
-      "line_search": true, "reform": "step", "starting_matrix": "bodies" })"));
+      "line_search": true, "reform": "step", "starting_matrix": "bodies",
+      "tangent": "exact" })"));
   const solid::SolidWorld dw = build_world(d);
   CHECK(dw.integrator == solid::Integrator::Newton);
   // A given solid.trapezoid asks for the linearized rule; so does a static scene (unused).
@@ -1219,13 +1220,15 @@ TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolv
   j["solid"] = json::parse(R"({ "integrator": "bfgs", "rtol": 1e-4, "etol": 1e-6,
       "stol": 0.25, "max_iterations": 12, "max_updates": 7, "line_search": false,
       "reform": "run",
-      "starting_matrix": "added_mass" })");
+      "starting_matrix": "added_mass", "tangent": "definite" })");
   const Scene s = parse_scene(j, "scene.json");
   CHECK(s.solid.integrator == solid::Integrator::Bfgs);
   CHECK(s.resolved["solid"] == j["solid"]);
   CHECK_FALSE(s.resolved["solid"].contains("trapezoid"));
   const solid::SolidWorld w = build_world(s);
   CHECK(w.integrator == solid::Integrator::Bfgs);
+  for (const solid::SolidBody& b : w.bodies)
+    CHECK(b.elasticity().tangent() == solid::Tangent::Definite);
   CHECK(w.equilibrium.rtol == 1e-4);
   CHECK(w.equilibrium.etol == 1e-6);
   CHECK(w.equilibrium.stol == 0.25);
