@@ -153,7 +153,8 @@ int bench_threads(const fs::path& scene_file, const BenchThreadsOptions& opt, st
     for (const ThreadsRun& r : runs) sec.push_back(r.seconds.at(p));
     for (const double s : sec) line += fmt::format(" {:>9.4f}", s);
     for (const double s : sec) speedup.push_back(s > 0 ? sec[0] / s : 0.0);
-    for (std::size_t i = 1; i < sec.size(); ++i) line += fmt::format(" {:>9.2f}", speedup[i]);
+    for (std::size_t i = 1; i < sec.size(); ++i)  // "-": a phase this scene does not have
+      line += sec[i] > 0 ? fmt::format(" {:>9.2f}", speedup[i]) : fmt::format(" {:>9}", "-");
     fmt::print(out, "{}\n", line);
     jphases.push_back({{"phase", label}, {"seconds", sec}, {"speedup", speedup}});
   }
@@ -168,9 +169,9 @@ int bench_threads(const fs::path& scene_file, const BenchThreadsOptions& opt, st
              "column but the seconds) against {} thread(s), bit for bit: {}\n",
              opt.threads[0], opt.threads[0], same.empty() ? "(one run)" : same);
   if (!opt.json_path.empty()) {
-    const nlohmann::json j{{"scene", scene.name},         {"steps", opt.steps},
-                           {"threads", opt.threads},      {"phases", jphases},
-                           {"identical", identical},      {"cores", default_thread_count()}};
+    const nlohmann::json j{{"scene", scene.name},    {"steps", opt.steps},
+                           {"threads", opt.threads}, {"phases", jphases},
+                           {"identical", identical}, {"cores", default_thread_count()}};
     write_text_file_atomic(opt.json_path, j.dump(2) + "\n");
   }
   return 0;
