@@ -2,8 +2,8 @@
 /// Thread control and fixed-chunk parallel loops (parallel.hpp) on oneTBB.
 #include "core/parallel.hpp"
 
-#include <atomic>
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <memory>
 #include <mutex>
@@ -52,8 +52,8 @@ void set_thread_count(int n) {
   const std::lock_guard<std::mutex> lock(l.mutex);
   l.arena.reset();
   l.control.reset();
-  l.control = std::make_unique<tbb::global_control>(
-      tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(n));
+  l.control = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    static_cast<std::size_t>(n));
   l.arena = std::make_unique<tbb::task_arena>(n);
   l.count = n;
 }
@@ -64,16 +64,17 @@ int thread_count() {
 }
 
 int parse_thread_count(const std::string& text, const std::string& source) {
-  const bool digits = !text.empty() && text.size() <= 7 &&
-                      std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
+  const bool digits =
+      !text.empty() && text.size() <= 7 &&
+      std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
   if (digits && std::stoi(text) >= 1) return std::stoi(text);
-  throw InputError(
-      fmt::format("{}: expected an integer >= 1 (threads), got '{}'", source, text));
+  throw InputError(fmt::format("{}: expected an integer >= 1 (threads), got '{}'", source, text));
 }
 
 int requested_thread_count(const std::string& option) {
   if (!option.empty()) return parse_thread_count(option, "--threads");
-  if (const char* env = std::getenv("TETFSI_THREADS")) return parse_thread_count(env, "TETFSI_THREADS");
+  if (const char* env = std::getenv("TETFSI_THREADS"))
+    return parse_thread_count(env, "TETFSI_THREADS");
   return default_thread_count();
 }
 

@@ -54,6 +54,8 @@ void parallel_for_each(Index n, Index grain, F&& fn) {
 }
 
 /// The number of chunks parallel_for_chunks cuts [0, n) into (0 for n ≤ 0).
-inline Index num_chunks(Index n, Index grain) { return n <= 0 ? 0 : (n + grain - 1) / grain; }
+inline Index num_chunks(Index n, Index grain) {
+  return n <= 0 ? 0 : (n + grain - 1) / grain;
+}
 
 }  // namespace tetfsi

@@ -19,22 +19,23 @@ namespace tetfsi::test {
 /// stats.csv's seconds columns (they differ between any two runs); so does every column whose
 /// name ends in "_s" (is_timing_column), as scripts/compare_runs.py tells them.
 inline const std::set<std::string> k_timing = {"assemble",
-                                        "solve",
-                                        "update",
-                                        "output",
-                                        "total",
-                                        "remesh",
-                                        "transfer",
-                                        "forces",
-                                        "pressure_assembly",
-                                        "pressure_solve",
-                                        "coupled_assembly",
-                                        "coupled_solve",
-                                        "solid",
-                                        "remesh_s"};
+                                               "solve",
+                                               "update",
+                                               "output",
+                                               "total",
+                                               "remesh",
+                                               "transfer",
+                                               "forces",
+                                               "pressure_assembly",
+                                               "pressure_solve",
+                                               "coupled_assembly",
+                                               "coupled_solve",
+                                               "solid",
+                                               "remesh_s"};
 
 inline bool is_timing_column(const std::string& name) {
-  return k_timing.count(name) > 0 || (name.size() > 2 && name.compare(name.size() - 2, 2, "_s") == 0);
+  return k_timing.count(name) > 0 ||
+         (name.size() > 2 && name.compare(name.size() - 2, 2, "_s") == 0);
 }
 
 inline std::vector<std::string> split_csv_line(const std::string& line) {
@@ -54,7 +55,8 @@ inline std::vector<std::string> split_csv_line(const std::string& line) {
 
 /// Every difference between two output folders: stats.csv's non-timing fields as text (17
 /// digits: equal text is equal bits), the collections and every frame file byte for byte.
-inline std::vector<std::string> differences(const std::filesystem::path& a, const std::filesystem::path& b) {
+inline std::vector<std::string> differences(const std::filesystem::path& a,
+                                            const std::filesystem::path& b) {
   std::vector<std::string> d;
   const auto la = lines_of(read_text(a / "stats.csv")), lb = lines_of(read_text(b / "stats.csv"));
   if (la.size() != lb.size())

@@ -55,8 +55,9 @@ TEST_CASE("threads: a coarse smoke_sheets (tet fluid - two-way) is the same at 1
       "fluid.mesh.far_size=0.2 --set fluid.refine.size=0.07");
 }
 
-TEST_CASE("threads: a coarse smoke_sheets_grid (MAC grid - two-way) is the same at 1 2 and 3 "
-          "threads") {
+TEST_CASE(
+    "threads: a coarse smoke_sheets_grid (MAC grid - two-way) is the same at 1 2 and 3 "
+    "threads") {
   TempDir dir("threads_grid");
   check_same_at_thread_counts(dir.path, "smoke_sheets_grid.json",
                               "--steps 3 --set output.every=1 --set fluid.grid.cell_size=0.05");
@@ -106,8 +107,8 @@ TEST_CASE("tetfsi bench threads: the phases at each thread count - the speed-up 
       dir.path, fmt::format("bench threads '{}' --steps 2 --threads-list 1,2 --json b.json",
                             scene_file("sheet_sag.json").string()));
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  for (const char* s : {"phase (s/step)", "1 thr", "2 thr", "x2", "assemble", "step",
-                        "2 threads: identical"})
+  for (const char* s :
+       {"phase (s/step)", "1 thr", "2 thr", "x2", "assemble", "step", "2 threads: identical"})
     CHECK_MESSAGE(contains(r.out, s), s);
   const json j = json::parse(read_text(dir.path / "b.json"));
   CHECK(j["threads"] == json::array({1, 2}));
@@ -117,6 +118,7 @@ TEST_CASE("tetfsi bench threads: the phases at each thread count - the speed-up 
   CHECK(j["phases"][4]["seconds"].size() == 2);
   CHECK(j["phases"][4]["speedup"][0] == 1.0);
   const Result bad = tetfsi::test::run_tetfsi(
-      dir.path, fmt::format("bench threads '{}' --threads-list 0", scene_file("sheet_sag.json").string()));
+      dir.path,
+      fmt::format("bench threads '{}' --threads-list 0", scene_file("sheet_sag.json").string()));
   CHECK(bad.code != 0);
 }
