@@ -380,6 +380,19 @@ Command add_bench_remesh(CLI::App& bench) {
   return {cmd, [o] { return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout); }};
 }
 
+/// A scene benchmark's SCENE (described by `scene_help`), `--json FILE` and `--steps N` (≥ 2,
+/// per `what`, the first a warm-up).
+void add_scene_bench_options(CLI::App* cmd, std::string& scene, const std::string& scene_help,
+                             std::string& json, int& steps, const std::string& what) {
+  cmd->add_option("SCENE", scene, scene_help)->required()->type_name("FILE");
+  cmd->add_option("--json", json, "also write the results to this JSON file")->type_name("FILE");
+  cmd->add_option("--steps", steps,
+                  "steps per " + what + "; the first is a warm-up and is not in the figures (>= 2)")
+      ->type_name("N")
+      ->check(CLI::Range(2, 1000000))
+      ->capture_default_str();
+}
+
 Command add_bench_step(CLI::App& bench) {
   struct Opt {
     std::string scene, json;
@@ -390,13 +403,8 @@ Command add_bench_step(CLI::App& bench) {
       "step",
       "time whole steps of a fluid scene at three mesh sizes against the floor: the bare CGAL "
       "Delaunay of the same vertices + one AMG pressure solve");
-  cmd->add_option("SCENE", o->scene, "fluid scene file (JSON)")->required()->type_name("FILE");
-  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
-  cmd->add_option("--steps", o->bench.steps,
-                  "steps per size; the first is a warm-up and is not in the figures (>= 2)")
-      ->type_name("N")
-      ->check(CLI::Range(2, 1000000))
-      ->capture_default_str();
+  add_scene_bench_options(cmd, o->scene, "fluid scene file (JSON)", o->json, o->bench.steps,
+                          "size");
   cmd->add_option("--sizes", o->bench.scales,
                   "comma-separated factors on the scene's fluid mesh sizes (default: chosen for "
                   "about 30k, 100k and 250k cells)")
@@ -419,13 +427,8 @@ Command add_bench_threads(CLI::App& bench) {
       "threads",
       "the same steps of a scene at each thread count, in one run: seconds per step of every "
       "phase, the speed-up, and whether the physics came out the same bit for bit");
-  cmd->add_option("SCENE", o->scene, "dynamic scene file (JSON)")->required()->type_name("FILE");
-  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
-  cmd->add_option("--steps", o->bench.steps,
-                  "steps per run; the first is a warm-up and is not in the figures (>= 2)")
-      ->type_name("N")
-      ->check(CLI::Range(2, 1000000))
-      ->capture_default_str();
+  add_scene_bench_options(cmd, o->scene, "dynamic scene file (JSON)", o->json, o->bench.steps,
+                          "run");
   cmd->add_option("--threads-list", o->bench.threads,
                   "comma-separated thread counts, the first the reference (default 1,2)")
       ->delimiter(',')
