@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 
 namespace tetfsi::fluid {
 
@@ -395,7 +396,7 @@ GridCells classify_grid(const GridSpec& g, const mesh::FluidDomain& domain,
   for (const mesh::SolidSurface& s : surfaces) mark_crossed(g, s, gc, dist);
   gc.solids = GridSolids(g, std::move(surfaces));
   // Faces with no fluid cell carry nothing; a face next to a solid cell is always Solid.
-  for (Index f = 0; f < nf; ++f) {
+  parallel_for_each(nf, 4096, [&](Index f) {  // each face writes its own slots
     const auto c = g.face_cells(f);
     const bool f0 = gc.fluid(c[0]), f1 = gc.fluid(c[1]);
     if (!f0 && !f1) {
@@ -406,7 +407,7 @@ GridCells classify_grid(const GridSpec& g, const mesh::FluidDomain& domain,
       if (gc.face_solid[f].body < 0)  // parity and crossing disagreed (a degenerate hit)
         gc.solids.first_crossing(g.cell_centre(c[0]), g.cell_centre(c[1]), &gc.face_solid[f]);
     }
-  }
+  });
   return gc;
 }
 

@@ -2,13 +2,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "fluid/grid_interface.hpp"
 
 namespace tetfsi::fluid {
 
 namespace {
+
+/// Faces or cells per chunk of the parallel loops.
+constexpr Index kGrain = 1024;
 
 /// Side-aware trilinear interpolation of the faces of axis a at x; `probe` (at x) when x is
 /// near a body.
@@ -101,34 +106,39 @@ GridAdvected grid_advect(const GridCells& old, const GridCells& now, const VecX&
       fill.size());
   GridAdvected out;
   out.u = VecX::Zero(g.num_faces());
-  for (Index f = 0; f < g.num_faces(); ++f) {
+  // Each face and cell writes its own slot (and clamped flag), in parallel.
+  std::vector<char> face_clamped(static_cast<size_t>(g.num_faces()), 0);
+  std::vector<char> cell_clamped(static_cast<size_t>(g.num_cells()), 0);
+  parallel_for_each(g.num_faces(), kGrain, [&](Index f) {
     const mesh::FaceKind k = now.face_kind[f];
-    if (k != mesh::FaceKind::Interior && k != mesh::FaceKind::Open) continue;
+    if (k != mesh::FaceKind::Interior && k != mesh::FaceKind::Open) return;
     bool clamped = false;
     const Vec3 x = grid_trace_back(old, u, g.face_centre(f), h, clamped);
-    out.traces_clamped += clamped;
+    face_clamped[f] = clamped;
     out.u[f] = face_component_at(old, u, g.face_axis(f), x);
-  }
+  });
   out.scalars.resize(g.num_cells(), scalars.cols());
-  for (Index c = 0; c < g.num_cells(); ++c) {
+  parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
     if (!now.fluid(c)) {
       out.scalars.row(c) = fill.transpose();
-      continue;
+      return;
     }
     bool clamped = false;
     const Vec3 x = grid_trace_back(old, u, g.cell_centre(c), h, clamped);
-    out.traces_clamped += clamped;
+    cell_clamped[c] = clamped;
     const auto st = grid_cell_stencil(old, x);
     if (st.empty()) {
       if (old.fluid(c))
         out.scalars.row(c) = scalars.row(c);
       else
         out.scalars.row(c) = fill.transpose();
-      continue;
+      return;
     }
     out.scalars.row(c).setZero();
     for (const auto& [d, w] : st) out.scalars.row(c) += w * scalars.row(d);
-  }
+  });
+  for (const char c : face_clamped) out.traces_clamped += c;
+  for (const char c : cell_clamped) out.traces_clamped += c;
   return out;
 }
 

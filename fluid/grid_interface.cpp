@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 
 namespace tetfsi::fluid {
 
@@ -200,50 +201,67 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
   return fit.empty() ? st : fit;
 }
 
-SparseMatrix GridInterface::J_paper(int per_cell) const {
-  const GridSpec& g = m_gc->grid;
-  const double hmin = g.h.minCoeff();
-  Triplets t;
-  // per triangle: Σ over its samples of w_k w_c per cell c (slot[c] into acc, −1 if none)
-  std::vector<Index> slot(g.num_cells(), -1);
+namespace {
+
+/// One solid triangle's share of J_paper: Σ over its samples of w_k w_c per cell c, the
+/// cells in the order the samples first reach them; its normal and area per sample.
+struct TriangleSamples {
   std::vector<std::pair<Index, Vec3>> acc;
-  for (const mesh::SolidSurface& s : m_gc->solids.surfaces()) {
-    const BodyInterface& bi = m_bodies[s.body];
-    for (Index tri = 0; tri < s.triangles.rows(); ++tri) {
-      Vec3 p[3];
-      for (int k = 0; k < 3; ++k) p[k] = s.vertices.row(s.triangles(tri, k)).transpose();
-      const Vec3 cr = (p[1] - p[0]).cross(p[2] - p[0]);
-      const double area = 0.5 * cr.norm();
-      if (!(area > 0)) continue;
-      const Vec3 n = cr.normalized();  // outward: from the solid into the fluid
-      const double edge =
-          std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
-      const int m = std::max(1, static_cast<int>(std::ceil(per_cell * edge / hmin)));
-      const double aq = area / (m * m);
-      // The m² sub-triangles' centroids: barycentric ((i + 1/3 or 2/3), (j + …)) / m.
-      for (int i = 0; i < m; ++i)
-        for (int j = 0; i + j < m; ++j)
-          for (int up = 0; up < 2 && (up == 0 || i + j + 1 < m); ++up) {
-            const double o = up ? 2.0 / 3.0 : 1.0 / 3.0;
-            const Vec3 w((i + o) / m, (j + o) / m, 1.0 - (i + j + 2 * o) / m);
-            const Vec3 xq = w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
-            // [Chentanez06, §3.4] ∫ p n over the solid face, the pressure read on its own side
-            for (const auto& [c, wc] : grid_cell_stencil_linear(*m_gc, xq + 1e-6 * hmin * n)) {
-              if (slot[c] < 0) {
-                slot[c] = static_cast<Index>(acc.size());
-                acc.emplace_back(c, Vec3::Zero());
-              }
-              acc[slot[c]].second += wc * w;
-            }
-          }
-      for (const auto& [c, wk] : acc) {
-        slot[c] = -1;
-        for (int k = 0; k < 3; ++k) {
-          const Index dof = 3 * (m_offsets[s.body] + bi.surface_node[s.triangles(tri, k)]);
-          for (int d = 0; d < 3; ++d) t.emplace_back(dof + d, c, -aq * wk[k] * n[d]);
+  Vec3 n = Vec3::Zero();
+  double aq = 0.0;
+};
+
+/// J_paper's samples of triangle `tri` of s (acc empty for a degenerate triangle).
+TriangleSamples triangle_samples(const GridCells& gc, const mesh::SolidSurface& s, Index tri,
+                                 int per_cell) {
+  const double hmin = gc.grid.h.minCoeff();
+  TriangleSamples ts;
+  Vec3 p[3];
+  for (int k = 0; k < 3; ++k) p[k] = s.vertices.row(s.triangles(tri, k)).transpose();
+  const Vec3 cr = (p[1] - p[0]).cross(p[2] - p[0]);
+  const double area = 0.5 * cr.norm();
+  if (!(area > 0)) return ts;
+  ts.n = cr.normalized();  // outward: from the solid into the fluid
+  const double edge = std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()});
+  const int m = std::max(1, static_cast<int>(std::ceil(per_cell * edge / hmin)));
+  ts.aq = area / (m * m);
+  // The m² sub-triangles' centroids: barycentric ((i + 1/3 or 2/3), (j + …)) / m.
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; i + j < m; ++j)
+      for (int up = 0; up < 2 && (up == 0 || i + j + 1 < m); ++up) {
+        const double o = up ? 2.0 / 3.0 : 1.0 / 3.0;
+        const Vec3 w((i + o) / m, (j + o) / m, 1.0 - (i + j + 2 * o) / m);
+        const Vec3 xq = w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
+        // [Chentanez06, §3.4] ∫ p n over the solid face, the pressure read on its own side
+        for (const auto& [c, wc] : grid_cell_stencil_linear(gc, xq + 1e-6 * hmin * ts.n)) {
+          auto it = std::find_if(ts.acc.begin(), ts.acc.end(),
+                                 [c = c](const auto& e) { return e.first == c; });
+          if (it == ts.acc.end()) it = ts.acc.insert(ts.acc.end(), {c, Vec3::Zero()});
+          it->second += wc * w;
         }
       }
-      acc.clear();
+  return ts;
+}
+
+}  // namespace
+
+SparseMatrix GridInterface::J_paper(int per_cell) const {
+  const GridSpec& g = m_gc->grid;
+  Triplets t;
+  for (const mesh::SolidSurface& s : m_gc->solids.surfaces()) {
+    const BodyInterface& bi = m_bodies[s.body];
+    // The triangles' samples in parallel, their triplets in triangle order (bit for bit).
+    std::vector<TriangleSamples> samples(static_cast<size_t>(s.triangles.rows()));
+    parallel_for_each(s.triangles.rows(), 16,
+                      [&](Index tri) { samples[tri] = triangle_samples(*m_gc, s, tri, per_cell); });
+    for (Index tri = 0; tri < s.triangles.rows(); ++tri) {
+      const TriangleSamples& ts = samples[tri];
+      for (const auto& [c, wk] : ts.acc) {
+        for (int k = 0; k < 3; ++k) {
+          const Index dof = 3 * (m_offsets[s.body] + bi.surface_node[s.triangles(tri, k)]);
+          for (int d = 0; d < 3; ++d) t.emplace_back(dof + d, c, -ts.aq * wk[k] * ts.n[d]);
+        }
+      }
     }
   }
   SparseMatrix J(num_dofs(), g.num_cells());

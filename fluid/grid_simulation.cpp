@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "fluid/forces.hpp"
 #include "fluid/grid_advect.hpp"
 #include "fluid/grid_interface.hpp"
@@ -93,6 +94,9 @@ void apply_sources(const GridCells& gc, const FluidParams& p, VecX& density, Vec
   }
 }
 
+/// Cells or faces per chunk of the parallel loops.
+constexpr Index kGrain = 4096;
+
 /// Central difference along axis a of a cell field at c, one-sided next to non-fluid cells
 /// and the box (0 if both neighbours are missing).
 double cell_derivative(const GridCells& gc, const Eigen::Ref<const VecX>& v, Index c, int a) {
@@ -135,11 +139,11 @@ MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc) {
   MatX3 w = MatX3::Zero(nc, 3);
   // contiguous components (a column of the row-major uc would be copied on every call)
   const std::array<VecX, 3> comp_of = {VecX(uc.col(0)), VecX(uc.col(1)), VecX(uc.col(2))};
-  for (Index c = 0; c < nc; ++c) {
-    if (!gc.fluid(c)) continue;
+  parallel_for_each(nc, kGrain, [&](Index c) {
+    if (!gc.fluid(c)) return;
     const auto d = [&](int comp, int ax) { return cell_derivative(gc, comp_of[comp], c, ax); };
     w.row(c) << d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1);
-  }
+  });
   return w;
 }
 
@@ -154,24 +158,24 @@ MatX3 grid_confinement(const GridCells& gc, const MatX3& uc, double epsilon) {
   MatX3 a = MatX3::Zero(nc, 3);
   const VecX wn = w.rowwise().norm();
   const double hc = g.h.mean();
-  for (Index c = 0; c < nc; ++c) {
-    if (!gc.fluid(c)) continue;
+  parallel_for_each(nc, kGrain, [&](Index c) {
+    if (!gc.fluid(c)) return;
     const Vec3 grad(cell_derivative(gc, wn, c, 0), cell_derivative(gc, wn, c, 1),
                     cell_derivative(gc, wn, c, 2));
     const double gn = grad.norm();
-    if (gn < 1e-12 * (wn[c] / hc + 1e-300)) continue;
+    if (gn < 1e-12 * (wn[c] / hc + 1e-300)) return;
     // see [Fedkiw01, Eq. (11)]: f_conf = ε h (N × ω)
     a.row(c) = epsilon * hc * (grad / gn).cross(w.row(c).transpose()).transpose();
-  }
+  });
   return a;
 }
 
 /// u_f += h e_a · (mean of its fluid cells' acceleration) on Interior and Open faces.
 void add_cell_acceleration(const GridCells& gc, const MatX3& a, double h, VecX& u) {
   const GridSpec& g = gc.grid;
-  for (Index f = 0; f < g.num_faces(); ++f) {
+  parallel_for_each(g.num_faces(), kGrain, [&](Index f) {
     const FaceKind k = gc.face_kind[f];
-    if (k != FaceKind::Interior && k != FaceKind::Open) continue;
+    if (k != FaceKind::Interior && k != FaceKind::Open) return;
     const int ax = g.face_axis(f);
     double s = 0;
     int n = 0;
@@ -181,7 +185,7 @@ void add_cell_acceleration(const GridCells& gc, const MatX3& a, double h, VecX& 
         ++n;
       }
     if (n > 0) u[f] += h * s / n;
-  }
+  });
 }
 
 /// Buoyancy [Fedkiw01, Eq. (8)] and vorticity confinement, averaged from the cells to faces.

@@ -7,10 +7,16 @@
 #include <limits>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 
 namespace tetfsi::fluid {
 
 using mesh::TetMesh;
+
+namespace {
+/// Vertices or cells per chunk of the parallel loops (the sums into vertices stay serial).
+constexpr Index kGrain = 2048;
+}  // namespace
 
 MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
   const Index nv = m.num_vertices(), nf = m.num_faces();
@@ -29,10 +35,10 @@ MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
     }
   }
   MatX3 U = MatX3::Zero(nv, 3);
-  for (Index v = 0; v < nv; ++v) {
+  parallel_for_each(nv, kGrain, [&](Index v) {
     const Mat3& N = normal[v];
     const double tr = N.trace();
-    if (!(tr > 0)) continue;  // a vertex of no face (not in the mesh)
+    if (!(tr > 0)) return;  // a vertex of no face (not in the mesh)
     Eigen::SelfAdjointEigenSolver<Mat3> es(N);
     const Vec3 ev = es.eigenvalues();
     if (ev[0] > 1e-6 * tr) {
@@ -45,7 +51,7 @@ MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
                (es.eigenvectors().col(i).dot(rhs.row(v).transpose()) / ev[i]);
       U.row(v) = x.transpose();
     }
-  }
+  });
   return U;
 }
 
@@ -88,26 +94,26 @@ VecX vertex_linear_fit(const TetMesh& m, const VecX& c, const MatX3* points, Mat
   }
   VecX out(nv);
   if (grad) *grad = MatX3::Zero(nv, 3);
-  for (Index v = 0; v < nv; ++v) {
+  parallel_for_each(nv, kGrain, [&](Index v) {
     const double wsum = N[v](0, 0);
     if (!(wsum > 0)) {
       out[v] = 0.0;
-      continue;
+      return;
     }
     const double mean = r[v](0) / wsum;
     out[v] = mean;
-    if (hi[v] - lo[v] <= 0) continue;
+    if (hi[v] - lo[v] <= 0) return;
     // Scale the gradient block to lengths ~1 before judging its conditioning.
     const double len2 = N[v].bottomRightCorner<3, 3>().trace() / wsum;
-    if (!(len2 > 0)) continue;
+    if (!(len2 > 0)) return;
     const Eigen::LDLT<Mat4> ldlt(N[v]);
     const Vec4 d = ldlt.vectorD();
     if (ldlt.info() != Eigen::Success || !(d.minCoeff() > 1e-6 * wsum * std::min(1.0, len2)))
-      continue;
+      return;
     const Vec4 x = ldlt.solve(r[v]);
     out[v] = std::clamp(x(0), lo[v], hi[v]);
     if (grad) grad->row(v) = x.tail<3>().transpose();
-  }
+  });
   return out;
 }
 
@@ -140,12 +146,12 @@ Eigen::Matrix<double, 4, 3> barycentric_gradients(const TetMesh& m, Index t) {
 MatX3 cell_vorticity(const TetMesh& m, const MatX3& U) {
   const Index nt = m.num_tets();
   MatX3 w(nt, 3);
-  for (Index t = 0; t < nt; ++t) {
+  parallel_for_each(nt, kGrain, [&](Index t) {
     const auto g = barycentric_gradients(m, t);
     Vec3 c = Vec3::Zero();
     for (int i = 0; i < 4; ++i) c += g.row(i).transpose().cross(U.row(m.tets(t, i)).transpose());
     w.row(t) = c.transpose();
-  }
+  });
   return w;
 }
 
@@ -169,7 +175,7 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
   m_values.resize(4 * static_cast<Index>(nt), 3);
   m_vertex_ls = vertex_least_squares(m, u);
   const MatX3& ls = m_vertex_ls;  // for the flat cells and the clamp
-  for (Index t = 0; t < nt; ++t) {
+  parallel_for_each(nt, kGrain, [&](Index t) {
     Vec3 x[4];
     double emax2 = 0;
     for (int i = 0; i < 4; ++i)
@@ -180,7 +186,7 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
     // round-off of its face fluxes by 1/V: it takes the vertex least-squares values instead.
     if (m.volumes[t] < kFlatCellFraction * emax2 * std::sqrt(emax2) / (6.0 * std::sqrt(2.0))) {
       for (int i = 0; i < 4; ++i) m_values.row(4 * t + i) = ls.row(m.tets(t, i));
-      continue;
+      return;
     }
     double phi[4];
     for (int k = 0; k < 4; ++k) {
@@ -197,7 +203,7 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
         if (k != i) v += phi[k] * (x[i] - x[k]);
       m_values.row(4 * t + i) = (s * v).transpose();
     }
-  }
+  });
 }
 
 Vec3 VelocityField::at(Index t, const Vec4& bary) const {
@@ -253,7 +259,7 @@ MatX3 VelocityField::cell_velocities() const {
   const Index nt = m_mesh->num_tets();
   MatX3 c(nt, 3);
   const Vec4 centre = Vec4::Constant(0.25);
-  for (Index t = 0; t < nt; ++t) c.row(t) = at(t, centre).transpose();
+  parallel_for_each(nt, kGrain, [&](Index t) { c.row(t) = at(t, centre).transpose(); });
   return c;
 }
 

@@ -5,6 +5,7 @@
 #include <optional>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "fluid/reconstruct.hpp"
 
 namespace tetfsi::fluid {
@@ -13,12 +14,12 @@ using mesh::TetMesh;
 
 Barycentrics::Barycentrics(const TetMesh& m)
     : m_mesh(&m), m_inv(static_cast<size_t>(m.num_tets())) {
-  for (Index t = 0; t < m.num_tets(); ++t) {
+  parallel_for_each(m.num_tets(), 4096, [&](Index t) {
     const Vec3 x0 = m.vertices.row(m.tets(t, 0)).transpose();
     Mat3 E;
     for (int i = 0; i < 3; ++i) E.col(i) = m.vertices.row(m.tets(t, i + 1)).transpose() - x0;
     m_inv[t] = E.inverse();
-  }
+  });
 }
 
 Vec4 Barycentrics::operator()(Index t, const Vec3& x) const {
@@ -84,6 +85,54 @@ TracePoint walk_segment(const Barycentrics& bary, const TracePoint& from, const 
 }
 
 namespace {
+
+/// Samples per chunk of the parallel loops (a back-trace takes about a microsecond).
+constexpr Index kGrain = 1024;
+
+/// Whether two trace points are the same, bit for bit.
+bool same_point(const TracePoint& a, const TracePoint& b) {
+  return a.tet == b.tet && a.bary == b.bary && a.clamped == b.clamped && a.exit_face == b.exit_face;
+}
+
+/// The results r_i = locate(i, hint) of a chain i = 0 … n−1 whose hint is the last result
+/// that carries one (`hint_of(r)`: a pointer to it, or null; the first hint is TracePoint{}),
+/// as the serial loop computes them, bit for bit, in parallel: every chunk of kGrain items
+/// runs the chain speculatively from no hint; then, chunk by chunk in order, its items are
+/// recomputed from the true hint until one equals its speculative result and carries a hint —
+/// from there the speculative chain is the true one. Typically one item per chunk is redone.
+template <class R, class Locate, class HintOf>
+std::vector<R> hinted_chain(Index n, Locate&& locate, HintOf&& hint_of,
+                            bool (*same)(const R&, const R&)) {
+  std::vector<R> r(static_cast<std::size_t>(n));
+  auto run = [&](Index begin, Index end, TracePoint hint) {
+    for (Index i = begin; i < end; ++i) {
+      r[i] = locate(i, hint);
+      if (const TracePoint* h = hint_of(r[i])) hint = *h;
+    }
+  };
+  if (thread_count() == 1) {
+    run(0, n, TracePoint{});
+    return r;
+  }
+  parallel_for_chunks(n, kGrain, [&](Index begin, Index end) { run(begin, end, TracePoint{}); });
+  TracePoint hint;  // the true hint entering each chunk
+  for (Index begin = 0; begin < n; begin += kGrain) {
+    const Index end = std::min(n, begin + kGrain);
+    Index i = begin;
+    while (begin > 0 && i < end) {  // chunk 0 ran from the true hint already
+      const R x = locate(i, hint);
+      const bool synced = same(x, r[i]);
+      r[i++] = x;
+      if (const TracePoint* h = hint_of(x)) {
+        hint = *h;
+        if (synced) break;
+      }
+    }
+    for (; i < end; ++i)
+      if (const TracePoint* h = hint_of(r[i])) hint = *h;
+  }
+  return r;
+}
 
 /// One sample of the transfer: the sample point located in the old fluid (`start`, when
 /// `inside`), where its RK2 trace ended, whether either half was stopped at the fluid
@@ -165,29 +214,51 @@ class Tracer {
   double m_h;
 };
 
+/// A cell centroid located in the old fluid (Tracer::start_at).
+struct Start {
+  TracePoint p;
+  bool inside = false;
+};
+
+bool same_start(const Start& a, const Start& b) {
+  return a.inside == b.inside && same_point(a.p, b.p);
+}
+
 /// The semi-Lagrangian pass: every new cell centroid (when scalars are carried) and face
 /// centroid traced back through the old fluid. Cells first, each located from the previous
-/// one (the cells of a CGAL mesh come in spatially sorted order); then each face from its
-/// first cell's point, a fraction of a cell away.
+/// one (the cells of a CGAL mesh come in spatially sorted order; a chain, see hinted_chain);
+/// then, in parallel, the cells' traces and each face located from its first cell's point, a
+/// fraction of a cell away, and traced (each sample writes only its own slot).
 void back_traces(const Tracer& tr, const TetMesh& nm, bool scalars, std::vector<Sample>& cells,
                  std::vector<Sample>& faces) {
   cells.assign(static_cast<size_t>(nm.num_tets()), Sample{});
   faces.assign(static_cast<size_t>(nm.num_faces()), Sample{});
+  const std::vector<Start> starts = hinted_chain<Start>(
+      nm.num_tets(),
+      [&](Index t, const TracePoint& prev) {
+        Start st;
+        st.p = tr.start_at(mesh::tet_centroid(nm, t), prev, st.inside);
+        return st;
+      },
+      [](const Start& st) { return st.inside ? &st.p : nullptr; }, same_start);
   std::vector<TracePoint> cell_start(cells.size());
   TracePoint prev;
   for (Index t = 0; t < nm.num_tets(); ++t) {
     Sample& s = cells[t];
-    s.start = tr.start_at(mesh::tet_centroid(nm, t), prev, s.inside);
+    s.start = starts[t].p;
+    s.inside = starts[t].inside;
     if (s.inside) prev = s.start;
     cell_start[t] = s.inside ? s.start : prev;  // a face of this cell starts from a point inside
-    if (scalars) tr.trace(s.start, -1.0, s);
   }
-  for (Index f = 0; f < nm.num_faces(); ++f) {
+  if (scalars)
+    parallel_for_each(nm.num_tets(), kGrain,
+                      [&](Index t) { tr.trace(cells[t].start, -1.0, cells[t]); });
+  parallel_for_each(nm.num_faces(), kGrain, [&](Index f) {
     Sample& s = faces[f];
     s.start =
         tr.start_at(nm.face_centroids.row(f).transpose(), cell_start[nm.face_tets(f, 0)], s.inside);
     tr.trace(s.start, -1.0, s);
-  }
+  });
 }
 
 /// The range of the old cell values around tet t (t and its face neighbours): the clamp of
@@ -254,37 +325,39 @@ ErrorEstimate reverse_pass(const TransferInput& in, const Tracer& old_tr, const 
   e.density = VecX::Zero(has_d ? om.num_tets() : 0);
   e.temperature = VecX::Zero(has_T ? om.num_tets() : 0);
   e.u = VecX::Zero(velocity ? om.num_faces() : 0);
-  std::vector<TracePoint> cell_q(static_cast<size_t>(om.num_tets()));
+  std::vector<TracePoint> cell_q;
   // "uniform": within 1e-9 of the field's range (a smoke density of 1e-30 is no smoke)
   auto range_of = [](const VecX* c) {
     return c && c->size() ? c->maxCoeff() - c->minCoeff() : 0.0;
   };
   const double tol_d = 1e-9 * range_of(in.old_density), tol_T = 1e-9 * range_of(in.old_temperature);
-  TracePoint prev;
-  for (Index t = 0; t < om.num_tets(); ++t) {
-    const Vec3 y = mesh::tet_centroid(om, t);
-    cell_q[t] = locate_new(y, prev);
-    if (cell_q[t].tet >= 0) prev = cell_q[t];
+  // The old cell centroids in the new fluid, each walked to from the previous one (a chain,
+  // see hinted_chain); the round trips from there in parallel.
+  cell_q = hinted_chain<TracePoint>(
+      om.num_tets(),
+      [&](Index t, const TracePoint& prev) { return locate_new(mesh::tet_centroid(om, t), prev); },
+      [](const TracePoint& q) { return q.tet >= 0 ? &q : nullptr; }, same_point);
+  parallel_for_each(om.num_tets(), kGrain, [&](Index t) {
     // Where the old scalars are uniform around t (most of a smoke scene holds no smoke), the
     // round trip returns them unchanged: e = 0 without tracing.
     if ((!has_d || uniform_around(om, *in.old_density, t, tol_d)) &&
         (!has_T || uniform_around(om, *in.old_temperature, t, tol_T)))
-      continue;
+      return;
     const TracePoint q = carry(TracePoint{t, Vec4::Constant(0.25), false}, cell_q[t]);
-    if (q.tet < 0) continue;
+    if (q.tet < 0) return;
     if (has_d) e.density[t] = 0.5 * ((*in.old_density)[t] - sample_vertices(nm, dv, q));
     if (has_T) e.temperature[t] = 0.5 * ((*in.old_temperature)[t] - sample_vertices(nm, tv, q));
-  }
-  for (Index g = 0; g < om.num_faces() && velocity; ++g) {
-    if (om.is_boundary(g)) continue;  // boundary values are set by the conditions
+  });
+  parallel_for_each(velocity ? om.num_faces() : 0, kGrain, [&](Index g) {
+    if (om.is_boundary(g)) return;  // boundary values are set by the conditions
     const Vec3 y = om.face_centroids.row(g).transpose();
     const Index t0 = om.face_tets(g, 0);
     const TracePoint p0{t0, old_tr.bary()(t0, y), false};
     const TracePoint q = carry(p0, locate_new(y, cell_q[t0]));
-    if (q.tet < 0) continue;
+    if (q.tet < 0) return;
     const Vec3 n = om.face_normals.row(g).transpose();
     e.u[g] = 0.5 * ((*in.old_u)[g] - hat_field->normal_at(q.tet, q.bary, n));
-  }
+  });
   return e;
 }
 
@@ -305,22 +378,22 @@ void correct(const TransferInput& in, const VelocityField& field, const TetMesh&
   // 18k cells / 50 steps, the smooth one 3 %.
   if (e.u.size()) {
     const VelocityField e_field(om, e.u, Reconstruction::VertexLeastSquares);
-    for (Index f = 0; f < nm.num_faces(); ++f) {
+    parallel_for_each(nm.num_faces(), kGrain, [&](Index f) {
       const TracePoint* p = point(faces[f], in.velocity_scheme);
-      if (!p) continue;
+      if (!p) return;
       const Vec3 n = nm.face_normals.row(f).transpose();
       const auto [lo, hi] = field.normal_range(faces[f].end.tet, n);
       out.u[f] = std::clamp(out.u[f] + n.dot(e_field.at(p->tet, p->bary)), lo, hi);
-    }
+    });
   }
   auto correct_scalar = [&](const VecX& old_c, const VecX& err, VecX& c) {
     const VecX ev = cell_to_vertex_linear(om, err);
-    for (Index t = 0; t < nm.num_tets(); ++t) {
+    parallel_for_each(nm.num_tets(), kGrain, [&](Index t) {
       const TracePoint* p = point(cells[t], in.scalar_scheme);
-      if (!p) continue;
+      if (!p) return;
       const auto [lo, hi] = cell_range(om, old_c, cells[t].end.tet);
       c[t] = std::clamp(c[t] + sample_vertices(om, ev, *p), lo, hi);
-    }
+    });
   };
   if (e.density.size()) correct_scalar(*in.old_density, e.density, out.density);
   if (e.temperature.size()) correct_scalar(*in.old_temperature, e.temperature, out.temperature);
@@ -337,12 +410,12 @@ void pressure_along_path(const TransferInput& in, const TetMesh& nm, double h,
     for (int i = 0; i < 4; ++i) v += p.bary[i] * g.row(om.tets(p.tet, i)).transpose();
     return v;
   };
-  for (Index f = 0; f < nm.num_faces(); ++f) {
+  parallel_for_each(nm.num_faces(), kGrain, [&](Index f) {
     const Sample& s = faces[f];
-    if (!s.inside || s.clamped || nm.is_boundary(f) || rho[s.mid.tet] != rho[s.start.tet]) continue;
+    if (!s.inside || s.clamped || nm.is_boundary(f) || rho[s.mid.tet] != rho[s.start.tet]) return;
     const Vec3 n = nm.face_normals.row(f).transpose();
     u[f] += h / rho[s.start.tet] * n.dot(grad_at(s.start) - grad_at(s.mid));
-  }
+  });
 }
 
 }  // namespace
@@ -366,21 +439,23 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   out.temperature = VecX::Zero(nt);
   const VecX dv = has_d ? cell_to_vertex_linear(om, *in.old_density) : VecX();
   const VecX tv = has_T ? cell_to_vertex_linear(om, *in.old_temperature) : VecX();
-  for (Index t = 0; t < nt && (has_d || has_T); ++t) {
-    const Sample& s = cells[t];
+  for (const Sample& s : cells)
+    if (s.clamped && (has_d || has_T)) ++out.clamped;
+  for (const Sample& s : faces)
     if (s.clamped) ++out.clamped;
+  parallel_for_each(has_d || has_T ? nt : 0, kGrain, [&](Index t) {
+    const Sample& s = cells[t];
     if (has_d) out.density[t] = sample_vertices(om, dv, s.end);
     if (has_T) out.temperature[t] = sample_vertices(om, tv, s.end);
     const auto ip = static_cast<size_t>(s.inflow);
     if (s.inflow >= 0 && ip < in.inflow_density.size()) out.density[t] = in.inflow_density[ip];
     if (s.inflow >= 0 && ip < in.inflow_temperature.size())
       out.temperature[t] = in.inflow_temperature[ip];
-  }
-  for (Index f = 0; f < nf; ++f) {
+  });
+  parallel_for_each(nf, kGrain, [&](Index f) {
     const Sample& s = faces[f];
-    if (s.clamped) ++out.clamped;
     out.u[f] = field.normal_at(s.end.tet, s.end.bary, nm.face_normals.row(f).transpose());
-  }
+  });
   if (in.scalar_scheme != TransferScheme::SemiLagrangian ||
       in.velocity_scheme != TransferScheme::SemiLagrangian) {
     const ErrorEstimate e = reverse_pass(in, tracer, nm, out);

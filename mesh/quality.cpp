@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>  // cross()
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "mesh/volume_mesh.hpp"
 
 namespace tetfsi::mesh {
@@ -108,15 +109,14 @@ TetQuality tet_quality(const MatX3& vertices, const MatX4i& tets) {
   q.radius_edge.resize(n);
   q.shape.resize(n);
   q.volume.resize(n);
-  for (Index t = 0; t < n; ++t) {
+  for (Index t = 0; t < n; ++t)  // checked first, serially: the error names the first bad tet
+    for (int k = 0; k < 4; ++k)
+      TETFSI_REQUIRE(MeshError, tets(t, k) >= 0 && tets(t, k) < vertices.rows(),
+                     "tet_quality: tet {} refers to vertex {} but the mesh has {} vertices", t,
+                     tets(t, k), vertices.rows());
+  parallel_for_each(n, 4096, [&](Index t) {  // each tet writes its own entries
     std::array<Vec3, 4> x;
-    for (int k = 0; k < 4; ++k) {
-      const Index v = tets(t, k);
-      TETFSI_REQUIRE(MeshError, v >= 0 && v < vertices.rows(),
-                     "tet_quality: tet {} refers to vertex {} but the mesh has {} vertices", t, v,
-                     vertices.rows());
-      x[static_cast<std::size_t>(k)] = vertices.row(v);
-    }
+    for (int k = 0; k < 4; ++k) x[static_cast<std::size_t>(k)] = vertices.row(tets(t, k));
     // Outward unit normals; the dihedral angle at the edge shared by faces i and j is
     // π − ∠(n_i, n_j), i.e. the angle between n_i and −n_j.
     std::array<Vec3, 4> nrm;
@@ -152,7 +152,7 @@ TetQuality tet_quality(const MatX3& vertices, const MatX4i& tets) {
     q.radius_edge(t) = r / std::sqrt(l2_min);  // +inf for a flat tet
     q.shape(t) = 6.0 * std::numbers::sqrt2 * vol / (l_rms * l_rms * l_rms);
     q.volume(t) = vol;
-  }
+  });
   return q;
 }
 
@@ -162,14 +162,14 @@ FaceQuality face_quality(const TetMesh& m) {
   q.dual_length = m.dual_lengths;
   q.weight.resize(nf);
   q.relative_dual.resize(nf);
-  for (Index f = 0; f < nf; ++f) {
+  parallel_for_each(nf, 4096, [&](Index f) {
     const Vec3 a = m.vertices.row(m.faces(f, 0)), b = m.vertices.row(m.faces(f, 1)),
                c = m.vertices.row(m.faces(f, 2));
     const double mean_edge = ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3.0;
     const double d = m.dual_lengths(f);
     q.relative_dual(f) = d / mean_edge;
     q.weight(f) = m.is_boundary(f) ? 0.0 : (d > 0.0 ? m.face_areas(f) / d : kInf);
-  }
+  });
   return q;
 }
 

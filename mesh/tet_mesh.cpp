@@ -16,6 +16,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/parallel.hpp"
 #include "mesh/geometry.hpp"
 
 namespace tetfsi::mesh {
@@ -226,7 +227,8 @@ void update_geometry(TetMesh& m) {
   const Index nf = m.num_faces();
   m.volumes.resize(nt);
   m.circumcentres.resize(nt, 3);
-  for (Index t = 0; t < nt; ++t) {
+  // Per cell, then per face, in parallel: each item writes its own rows.
+  parallel_for_each(nt, 4096, [&](Index t) {
     const auto r = m.tets.row(t);
     const Vec3 a = m.vertices.row(r(0)), b = m.vertices.row(r(1)), c = m.vertices.row(r(2)),
                d = m.vertices.row(r(3));
@@ -236,12 +238,12 @@ void update_geometry(TetMesh& m) {
     m.volumes(t) = vol6 / 6.0;
     m.circumcentres.row(t) =
         a + (u.squaredNorm() * vw + v.squaredNorm() * wu + w.squaredNorm() * uv) / (2.0 * vol6);
-  }
+  });
   m.face_areas.resize(nf);
   m.face_normals.resize(nf, 3);
   m.face_centroids.resize(nf, 3);
   m.dual_lengths.resize(nf);
-  for (Index f = 0; f < nf; ++f) {
+  parallel_for_each(nf, 4096, [&](Index f) {
     const auto r = m.faces.row(f);
     const Vec3 a = m.vertices.row(r(0)), b = m.vertices.row(r(1)), c = m.vertices.row(r(2));
     const Vec3 cr = (b - a).cross(c - a);
@@ -255,7 +257,7 @@ void update_geometry(TetMesh& m) {
     const Index t2 = m.face_tets(f, 1);
     // d_f = (c_t2 − c_t1)·n_f inside, (x_f − c_t1)·n_f on the boundary [KFCO06, §3].
     m.dual_lengths(f) = t2 >= 0 ? (Vec3(m.circumcentres.row(t2)) - c1).dot(n) : (x - c1).dot(n);
-  }
+  });
 }
 
 double total_volume(const TetMesh& m) {

@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 
 namespace tetfsi::solid {
 
@@ -44,6 +46,23 @@ inline Eigen::Matrix<double, 3, 4> shape_gradients(const Mat3& dm_inv) {
 }
 
 using Mat12 = Eigen::Matrix<double, 12, 12>;
+using Mat34 = Eigen::Matrix<double, 3, 4>;
+
+/// Tets per block of local results and per chunk of the parallel loop over a block.
+constexpr Index kBlock = 4096, kGrain = 256;
+
+/// compute(t, local) for the tets of each block of kBlock in parallel, each into its own
+/// slot, then scatter(t, local) serially in tet order: the sums are the serial loop's, bit for
+/// bit, at any thread count.
+template <class Local, class Compute, class Scatter>
+void compute_then_scatter(Index nt, Compute&& compute, Scatter&& scatter) {
+  std::vector<Local> buffer(static_cast<std::size_t>(std::min(nt, kBlock)));
+  for (Index b0 = 0; b0 < nt; b0 += kBlock) {
+    const Index n = std::min(kBlock, nt - b0);
+    parallel_for_each(n, kGrain, [&](Index i) { compute(b0 + i, buffer[i]); });
+    for (Index i = 0; i < n; ++i) scatter(b0 + i, buffer[i]);
+  }
+}
 
 /// Element Jacobian K'_e = ∂²W_e/∂x² (12 × 12, rows/cols 3a + k), from
 /// dP = dF S + F dS, dS = λ tr(dE) I + 2μ dE, dE = ½(dFᵀF + FᵀdF), with dF = e_k g_aᵀ.
@@ -131,25 +150,31 @@ StvkElasticity::StvkElasticity(const MatX3& rest, const MatX4i& tets, const Mate
 double StvkElasticity::energy(const MatX3& x) const {
   TETFSI_CHECK(x.rows() == m_num_nodes, "x has {} rows, expected {}", x.rows(), m_num_nodes);
   double w = 0.0;
-  for (Index t = 0; t < num_tets(); ++t) {
-    const TetState s = tet_state(x, m_tets.row(t).transpose(), m_dm_inv[t], m_lame);
-    const double tr = s.E.trace();
-    // W = V0 (μ E:E + ½ λ (tr E)²)  [OBrienHodgins99]
-    w += m_rest_volume[t] * (m_lame.mu * s.E.squaredNorm() + 0.5 * m_lame.lambda * tr * tr);
-  }
+  compute_then_scatter<double>(
+      num_tets(),
+      [&](Index t, double& wt) {
+        const TetState s = tet_state(x, m_tets.row(t).transpose(), m_dm_inv[t], m_lame);
+        const double tr = s.E.trace();
+        // W = V0 (μ E:E + ½ λ (tr E)²)  [OBrienHodgins99]
+        wt = m_rest_volume[t] * (m_lame.mu * s.E.squaredNorm() + 0.5 * m_lame.lambda * tr * tr);
+      },
+      [&](Index, double wt) { w += wt; });
   return w;
 }
 
 VecX StvkElasticity::forces(const MatX3& x) const {
   TETFSI_CHECK(x.rows() == m_num_nodes, "x has {} rows, expected {}", x.rows(), m_num_nodes);
   VecX f = VecX::Zero(3 * m_num_nodes);
-  for (Index t = 0; t < num_tets(); ++t) {
-    const Vec4i tet = m_tets.row(t).transpose();
-    const TetState s = tet_state(x, tet, m_dm_inv[t], m_lame);
-    // K(d) = ∂W/∂x: node a gets V0 P g_a  [Chentanez06, Eq. (3)], [OBrienHodgins99]
-    const Eigen::Matrix<double, 3, 4> h = m_rest_volume[t] * s.P * shape_gradients(m_dm_inv[t]);
-    for (int a = 0; a < 4; ++a) f.segment<3>(3 * tet[a]) += h.col(a);
-  }
+  compute_then_scatter<Mat34>(
+      num_tets(),
+      [&](Index t, Mat34& h) {
+        const TetState s = tet_state(x, m_tets.row(t).transpose(), m_dm_inv[t], m_lame);
+        // K(d) = ∂W/∂x: node a gets V0 P g_a  [Chentanez06, Eq. (3)], [OBrienHodgins99]
+        h = m_rest_volume[t] * s.P * shape_gradients(m_dm_inv[t]);
+      },
+      [&](Index t, const Mat34& h) {
+        for (int a = 0; a < 4; ++a) f.segment<3>(3 * m_tets(t, a)) += h.col(a);
+      });
   return f;
 }
 
@@ -167,19 +192,26 @@ void StvkElasticity::forces_and_jacobian(const MatX3& x, VecX& forces,
   jacobian = m_pattern;
   double* values = jacobian.valuePtr();
   std::fill(values, values + jacobian.nonZeros(), 0.0);
-  for (Index t = 0; t < num_tets(); ++t) {
-    const Vec4i tet = m_tets.row(t).transpose();
-    const TetState s = tet_state(x, tet, m_dm_inv[t], m_lame);
-    const Eigen::Matrix<double, 3, 4> g = shape_gradients(m_dm_inv[t]);
-    const double v0 = m_rest_volume[t];
-    const Eigen::Matrix<double, 3, 4> h = v0 * s.P * g;
-    for (int a = 0; a < 4; ++a) forces.segment<3>(3 * tet[a]) += h.col(a);
-    // K' = ∂K/∂d, see [Chentanez06, Eq. (16)]
-    const Mat12 ke = tet_jacobian(s, g, v0, m_lame, m_tangent);
-    const Index* slot = m_slot.data() + static_cast<std::size_t>(t) * 144;
-    for (int i = 0; i < 12; ++i)
-      for (int j = 0; j < 12; ++j) values[slot[12 * i + j]] += ke(i, j);
-  }
+  struct Local {
+    Mat34 h;   ///< the element's nodal forces
+    Mat12 ke;  ///< its Jacobian
+  };
+  compute_then_scatter<Local>(
+      num_tets(),
+      [&](Index t, Local& l) {
+        const TetState s = tet_state(x, m_tets.row(t).transpose(), m_dm_inv[t], m_lame);
+        const Mat34 g = shape_gradients(m_dm_inv[t]);
+        const double v0 = m_rest_volume[t];
+        l.h = v0 * s.P * g;
+        // K' = ∂K/∂d, see [Chentanez06, Eq. (16)]
+        l.ke = tet_jacobian(s, g, v0, m_lame, m_tangent);
+      },
+      [&](Index t, const Local& l) {
+        for (int a = 0; a < 4; ++a) forces.segment<3>(3 * m_tets(t, a)) += l.h.col(a);
+        const Index* slot = m_slot.data() + static_cast<std::size_t>(t) * 144;
+        for (int i = 0; i < 12; ++i)
+          for (int j = 0; j < 12; ++j) values[slot[12 * i + j]] += l.ke(i, j);
+      });
 }
 
 TetFields StvkElasticity::tet_fields(const MatX3& x) const {
@@ -189,7 +221,7 @@ TetFields StvkElasticity::tet_fields(const MatX3& x) const {
   out.green_strain_norm.resize(nt);
   out.von_mises_stress.resize(nt);
   out.volume_ratio.resize(nt);
-  for (Index t = 0; t < nt; ++t) {
+  parallel_for_each(nt, kGrain, [&](Index t) {
     const TetState s = tet_state(x, m_tets.row(t).transpose(), m_dm_inv[t], m_lame);
     const double J = s.F.determinant();
     out.green_strain_norm[t] = s.E.norm();
@@ -198,7 +230,7 @@ TetFields StvkElasticity::tet_fields(const MatX3& x) const {
     const Mat3 sigma = s.F * s.S * s.F.transpose() / J;
     const Mat3 dev = sigma - sigma.trace() / 3.0 * Mat3::Identity();
     out.von_mises_stress[t] = std::sqrt(1.5 * dev.squaredNorm());
-  }
+  });
   return out;
 }
 

@@ -11,6 +11,7 @@
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
 ///   tetfsi bench remesh [--json FILE] [--max-cells N]
 ///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
+///   tetfsi bench threads SCENE [--steps N] [--threads-list 1,2] [--json FILE] [--set k=v ...]
 ///   tetfsi bench coupled SCENE [--json FILE] [--time T] [--steps-down N] [--set k=v ...]
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
@@ -20,7 +21,8 @@
 ///                     [--size WxH] [--movie FILE.mp4]
 ///   tetfsi plot OUT [-o FILE.png]
 ///   tetfsi scene --keys [--markdown]
-///   (every subcommand also takes --log-level trace|debug|info|warn|error|off)
+///   (every subcommand also takes --log-level trace|debug|info|warn|error|off and --threads N:
+///   the threads of the parallel loops, default TETFSI_THREADS or every core)
 /// Every error ends the program with one line `error: <message>` on stderr and exit code 1;
 /// command-line usage errors are reported by CLI11 with its exit code. Ctrl-C (or SIGTERM)
 /// during `run` / `resume` stops after the current step with a complete output folder, a
@@ -44,12 +46,14 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/parallel.hpp"
 #include "tools/bench_bfgs.hpp"
 #include "tools/bench_coupled.hpp"
 #include "tools/bench_integrators.hpp"
 #include "tools/bench_remesh.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/bench_step.hpp"
+#include "tools/bench_threads.hpp"
 #include "tools/checkpoints.hpp"
 #include "tools/output.hpp"
 #include "tools/plot.hpp"
@@ -376,6 +380,19 @@ Command add_bench_remesh(CLI::App& bench) {
   return {cmd, [o] { return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout); }};
 }
 
+/// A scene benchmark's SCENE (described by `scene_help`), `--json FILE` and `--steps N` (≥ 2,
+/// per `what`, the first a warm-up).
+void add_scene_bench_options(CLI::App* cmd, std::string& scene, const std::string& scene_help,
+                             std::string& json, int& steps, const std::string& what) {
+  cmd->add_option("SCENE", scene, scene_help)->required()->type_name("FILE");
+  cmd->add_option("--json", json, "also write the results to this JSON file")->type_name("FILE");
+  cmd->add_option("--steps", steps,
+                  "steps per " + what + "; the first is a warm-up and is not in the figures (>= 2)")
+      ->type_name("N")
+      ->check(CLI::Range(2, 1000000))
+      ->capture_default_str();
+}
+
 Command add_bench_step(CLI::App& bench) {
   struct Opt {
     std::string scene, json;
@@ -386,13 +403,8 @@ Command add_bench_step(CLI::App& bench) {
       "step",
       "time whole steps of a fluid scene at three mesh sizes against the floor: the bare CGAL "
       "Delaunay of the same vertices + one AMG pressure solve");
-  cmd->add_option("SCENE", o->scene, "fluid scene file (JSON)")->required()->type_name("FILE");
-  cmd->add_option("--json", o->json, "also write the results to this JSON file")->type_name("FILE");
-  cmd->add_option("--steps", o->bench.steps,
-                  "steps per size; the first is a warm-up and is not in the figures (>= 2)")
-      ->type_name("N")
-      ->check(CLI::Range(2, 1000000))
-      ->capture_default_str();
+  add_scene_bench_options(cmd, o->scene, "fluid scene file (JSON)", o->json, o->bench.steps,
+                          "size");
   cmd->add_option("--sizes", o->bench.scales,
                   "comma-separated factors on the scene's fluid mesh sizes (default: chosen for "
                   "about 30k, 100k and 250k cells)")
@@ -402,6 +414,30 @@ Command add_bench_step(CLI::App& bench) {
   return {cmd, [o] {
             o->bench.json_path = o->json;
             return tetfsi::tools::bench_step(o->scene, o->bench, std::cout);
+          }};
+}
+
+Command add_bench_threads(CLI::App& bench) {
+  struct Opt {
+    std::string scene, json;
+    tetfsi::tools::BenchThreadsOptions bench;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "threads",
+      "the same steps of a scene at each thread count, in one run: seconds per step of every "
+      "phase, the speed-up, and whether the physics came out the same bit for bit");
+  add_scene_bench_options(cmd, o->scene, "dynamic scene file (JSON)", o->json, o->bench.steps,
+                          "run");
+  cmd->add_option("--threads-list", o->bench.threads,
+                  "comma-separated thread counts, the first the reference (default 1,2)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
+      ->type_name("A,B");
+  add_set_option(cmd, o->bench.overrides, "override a scene value (repeatable)");
+  return {cmd, [o] {
+            o->bench.json_path = o->json;
+            return tetfsi::tools::bench_threads(o->scene, o->bench, std::cout);
           }};
 }
 
@@ -645,6 +681,7 @@ int main(int argc, char** argv) {
       "  tetfsi run data/scenes/remesh_sheet.json -o out/rs   # the fluid mesh follows the sheet\n"
       "  tetfsi bench remesh --json remesh.json\n"
       "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
+      "  tetfsi bench threads data/scenes/smoke_sheets.json --threads-list 1,2\n"
       "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
       "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
       "  tetfsi scene --keys   # every scene key with its default and range\n"
@@ -664,13 +701,19 @@ int main(int argc, char** argv) {
                  "off (also accepted after the subcommand)")
       ->type_name("LEVEL")
       ->capture_default_str();
+  // Checked after parsing (parse_thread_count) so that a bad value is one line `error: ...`.
+  std::string threads;
+  app.add_option("--threads", threads,
+                 "threads of the parallel loops (an integer >= 1; default: $TETFSI_THREADS, else "
+                 "every core); results do not depend on it (see the README)")
+      ->type_name("N");
 
   std::vector<Command> commands = {add_run(app), add_resume(app), add_checkpoint(app),
                                    add_validate(app)};
   CLI::App* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
-  for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_coupled,
-                   add_bench_bfgs, add_bench_integrators})
+  for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_threads,
+                   add_bench_coupled, add_bench_bfgs, add_bench_integrators})
     commands.push_back(add(*bench));
   commands.push_back(add_quality(app));
   commands.push_back(add_render(app));
@@ -685,6 +728,7 @@ int main(int argc, char** argv) {
 
   try {
     set_log_level(log_level);
+    set_thread_count(requested_thread_count(threads));
     for (const Command& c : commands) {
       if (*c.app) return c.action();
     }

@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/parallel.hpp"
 #include "core/timer.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/remesh.hpp"
@@ -638,6 +639,7 @@ void remove_stale_stop_file(const fs::path& out_dir) {
 void finish_run(const solid::SolidWorld& world, const std::optional<RunRecorder>& fluid,
                 OutputWriter& out, const Session& ses, RunResult& r) {
   r.wall_s = ses.wall_before + (now_seconds() - ses.start);
+  r.threads = thread_count();
   r.frames_written = out.frames_written();
   fill_final(world, r);
   if (fluid) {
@@ -868,6 +870,7 @@ std::string summary_json(const RunResult& r) {
   j["build_seconds"] = r.build_s;
   j["wall_seconds"] = r.wall_s;
   j["ms_per_step"] = r.ms_per_step();
+  j["threads"] = r.threads;
   j["frames_written"] = r.frames_written;
   j["solver_iterations"] = r.solver_iterations;
   j["unconverged_steps"] = r.unconverged_steps;
@@ -953,16 +956,17 @@ std::string summary_json(const RunResult& r) {
 void print_summary(const RunResult& r, std::ostream& out) {
   if (r.mode == "static") {
     out << fmt::format(
-        "scene '{}' (static): {} in {} Newton iterations, {:.3g} s wall, {} frame{}\n",
+        "scene '{}' (static): {} in {} Newton iterations, {:.3g} s wall on {} thread{}, {} "
+        "frame{}\n",
         r.scene_name, r.completed ? "equilibrium" : "FAILED", r.solver_iterations, r.wall_s,
-        r.frames_written, r.frames_written == 1 ? "" : "s");
+        r.threads, r.threads == 1 ? "" : "s", r.frames_written, r.frames_written == 1 ? "" : "s");
   } else {
     out << fmt::format(
         "scene '{}' (dynamic): {}{}/{} steps of {:.6g} s to t = {:.6g} s in {:.3g} s wall "
-        "({:.3g} ms/step), {} frame{}\n",
+        "({:.3g} ms/step) on {} thread{}, {} frame{}\n",
         r.scene_name, r.completed ? "" : (r.interrupted ? "INTERRUPTED after " : "FAILED after "),
-        r.steps_done, r.steps_planned, r.dt, r.end_time, r.wall_s, r.ms_per_step(),
-        r.frames_written, r.frames_written == 1 ? "" : "s");
+        r.steps_done, r.steps_planned, r.dt, r.end_time, r.wall_s, r.ms_per_step(), r.threads,
+        r.threads == 1 ? "" : "s", r.frames_written, r.frames_written == 1 ? "" : "s");
   }
   out << fmt::format("output: {}\n", r.out_dir.string());
   out << fmt::format("energy (J): kinetic {:.6g}, elastic {:.6g}, gravity {:.6g}, total {:.6g}\n",

@@ -19,12 +19,15 @@
 
 #include "core/checkpoint.hpp"
 #include "tests/test_util.hpp"
+#include "tests/tools/run_compare.hpp"
 #include "tools/checkpoints.hpp"
 #include "tools/output.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using tetfsi::test::check_same_runs;
 using tetfsi::test::contains;
+using tetfsi::test::differences;
 using tetfsi::test::lines_of;
 using tetfsi::test::read_text;
 using tetfsi::test::TempDir;
@@ -56,77 +59,6 @@ json swing_scene(int steps) {
 
 void write_scene(const fs::path& dir, const json& j, const std::string& name = "swing.json") {
   std::ofstream(dir / name) << j.dump(2);
-}
-
-const std::set<std::string> k_timing = {"assemble",
-                                        "solve",
-                                        "update",
-                                        "output",
-                                        "total",
-                                        "remesh",
-                                        "transfer",
-                                        "forces",
-                                        "pressure_assembly",
-                                        "pressure_solve",
-                                        "coupled_assembly",
-                                        "coupled_solve",
-                                        "solid",
-                                        "remesh_s"};
-
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> f;
-  std::string cur;
-  for (const char c : line) {
-    if (c == ',') {
-      f.push_back(cur);
-      cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  f.push_back(cur);
-  return f;
-}
-
-/// Every difference between two output folders: stats.csv's non-timing fields as text (17
-/// digits: equal text is equal bits), the collections and every frame file byte for byte.
-std::vector<std::string> differences(const fs::path& a, const fs::path& b) {
-  std::vector<std::string> d;
-  const auto la = lines_of(read_text(a / "stats.csv")), lb = lines_of(read_text(b / "stats.csv"));
-  if (la.size() != lb.size())
-    d.push_back(fmt::format("stats.csv: {} vs {} lines", la.size(), lb.size()));
-  if (la.empty() || lb.empty()) return d;
-  const auto header = split(la[0]);
-  if (la[0] != lb[0]) d.push_back("stats.csv: headers differ");
-  for (size_t i = 1; i < std::min(la.size(), lb.size()); ++i) {
-    const auto fa = split(la[i]), fb = split(lb[i]);
-    for (size_t k = 0; k < header.size() && k < fa.size() && k < fb.size(); ++k)
-      if (!k_timing.count(header[k]) && fa[k] != fb[k])
-        d.push_back(fmt::format("stats.csv row {} {}: {} vs {}", i, header[k], fa[k], fb[k]));
-  }
-  std::set<std::string> files;
-  for (const fs::path& root : {a, b})
-    for (const auto& e : fs::recursive_directory_iterator(root)) {
-      const std::string ext = e.path().extension().string();
-      if (ext == ".vtu" || ext == ".vtp" || ext == ".vti" || ext == ".pvd")
-        files.insert(fs::relative(e.path(), root).string());
-    }
-  for (const std::string& f : files) {
-    if (!fs::exists(a / f) || !fs::exists(b / f))
-      d.push_back(fmt::format("{}: only in {}", f, fs::exists(a / f) ? "A" : "B"));
-    else if (read_text(a / f) != read_text(b / f))
-      d.push_back(fmt::format("{}: differs", f));
-  }
-  return d;
-}
-
-/// Check that two output folders hold the same run (differences()), naming the first few
-/// differences if not.
-void check_same_runs(const fs::path& a, const fs::path& b) {
-  const std::vector<std::string> diffs = differences(a, b);
-  std::string first;
-  for (size_t i = 0; i < std::min<size_t>(diffs.size(), 5); ++i) first += diffs[i] + "; ";
-  CHECK_MESSAGE(diffs.empty(), first);
 }
 
 json summary_of(const fs::path& out) {

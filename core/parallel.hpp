@@ -1,0 +1,61 @@
+#pragma once
+/// @file parallel.hpp
+/// Threads for the per-face, per-cell and per-element loops (TBB underneath; TBB stays out of
+/// this header). The process has one thread count, set once by the driver
+/// (`set_thread_count`, from `--threads N` or TETFSI_THREADS; default: every core).
+///
+/// Determinism. `parallel_for_chunks` cuts [0, n) into chunks of a fixed `grain` that
+/// depend on n and the grain only, never on the thread count. A loop whose items each write
+/// only their own output slot, or whose per-chunk partial results are reduced afterwards in
+/// chunk order, therefore gives the same bits at 1 and at N threads; at 1 thread the chunks
+/// run in order on the calling thread, exactly the serial loop.
+#include <functional>
+#include <string>
+
+#include "core/types.hpp"
+
+namespace tetfsi {
+
+/// The cores this machine offers (std::thread::hardware_concurrency, at least 1).
+int default_thread_count();
+
+/// Let every parallel loop of the process use at most `n` threads (≥ 1) from now on (a
+/// tbb::global_control kept alive until the next call). Call it from the driver, not from
+/// inside a parallel loop.
+/// @throws InputError if n < 1
+void set_thread_count(int n);
+
+/// The thread count in force: the last `set_thread_count`, else default_thread_count().
+int thread_count();
+
+/// "N" (an integer ≥ 1, nothing else) as a thread count; `source` names where it came from
+/// in the message (e.g. "--threads" or "TETFSI_THREADS").
+/// @throws InputError "<source>: expected an integer >= 1 (threads), got '<text>'"
+int parse_thread_count(const std::string& text, const std::string& source);
+
+/// The thread count the command line and environment ask for: `option` (the text of
+/// `--threads`, empty if not given) wins, else the environment variable TETFSI_THREADS if
+/// set, else default_thread_count().
+/// @throws InputError as parse_thread_count, naming --threads or TETFSI_THREADS
+int requested_thread_count(const std::string& option);
+
+/// fn(begin, end) for the chunks [k g, min(n, (k + 1) g)) of [0, n), g = grain (≥ 1), on up to
+/// thread_count() threads; the chunks depend on n and grain only. Each call must write only
+/// what its own items own. Exceptions thrown by fn reach the caller (one of them if several
+/// chunks throw). At one thread (or one chunk) this is the plain loop on the calling thread.
+void parallel_for_chunks(Index n, Index grain, const std::function<void(Index, Index)>& fn);
+
+/// fn(i) for every i in [0, n), in chunks of `grain` as parallel_for_chunks.
+template <class F>
+void parallel_for_each(Index n, Index grain, F&& fn) {
+  parallel_for_chunks(n, grain, [&fn](Index begin, Index end) {
+    for (Index i = begin; i < end; ++i) fn(i);
+  });
+}
+
+/// The number of chunks parallel_for_chunks cuts [0, n) into (0 for n ≤ 0).
+inline Index num_chunks(Index n, Index grain) {
+  return n <= 0 ? 0 : (n + grain - 1) / grain;
+}
+
+}  // namespace tetfsi

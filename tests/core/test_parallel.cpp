@@ -1,0 +1,139 @@
+// Tests of core/parallel.hpp / core/parallel.cpp: the thread count, its parsing, and loops
+// whose chunks (and so their results) do not depend on it.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <set>
+#include <stdexcept>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/parallel.hpp"
+#include "tests/test_util.hpp"
+
+using namespace tetfsi;
+
+namespace {
+
+/// Restores the thread count in force at construction.
+struct ThreadCountGuard {
+  int saved = thread_count();
+  ~ThreadCountGuard() { set_thread_count(saved); }
+};
+
+/// The chunks parallel_for_chunks hands out for (n, grain), sorted.
+std::vector<std::pair<Index, Index>> chunks_of(Index n, Index grain) {
+  std::mutex m;
+  std::vector<std::pair<Index, Index>> c;
+  parallel_for_chunks(n, grain, [&](Index b, Index e) {
+    const std::lock_guard<std::mutex> lock(m);
+    c.emplace_back(b, e);
+  });
+  std::sort(c.begin(), c.end());
+  return c;
+}
+
+/// Σ sin(i) for i < n as per-chunk partial sums reduced in chunk order.
+double chunked_sum(Index n, Index grain) {
+  std::vector<double> partial(static_cast<size_t>(num_chunks(n, grain)), 0.0);
+  parallel_for_chunks(n, grain, [&](Index b, Index e) {
+    double s = 0.0;
+    for (Index i = b; i < e; ++i) s += std::sin(static_cast<double>(i));
+    partial[b / grain] = s;
+  });
+  double sum = 0.0;
+  for (const double p : partial) sum += p;
+  return sum;
+}
+
+}  // namespace
+
+TEST_SUITE("unit") {
+  TEST_CASE("parse_thread_count: an integer >= 1 - else one line naming the source") {
+    CHECK(parse_thread_count("1", "--threads") == 1);
+    CHECK(parse_thread_count("12", "TETFSI_THREADS") == 12);
+    for (const char* bad : {"0", "-2", "abc", "2x", "", "1.5", " 2"}) {
+      CAPTURE(bad);
+      const std::string m =
+          test::message_of<InputError>([&] { parse_thread_count(bad, "TETFSI_THREADS"); });
+      CHECK(m == fmt::format("TETFSI_THREADS: expected an integer >= 1 (threads), got '{}'", bad));
+    }
+    CHECK_THROWS_AS(set_thread_count(0), InputError);
+    CHECK(default_thread_count() >= 1);
+  }
+
+  TEST_CASE("set_thread_count: thread_count reports it - loops use at most that many threads") {
+    const ThreadCountGuard guard;
+    for (const int n : {1, 2, 3}) {
+      CAPTURE(n);
+      set_thread_count(n);
+      CHECK(thread_count() == n);
+      std::mutex m;
+      std::set<std::thread::id> ids;
+      parallel_for_each(4000, 10, [&](Index) {
+        volatile double x = 0;
+        for (int k = 0; k < 2000; ++k) x = x + std::sqrt(static_cast<double>(k));
+        const std::lock_guard<std::mutex> lock(m);
+        ids.insert(std::this_thread::get_id());
+      });
+      CHECK(ids.size() >= 1);
+      CHECK(static_cast<int>(ids.size()) <= n);
+      if (n == 1) CHECK(*ids.begin() == std::this_thread::get_id());
+    }
+  }
+
+  TEST_CASE("parallel_for_chunks: the chunks depend on n and the grain only") {
+    const ThreadCountGuard guard;
+    for (const Index n : {0, 1, 7, 100, 1001}) {
+      for (const Index grain : {1, 3, 64, 5000}) {
+        CAPTURE(n);
+        CAPTURE(grain);
+        set_thread_count(1);
+        const auto one = chunks_of(n, grain);
+        CHECK(static_cast<Index>(one.size()) == num_chunks(n, grain));
+        Index next = 0;
+        for (const auto& [b, e] : one) {  // they tile [0, n) in order
+          CHECK(b == next);
+          CHECK(e > b);
+          CHECK(e - b <= grain);
+          next = e;
+        }
+        CHECK(next == n);
+        for (const int threads : {2, 3}) {
+          set_thread_count(threads);
+          CHECK(chunks_of(n, grain) == one);
+        }
+      }
+    }
+    CHECK_THROWS_AS(parallel_for_chunks(10, 0, [](Index, Index) {}), InternalError);
+  }
+
+  TEST_CASE("per-chunk sums reduced in chunk order are the same bits at 1 and 2 and 3 threads") {
+    const ThreadCountGuard guard;
+    set_thread_count(1);
+    const double one = chunked_sum(1000003, 4096);
+    double serial = 0.0;  // ... and differ from the plain serial sum only by the grouping
+    for (Index i = 0; i < 1000003; ++i) serial += std::sin(static_cast<double>(i));
+    CHECK(one == doctest::Approx(serial).epsilon(1e-9));
+    for (const int threads : {2, 3}) {
+      set_thread_count(threads);
+      CHECK(chunked_sum(1000003, 4096) == one);
+    }
+  }
+
+  TEST_CASE("parallel_for_chunks: an exception in a chunk reaches the caller") {
+    const ThreadCountGuard guard;
+    for (const int threads : {1, 2}) {
+      set_thread_count(threads);
+      CHECK_THROWS_WITH_AS(parallel_for_each(1000, 7,
+                                             [](Index i) {
+                                               if (i == 500) throw InputError("item 500");
+                                             }),
+                           "item 500", InputError);
+    }
+  }
+}
