@@ -118,12 +118,17 @@ AmgPreconditioner* amg_for(const CoupledSystem& sys, const CoupledOptions& opt,
     ++opt.reuse->reused;
     return opt.reuse->amg.get();
   }
-  VecX dinv = VecX::Zero(sys.ns);
-  for (Index b = 0; b < sys.nb; ++b)
-    if (bodies[b].free)
-      dinv.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) =
-          sys.body_A(b).diagonal().cwiseInverse();
-  if (sys.Ac.nonZeros() > 0) dinv = stacked_A(sys).diagonal().cwiseInverse();
+  // diag(A)⁻¹ per body, or of the stacked block when contact couples the bodies
+  VecX dinv;
+  if (sys.Ac.nonZeros() > 0) {
+    dinv = stacked_A(sys).diagonal().cwiseInverse();
+  } else {
+    dinv = VecX::Zero(sys.ns);
+    for (Index b = 0; b < sys.nb; ++b)
+      if (bodies[b].free)
+        dinv.segment(sys.dof0[b], sys.dof0[b + 1] - sys.dof0[b]) =
+            sys.body_A(b).diagonal().cwiseInverse();
+  }
   // (the grid's paper form: P from the second row's operator on both sides, symmetric)
   const SparseMatrix Pm =
       sys.symmetric ? SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() * sys.J))
