@@ -160,10 +160,8 @@ GridSolids::GridSolids(const GridSpec& g, std::vector<mesh::SolidSurface> surfac
       std::array<Index, 6> r{};
       for (int a = 0; a < 3; ++a) {
         const double eps = 1e-9 * g.h[a];
-        r[a] = std::clamp<Index>(static_cast<Index>(std::floor((P.lo[a] - eps - g.lo[a]) / g.h[a])),
-                                 0, g.n[a] - 1);
-        r[3 + a] = std::clamp<Index>(
-            static_cast<Index>(std::floor((P.hi[a] + eps - g.lo[a]) / g.h[a])), 0, g.n[a] - 1);
+        r[a] = g.axis_index(a, P.lo[a] - eps);
+        r[3 + a] = g.axis_index(a, P.hi[a] + eps);
       }
       m_tris.push_back(P);
       range.push_back(r);
@@ -220,10 +218,8 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
   const Vec3 slo = a.cwiseMin(b).array() - m_margin, shi = a.cwiseMax(b).array() + m_margin;
   for (int ax = 0; ax < 3; ++ax) {
     const double lo = std::min(a[ax], b[ax]), hi = std::max(a[ax], b[ax]);
-    i0[ax] = std::clamp<Index>(static_cast<Index>(std::floor((lo - g.lo[ax]) / g.h[ax])), 0,
-                               g.n[ax] - 1);
-    i1[ax] = std::clamp<Index>(static_cast<Index>(std::floor((hi - g.lo[ax]) / g.h[ax])), 0,
-                               g.n[ax] - 1);
+    i0[ax] = g.axis_index(ax, lo);
+    i1[ax] = g.axis_index(ax, hi);
   }
   const Vec3 d = b - a;
   const double dn = d.norm();
@@ -255,8 +251,7 @@ GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach)
   const GridSpec& g = solids.m_grid;
   std::array<Index, 3> i{};
   for (int a = 0; a < 3; ++a) {
-    i[a] =
-        std::clamp<Index>(static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a])), 0, g.n[a] - 1);
+    i[a] = g.axis_index(a, x[a]);
     const Index lo = i[a] - reach, hi = i[a] + reach;
     const double inf = std::numeric_limits<double>::infinity();
     m_box_lo[a] = lo <= 0 ? -inf : g.lo[a] + static_cast<double>(lo) * g.h[a];

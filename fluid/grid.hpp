@@ -106,13 +106,13 @@ struct GridSpec {
   }
   /// The box side (0..5 = −x, +x, −y, +y, −z, +z) of a face on the box, −1 for inner faces.
   int face_side(Index f) const;
+  /// The index along axis a of the cell layer holding coordinate v (clamped to the box).
+  Index axis_index(int a, double v) const {
+    return std::clamp<Index>(static_cast<Index>(std::floor((v - lo[a]) / h[a])), 0, n[a] - 1);
+  }
   /// The cell containing x (clamped to the box).
   Index cell_at(const Vec3& x) const {
-    std::array<Index, 3> ijk{};
-    for (int a = 0; a < 3; ++a)
-      ijk[a] =
-          std::clamp<Index>(static_cast<Index>(std::floor((x[a] - lo[a]) / h[a])), 0, n[a] - 1);
-    return cell(ijk[0], ijk[1], ijk[2]);
+    return cell(axis_index(0, x[0]), axis_index(1, x[1]), axis_index(2, x[2]));
   }
 };
 
