@@ -147,10 +147,11 @@ BodyContacts::BodyContacts(const std::vector<SolidBody>& bodies, const ContactPa
     s.points.assign(points.begin(), points.end());
     // a body's own primitives closer than this at rest are neighbours through the material
     // (a sheet's two faces), not a contact
-    m_self_reach.push_back(std::max(m_params.gap, k_self_reach * thinnest(body)));
+    const double thin = thinnest(body);
+    m_self_reach.push_back(std::max(m_params.gap, k_self_reach * thin));
     // a point this far behind one of the body's faces at the start of a step is inside it
     // through that face (half the body's thickness: nearer that face than the opposite one)
-    m_depth.push_back(0.5 * thinnest(body));
+    m_depth.push_back(0.5 * thin);
     m_x0.push_back(body.positions());
     m_u0.push_back(body.velocity);
     pred[b] = m_x0[b] + h * m_u0[b];

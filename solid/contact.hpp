@@ -184,9 +184,8 @@ class BodyContacts {
   double m_h;
   std::vector<MatX3> m_x0, m_u0;
   std::vector<Surface> m_surf;
-  std::vector<double> m_self_reach;
+  std::vector<double> m_self_reach;  ///< per body: excluded() below this rest distance
   std::vector<double> m_depth;  ///< per body: how deep a point inside it counts (inside_at_start)
-  ///< per body: excluded() below this rest distance
   std::vector<ContactPair> m_pairs;
   std::map<std::array<Index, 5>, int> m_released;  ///< per pair key: releases this step
   ContactReport m_report;

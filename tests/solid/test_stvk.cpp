@@ -158,7 +158,6 @@ TEST_SUITE("unit") {
 
     MatX3 y = body.rest_positions();
     y.col(0) *= 1.2;  // uniaxial stretch: S ⪰ 0 (ν > 0 gives no lateral stress under F)
-    VecX fy;
     body.set_tangent(Tangent::Exact);
     const MatX K_exact = MatX(body.elasticity().jacobian(y));
     body.set_tangent(Tangent::Definite);
