@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "core/types.hpp"
@@ -187,8 +188,23 @@ struct GridCells {
   VecXi face_patch;                       ///< #F: domain patch of a box face, −1 otherwise
   std::vector<SurfacePoint> face_solid;   ///< #F: the crossing of a Solid face (body −1: none)
   GridSolids solids;
+  /// A free surface (grid_liquid.hpp; both empty without one): #C, 1 for an air cell (a
+  /// non-solid cell outside the liquid: p = 0, no unknown), and the liquid's level set φ at
+  /// the cell centres (m, < 0 in the liquid) that places the surface between them.
+  std::vector<std::uint8_t> air;
+  VecX phi;
 
-  bool fluid(Index c) const { return c >= 0 && cell_body[c] < 0; }
+  /// A cell with a pressure unknown: not inside a body, not air.
+  bool fluid(Index c) const { return c >= 0 && cell_body[c] < 0 && (air.empty() || !air[c]); }
+  /// Not inside a body (fluid or air).
+  bool open_cell(Index c) const { return c >= 0 && cell_body[c] < 0; }
+  bool air_cell(Index c) const { return c >= 0 && !air.empty() && air[c] != 0; }
+  /// An Interior face between a fluid cell and an air cell: the free surface crosses it.
+  bool surface_face(Index f) const {
+    if (air.empty() || face_kind[f] != mesh::FaceKind::Interior) return false;
+    const auto c = grid.face_cells(f);
+    return air_cell(c[0]) != air_cell(c[1]);
+  }
   /// An open (pressure-coupled) face between two fluid cells, or a box Open face.
   bool interior(Index f) const { return face_kind[f] == mesh::FaceKind::Interior; }
 };

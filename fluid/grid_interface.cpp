@@ -105,8 +105,9 @@ std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Ve
       w *= up ? frac[a] : 1.0 - frac[a];
     }
     const Index c = g.cell(ijk[0], ijk[1], ijk[2]);
-    if (w <= 0 || !gc.fluid(c) || !sees(ijk)) continue;
-    st.emplace_back(c, w);
+    // an air cell is read too, as its p = 0 (dropped from the stencil, its weight kept)
+    if (w <= 0 || !gc.open_cell(c) || !sees(ijk)) continue;
+    if (gc.fluid(c)) st.emplace_back(c, w);
     sum += w;
   }
   for (auto& [c, w] : st) w /= sum;
@@ -186,7 +187,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
   for (int corner = 0; corner < 8 && all_usable; ++corner) {
     const std::array<Index, 3> ijk{first[0] + 1 + (corner & 1), first[1] + 1 + ((corner >> 1) & 1),
                                    first[2] + 1 + ((corner >> 2) & 1)};
-    all_usable = gc.fluid(g.cell(ijk[0], ijk[1], ijk[2])) && corner_sees(ijk);
+    all_usable = gc.open_cell(g.cell(ijk[0], ijk[1], ijk[2])) && corner_sees(ijk);
   }
   if (all_usable) return st;
   std::array<bool, 64> usable{};
@@ -195,10 +196,12 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
     if (ijk[0] < 0 || ijk[1] < 0 || ijk[2] < 0 || ijk[0] >= g.n[0] || ijk[1] >= g.n[1] ||
         ijk[2] >= g.n[2])
       continue;
-    usable[l] = gc.fluid(g.cell(ijk[0], ijk[1], ijk[2])) && sees(ijk);
+    usable[l] = gc.open_cell(g.cell(ijk[0], ijk[1], ijk[2])) && sees(ijk);
   }
   std::vector<std::pair<Index, double>> fit = linear_fit(g, x, first, usable);
-  return fit.empty() ? st : fit;
+  if (fit.empty()) return st;
+  std::erase_if(fit, [&](const auto& e) { return gc.air_cell(e.first); });  // p = 0 there
+  return fit;
 }
 
 namespace {

@@ -1,5 +1,6 @@
 #include "fluid/grid_projection.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -11,9 +12,21 @@ namespace tetfsi::fluid {
 
 using mesh::FaceKind;
 
+double grid_surface_theta(const GridCells& gc, Index f) {
+  const auto c = gc.grid.face_cells(f);
+  const bool first_air = gc.air_cell(c[0]);
+  const double pl = gc.phi[first_air ? c[1] : c[0]], pa = gc.phi[first_air ? c[0] : c[1]];
+  // the ghost fluid [Gibou02]: θ = φ_liquid / (φ_liquid − φ_air), the liquid's share of the
+  // centre-to-centre segment, bounded away from 0 [Enright03]
+  const double denom = pa - pl;
+  const double theta = pl < 0 && denom > 0 ? -pl / denom : 1.0;
+  return std::clamp(theta, k_min_surface_theta, 1.0);
+}
+
 double grid_face_dual(const GridCells& gc, Index f) {
   const double h = gc.grid.h[gc.grid.face_axis(f)];
-  return gc.face_kind[f] == FaceKind::Open ? 0.5 * h : h;
+  if (gc.face_kind[f] == FaceKind::Open) return 0.5 * h;
+  return gc.surface_face(f) ? grid_surface_theta(gc, f) * h : h;
 }
 
 Index grid_inner_cell(const GridCells& gc, Index f) {
@@ -52,6 +65,10 @@ SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, c
       return;
     }
     const Index a = n.unknown[c[0]], b = n.unknown[c[1]];
+    if (a < 0 || b < 0) {  // the free surface (p = 0 across it), or between two air cells
+      if (a >= 0 || b >= 0) t[used[f]++] = Triplet(std::max(a, b), std::max(a, b), w);
+      return;
+    }
     t[0] = Triplet(a, a, w);
     t[1] = Triplet(b, b, w);
     t[2] = Triplet(a, b, -w);
@@ -111,6 +128,7 @@ Regions grid_regions(const GridCells& gc) {
   for (Index f = 0; f < g.num_faces(); ++f) {
     if (!gc.interior(f)) continue;
     const auto c = g.face_cells(f);
+    if (!gc.fluid(c[0]) || !gc.fluid(c[1])) continue;  // a free surface or the air
     next[c[0]].push_back(c[1]);
     next[c[1]].push_back(c[0]);
   }
@@ -136,6 +154,9 @@ Regions grid_regions(const GridCells& gc) {
     if (gc.face_kind[f] == FaceKind::Open) {
       const Index in = grid_inner_cell(gc, f);
       if (in >= 0) r.has_open[r.cell_region[in]] = true;
+    } else if (gc.surface_face(f)) {  // p = 0 at a free surface fixes the level too
+      for (Index c : g.face_cells(f))
+        if (gc.fluid(c)) r.has_open[r.cell_region[c]] = true;
     }
   return r;
 }

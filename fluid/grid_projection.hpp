@@ -2,7 +2,8 @@
 /// @file grid_projection.hpp
 /// The pressure projection on the MAC grid [Chentanez06, Eq. (2)], [Fedkiw01, §3]: one
 /// pressure unknown per fluid cell, the 7-point Laplacian between fluid cells joined by an
-/// Interior face, Dirichlet on Open box faces (the face half a cell from the centre), and
+/// Interior face, Dirichlet on Open box faces (the face half a cell from the centre) and at a
+/// free surface (p = 0 where φ = 0 on the segment to the air cell, [Gibou02]), and
 /// Neumann (prescribed velocity) on Wall, Inflow and Solid faces.
 ///
 ///  - net outward flux of cell c: Σ_f s_cf A_f u_f (s_cf = +1 on its upper face along the
@@ -20,7 +21,14 @@
 
 namespace tetfsi::fluid {
 
-/// Distance from a cell centre to the cell centre across face f (Interior), or to f (Open).
+/// The smallest liquid share θ of a surface face's segment (a surface almost on a cell
+/// centre; 1/θ enters the pressure matrix).
+inline constexpr double k_min_surface_theta = 1e-2;
+/// The liquid's share θ ∈ [k_min_surface_theta, 1] of the centre-to-centre segment of a
+/// free-surface face (GridCells::surface_face), from φ at its two cells [Gibou02].
+double grid_surface_theta(const GridCells& gc, Index f);
+/// Distance from a cell centre to the cell centre across face f (Interior), to f (Open), or
+/// to the free surface (θ h, a surface face: the ghost-fluid p = 0 there [Gibou02]).
 double grid_face_dual(const GridCells& gc, Index f);
 /// The fluid cell next to a box face (−1 if none).
 Index grid_inner_cell(const GridCells& gc, Index f);

@@ -11,6 +11,7 @@
 #include "fluid/forces.hpp"
 #include "fluid/grid_advect.hpp"
 #include "fluid/grid_interface.hpp"
+#include "fluid/grid_liquid.hpp"
 #include "fluid/grid_projection.hpp"
 
 namespace tetfsi::fluid {
@@ -206,6 +207,41 @@ void add_forces(const GridCells& gc, const FluidParams& p, const VecX& density,
 GridFluid::GridFluid(FluidParams params, GridSpec grid, mesh::FluidDomain domain)
     : m_params(std::move(params)), m_grid(grid), m_domain(std::move(domain)) {
   check_grid_params(m_params);
+  const LiquidParams& lq = m_params.liquid;
+  if (!lq.enabled) return;
+  TETFSI_REQUIRE(InputError, std::isfinite(lq.flip) && lq.flip >= 0 && lq.flip <= 1,
+                 "fluid.liquid.flip must be in [0, 1], got {}", lq.flip);
+  TETFSI_REQUIRE(InputError, lq.particles_per_axis >= 1 && lq.particles_per_axis <= 4,
+                 "fluid.liquid.particles_per_axis must be 1 to 4, got {}", lq.particles_per_axis);
+  TETFSI_REQUIRE(InputError, !lq.regions.empty() || !lq.sources.empty(),
+                 "fluid.liquid has neither regions nor sources: give one of them");
+  // The free surface needs the whole pressure (p = 0 at the surface): gravity acts on the
+  // velocity, and there is no hydrostatic split.
+  m_liquid_gravity = m_params.gravity;
+  m_params.gravity = Vec3::Zero();
+  m_surface = liquid_surface_params(m_grid, lq.particles_per_axis);
+}
+
+bool GridFluid::has_liquid() const { return m_params.liquid.enabled; }
+
+int GridFluid::extrapolation_layers(const VecX& u, double h) const {
+  const double reach = h * (u.size() ? u.cwiseAbs().maxCoeff() : 0.0) / m_grid.h.minCoeff();
+  return 3 + static_cast<int>(std::ceil(std::min(reach, 50.0)));
+}
+
+void GridFluid::predict_liquid(GridPrediction& pred, double h) const {
+  const LiquidParams& lq = m_params.liquid;
+  pred.particles = m_state.particles;
+  pred.particles_removed = advect_particles(pred.cells, m_state.u, h, pred.particles);
+  separate_particles(pred.cells, lq.particles_per_axis, pred.particles);
+  pred.particles_added = emit_liquid(pred.cells, lq, m_time + h, pred.particles);
+  set_free_surface(pred.cells,
+                   liquid_level_set(pred.cells, pred.particles.x, m_surface));
+  pred.rho = grid_cell_density(pred.cells, m_params);
+  pred.u_star = particles_to_faces(m_grid, pred.particles, pred.particle_faces);
+  extrapolate_faces(m_grid, pred.particle_faces, extrapolation_layers(pred.u_star, h), pred.u_star);
+  pred.density = VecX::Zero(m_grid.num_cells());
+  pred.temperature = VecX::Constant(m_grid.num_cells(), m_params.ambient_temperature);
 }
 
 void GridFluid::initialize(std::vector<mesh::SolidSurface> surfaces) {
@@ -216,6 +252,12 @@ void GridFluid::initialize(std::vector<mesh::SolidSurface> surfaces) {
   m_state.temperature = VecX::Constant(nc, m_params.ambient_temperature);
   m_state.p = VecX::Zero(nc);
   apply_sources(m_cells, m_params, m_state.density, m_state.temperature);
+  if (has_liquid()) {
+    m_state.particles = seed_liquid(m_cells, m_params.liquid);
+    set_free_surface(m_cells,
+                     liquid_level_set(m_cells, m_state.particles.x, m_surface));
+    m_liquid_expected = liquid_measures(m_cells).volume;
+  }
   const VecX rho = grid_cell_density(m_cells, m_params);
   for (Index c = 0; c < nc; ++c)
     if (m_cells.fluid(c))
@@ -236,6 +278,11 @@ GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
   {  // see [Chentanez06, Eq. (1)] without the pressure: advection, then the forces
     ScopedTimer timer(phases, "transfer");
     pred.cells = classify_grid(m_grid, m_domain, std::move(surfaces));
+    if (has_liquid()) predict_liquid(pred, h);
+  }
+  if (has_liquid()) return predict_forces(std::move(pred), motions, phases);
+  {
+    ScopedTimer timer(phases, "transfer");
     pred.rho = grid_cell_density(pred.cells, m_params);
     Eigen::MatrixXd s(m_grid.num_cells(), 2);
     s.col(0) = m_state.density;
@@ -247,7 +294,26 @@ GridPrediction GridFluid::predict(std::vector<mesh::SolidSurface> surfaces,
     pred.temperature = a.scalars.col(1);
     pred.traces_clamped = a.traces_clamped;
   }
+  return predict_forces(std::move(pred), motions, phases);
+}
+
+GridPrediction GridFluid::predict_forces(GridPrediction pred,
+                                         const std::vector<SolidSurfaceMotion>& motions,
+                                         PhaseTimes& phases) const {
   ScopedTimer timer(phases, "forces");
+  const double h = pred.h;
+  if (has_liquid()) {
+    // the particles' velocity with the boundary values is what FLIP subtracts [ZhuBridson05]
+    set_boundary_velocity(pred.cells, m_params, motions, pred.u_star);
+    pred.u_old = pred.u_star;
+    parallel_for_each(m_grid.num_faces(), kGrain, [&](Index f) {
+      const FaceKind k = pred.cells.face_kind[f];
+      if (k == FaceKind::Interior || k == FaceKind::Open)
+        pred.u_star[f] += h * m_liquid_gravity[m_grid.face_axis(f)];
+    });
+    pred.p_open = VecX::Zero(m_grid.num_faces());
+    return pred;
+  }
   const double T0 = m_params.ambient_temperature;
   if (m_params.smoke_decay > 0) pred.density *= std::exp(-m_params.smoke_decay * h);
   if (m_params.temperature_decay > 0)
@@ -295,13 +361,30 @@ FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, Fluid
                  m_time + pred.h);
   const GridSpec& g = m_grid;
   const GridCells& gc = pred.cells;
+  if (has_liquid()) {
+    // the projected faces, the prescribed ones and those the particles reached (in the air:
+    // v* with gravity, a free fall) stand; the rest are filled from them
+    std::vector<std::uint8_t> known = liquid_faces(gc);
+    for (Index f = 0; f < g.num_faces(); ++f) known[f] = known[f] || pred.particle_faces[f];
+    extrapolate_faces(g, std::move(known), extrapolation_layers(u, pred.h), u);
+    faces_to_particles(g, u, pred.u_old, m_params.liquid.flip, pred.particles);
+    const LiquidMeasures lm = liquid_measures(gc);
+    const int m = m_params.liquid.particles_per_axis;
+    m_liquid_expected += static_cast<double>(pred.particles_added - pred.particles_removed) *
+                         g.cell_volume() / (m * m * m);
+    rep.liquid_volume = lm.volume;
+    rep.liquid_volume_drift =
+        m_liquid_expected > 0 ? (lm.volume - m_liquid_expected) / m_liquid_expected : 0.0;
+    rep.liquid_area = lm.area;
+    rep.liquid_particles = pred.particles.size();
+  }
   for (Index c = 0; c < g.num_cells(); ++c)
     p_dyn[c] = gc.fluid(c)
                    ? p_dyn[c] + hydrostatic_pressure(pred.rho[c], m_params.gravity,
                                                      m_params.hydrostatic_origin, g.cell_centre(c))
                    : 0.0;
   m_state = GridState{std::move(u), std::move(p_dyn), std::move(pred.density),
-                      std::move(pred.temperature)};
+                      std::move(pred.temperature), std::move(pred.particles)};
   m_cells = std::move(pred.cells);
   m_time += pred.h;
   rep.traces_clamped = pred.traces_clamped;
@@ -379,6 +462,11 @@ void GridFluid::save_state(CheckpointWriter& w, const std::string& prefix) const
   w.put(prefix + "p", m_state.p);
   w.put(prefix + "density", m_state.density);
   w.put(prefix + "temperature", m_state.temperature);
+  if (has_liquid()) {
+    w.put(prefix + "liquid/x", m_state.particles.x);
+    w.put(prefix + "liquid/v", m_state.particles.v);
+    w.put(prefix + "liquid/expected", m_liquid_expected);
+  }
   w.put(prefix + "time", m_time);
 }
 
@@ -405,8 +493,20 @@ void GridFluid::load_state(const CheckpointReader& r, const std::string& prefix)
         fmt::format("its grid fields (u {}, p {}, density {}, temperature {}) do not fit the "
                     "scene's grid ({} faces, {} cells): it is from another scene",
                     s.u.size(), s.p.size(), s.density.size(), s.temperature.size(), nf, nc));
+  if (has_liquid()) {
+    s.particles.x = r.get<MatX3>(prefix + "liquid/x");
+    s.particles.v = r.get<MatX3>(prefix + "liquid/v");
+    m_liquid_expected = r.get_double(prefix + "liquid/expected");
+    if (s.particles.v.rows() != s.particles.x.rows() || !s.particles.x.allFinite() ||
+        !s.particles.v.allFinite())
+      r.fail(fmt::format("its liquid particles ({} positions, {} velocities) are not a finite "
+                         "matching pair",
+                         s.particles.x.rows(), s.particles.v.rows()));
+  }
   const double t = r.get_double(prefix + "time");
   m_cells = classify_grid(m_grid, m_domain, std::move(surfaces));
+  if (has_liquid())
+    set_free_surface(m_cells, liquid_level_set(m_cells, s.particles.x, m_surface));
   m_state = std::move(s);
   m_time = t;
   m_initialized = true;

@@ -18,6 +18,7 @@
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
 #include "fluid/grid.hpp"
+#include "fluid/grid_liquid.hpp"
 #include "fluid/params.hpp"
 #include "fluid/simulation.hpp"
 
@@ -28,6 +29,7 @@ struct GridState {
   VecX p;            ///< #C total pressure at cell centres (Pa; 0 in solid cells)
   VecX density;      ///< #C smoke density (kg/m³)
   VecX temperature;  ///< #C (K)
+  LiquidParticles particles;  ///< a liquid with a free surface (empty without)
 };
 
 /// The grid's part of a step up to its pressure: v* with every prescribed face set.
@@ -39,6 +41,10 @@ struct GridPrediction {
   VecX p_open;  ///< #F dynamic pressure on Open faces (Pa)
   VecX rho;     ///< #C fluid density per cell (grid_cell_density)
   Index traces_clamped = 0;
+  LiquidParticles particles;  ///< a free surface: the particles moved to t + h
+  VecX u_old;                 ///< a free surface: #F the particles' velocity on the faces
+  std::vector<std::uint8_t> particle_faces;  ///< a free surface: #F, 1 where particles reached
+  Index particles_added = 0, particles_removed = 0;  ///< a free surface: by sources, Open faces
 };
 
 /// Velocity at the cell centres (#C × 3): the mean of each axis' two faces.
@@ -82,6 +88,8 @@ class GridFluid {
   /// @throws CheckpointError naming the record if the fields do not fit the grid.
   void load_state(const CheckpointReader& r, const std::string& prefix);
 
+  /// A liquid with a free surface (FluidParams::liquid; grid_liquid.hpp).
+  bool has_liquid() const;
   /// Replace the state (tests: an initial velocity). @throws InputError on a size mismatch.
   void set_state(GridState s);
   const GridState& state() const { return m_state; }
@@ -97,7 +105,20 @@ class GridFluid {
   mesh::FluidDomain m_domain;
   GridCells m_cells;
   GridState m_state;
+  /// The liquid's part of predict after the classification: particles moved and emitted,
+  /// the free surface, v* from the particles (phase "transfer").
+  void predict_liquid(GridPrediction& pred, double h) const;
+  /// Forces, sources and boundary values (phase "forces").
+  GridPrediction predict_forces(GridPrediction pred,
+                                const std::vector<SolidSurfaceMotion>& motions,
+                                PhaseTimes& phases) const;
+  /// Rings of faces to extrapolate a velocity u into: past the farthest a particle moves in h.
+  int extrapolation_layers(const VecX& u, double h) const;
+
   std::unique_ptr<LinearSolver> m_solver;
+  Vec3 m_liquid_gravity = Vec3::Zero();  ///< a free surface: gravity on the velocity
+  LiquidSurfaceParams m_surface;  ///< a free surface: how φ is read from the particles
+  double m_liquid_expected = 0.0;  ///< m³: the volume the particles carry (see liquid_volume_drift)
   double m_time = 0.0;
   bool m_initialized = false;
 };

@@ -2,6 +2,7 @@
 /// @file params.hpp
 /// Plain parameter structs of the fluid (what a scene's `fluid` section turns into). Physics
 /// never sees JSON: tools/scene.cpp fills these. SI units throughout.
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,40 @@ inline constexpr EnumNames<TransferScheme, 3> k_transfer_scheme_names{
       {TransferScheme::Bfecc, "bfecc"}}}};
 const char* to_string(TransferScheme s);
 
+/// A region the liquid fills at the start (grid_liquid.hpp): a box [lo, hi], or a sphere
+/// when radius > 0.
+struct LiquidRegion {
+  std::string name;
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  Vec3 centre = Vec3::Zero();
+  double radius = 0.0;
+  bool contains(const Vec3& x) const {
+    if (radius > 0) return (x - centre).squaredNorm() <= radius * radius;
+    return (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
+  }
+};
+
+/// A nozzle: the box [lo, hi] is kept full of liquid moving at `velocity` from `start` to
+/// `stop` (s).
+struct LiquidSource {
+  std::string name;
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  Vec3 velocity = Vec3::Zero();
+  double start = 0.0;
+  double stop = std::numeric_limits<double>::infinity();
+};
+
+/// A liquid with a free surface on the grid (grid_liquid.hpp): FLIP particles carry it, the
+/// surface is their level set, p = 0 in the air.
+struct LiquidParams {
+  bool enabled = false;
+  std::vector<LiquidRegion> regions;
+  std::vector<LiquidSource> sources;
+  /// The FLIP share of the particles' velocity update (1: pure FLIP, 0: PIC) [ZhuBridson05].
+  double flip = 0.95;
+  int particles_per_axis = 2;  ///< seeded per cell and axis (2: 8 per cell)
+};
+
 /// The fluid's physics and numerics.
 struct FluidParams {
   double density = 1.2;  ///< ρ (kg/m³): 1.2 for air, 1000 for water
@@ -127,6 +162,9 @@ struct FluidParams {
   /// whose circumcentres differ, which costs accuracy near solids (measured: a uniform
   /// acceleration left 0.5 h|a| at δ = 0.01, 6e-12 at 1e-6).
   double min_dual_fraction = 1e-6;
+  /// A liquid with a free surface (the grid only; `gravity` then acts on the velocity and
+  /// the pressure is the whole pressure, 0 at the surface).
+  LiquidParams liquid;
   /// The pressure solve: `amg` (hypre BoomerAMG + CG) by default; `cholmod`, `cg_ic`,
   /// `bicgstab_ilut` or `umfpack` selectable.
   SolverKind solver = SolverKind::Amg;

@@ -52,6 +52,14 @@ struct FluidStepReport {
   double max_speed = 0.0;          ///< max |u_f| (m/s)
   double cfl = 0.0;                ///< max over cells of h |u_t| / (cell edge)
   Index traces_clamped = 0;        ///< back-traces stopped at a wall / solid / the box
+  /// A liquid with a free surface (grid_liquid.hpp; 0 without): its volume (m³), surface
+  /// area (m²) and particles.
+  double liquid_volume = 0.0;
+  /// (volume − expected) / expected, expected = the first volume + the particles emitted
+  /// less those gone through Open faces, at their seeding volume (cell / per_axis³)
+  double liquid_volume_drift = 0.0;
+  double liquid_area = 0.0;
+  Index liquid_particles = 0;
 };
 
 /// The fluid's part of a step up to its pressure (DESIGN.md §2 steps 3–4) on the new mesh:

@@ -714,12 +714,20 @@ std::vector<std::string> StatsWriter::body_columns(const std::vector<std::string
 
 std::vector<std::string> StatsWriter::columns(bool fluid, bool coupled,
                                               const std::vector<std::string>& bodies,
-                                              bool contact) {
+                                              bool contact, bool liquid) {
   std::vector<std::string> v = make_columns(fluid, fluid && coupled);
   for (std::string& c : body_columns(bodies)) v.push_back(std::move(c));
   if (contact)
     for (const std::string& c : contact_columns()) v.push_back(c);
+  if (liquid)
+    for (const std::string& c : liquid_columns()) v.push_back(c);
   return v;
+}
+
+const std::vector<std::string>& StatsWriter::liquid_columns() {
+  static const std::vector<std::string> c = {"liquid_volume", "liquid_volume_drift",
+                                             "liquid_area", "liquid_particles"};
+  return c;
 }
 
 const std::vector<std::string>& StatsWriter::contact_columns() {
@@ -761,14 +769,15 @@ void truncate_stats(const fs::path& path, const std::string& header, int last) {
 
 StatsWriter::StatsWriter(const fs::path& path, bool fluid, bool coupled,
                          std::optional<int> continue_after, std::vector<std::string> bodies,
-                         bool contact)
+                         bool contact, bool liquid)
     : m_path(path),
       m_fluid(fluid),
       m_coupled(fluid && coupled),
       m_bodies(std::move(bodies)),
-      m_contact(contact) {
+      m_contact(contact),
+      m_liquid(fluid && liquid) {
   std::string header;
-  for (const auto& c : columns(m_fluid, m_coupled, m_bodies, m_contact)) {
+  for (const auto& c : columns(m_fluid, m_coupled, m_bodies, m_contact, m_liquid)) {
     if (!header.empty()) header += ',';
     header += c;
   }
@@ -841,6 +850,14 @@ void StatsWriter::write(const StepStats& r) {
                           r.contact->seconds);
     else
       for (size_t k = 0; k < contact_columns().size(); ++k) line += ",nan";
+  }
+  if (m_liquid) {
+    if (r.fluid)
+      line += fmt::format(",{:.17g},{:.17g},{:.17g},{}", r.fluid->liquid_volume,
+                          r.fluid->liquid_volume_drift, r.fluid->liquid_area,
+                          r.fluid->liquid_particles);
+    else
+      for (size_t k = 0; k < liquid_columns().size(); ++k) line += ",nan";
   }
   line += '\n';
   if (std::fputs(line.c_str(), m_file) < 0 || std::fflush(m_file) != 0)
@@ -918,7 +935,8 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
       m_out(prepare_out_dir(out_dir, resume_step.has_value())),
       m_compression(parse_compression(scene.output.compression)),
       m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
-              stats_body_names(world), world.contact.enabled) {
+              stats_body_names(world), world.contact.enabled,
+              scene.fluid && scene.fluid->params.liquid.enabled) {
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");

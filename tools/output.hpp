@@ -259,6 +259,11 @@ struct FluidStepStats {
   double max_speed = NAN;             ///< max |u_f| (m/s)
   double cfl = NAN;                   ///< max h |u| / cell size
   Index traces_clamped = 0;           ///< back-traces stopped at the fluid boundary
+  // ---- a liquid with a free surface (fluid::FluidStepReport) ----
+  double liquid_volume = NAN;        ///< m³
+  double liquid_volume_drift = NAN;  ///< relative to what the particles carry
+  double liquid_area = NAN;          ///< m²
+  Index liquid_particles = 0;
 };
 
 /// The two-way coupling part of a stats.csv row (coupling::CoupledStepReport of the step).
@@ -335,7 +340,8 @@ class StatsWriter {
   ///   is missing, its header is not this run's, or its rows do not run 1..continue_after.
   explicit StatsWriter(const std::filesystem::path& path, bool fluid = false, bool coupled = false,
                        std::optional<int> continue_after = std::nullopt,
-                       std::vector<std::string> bodies = {}, bool contact = false);
+                       std::vector<std::string> bodies = {}, bool contact = false,
+                       bool liquid = false);
   ~StatsWriter();
   StatsWriter(const StatsWriter&) = delete;
   StatsWriter& operator=(const StatsWriter&) = delete;
@@ -355,9 +361,13 @@ class StatsWriter {
   /// `bodies`; with `contact` (contact between bodies) then contact_columns. The columns
   /// before the bodies' depend on `fluid` and `coupled` only, so a column's position does not
   /// depend on the bodies.
+  /// With `liquid` (a free surface) the liquid_columns come last.
   static std::vector<std::string> columns(bool fluid = false, bool coupled = false,
                                           const std::vector<std::string>& bodies = {},
-                                          bool contact = false);
+                                          bool contact = false, bool liquid = false);
+  /// liquid_volume (m³), liquid_volume_drift (relative to what the particles carry: the
+  /// first volume plus emitted less drained), liquid_area (m²), liquid_particles.
+  static const std::vector<std::string>& liquid_columns();
   /// contact_pairs, contact_min_gap, contact_force, contact_crossings, contact_solves,
   /// contact_s (ContactStepStats).
   static const std::vector<std::string>& contact_columns();
@@ -385,6 +395,7 @@ class StatsWriter {
   bool m_coupled = false;
   std::vector<std::string> m_bodies;  ///< the bodies' column names
   bool m_contact = false;
+  bool m_liquid = false;
 };
 
 /// Owns the output folder of one run: writes scene.resolved.json, the frames and their

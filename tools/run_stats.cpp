@@ -90,6 +90,10 @@ void RunRecorder::record_fluid_step(const fluid::FluidStepReport& r, double seco
   s.max_speed = r.max_speed;
   s.cfl = r.cfl;
   s.traces_clamped = r.traces_clamped;
+  s.liquid_volume = r.liquid_volume;
+  s.liquid_volume_drift = r.liquid_volume_drift;
+  s.liquid_area = r.liquid_area;
+  s.liquid_particles = r.liquid_particles;
   FluidSummary& f = m_summary;
   f.fluid_steps += 1;
   f.pressure_iterations += r.iterations;
@@ -312,7 +316,7 @@ GridFrameFields grid_frame_fields(const coupling::FsiSimulation& sim) {
   f.velocity = g.cell_velocities();
   f.vorticity = fluid::grid_vorticity(gc, f.velocity).rowwise().norm();
   f.solid.resize(spec.num_cells());
-  for (Index c = 0; c < spec.num_cells(); ++c) f.solid[c] = gc.fluid(c) ? 0 : 1;
+  for (Index c = 0; c < spec.num_cells(); ++c) f.solid[c] = gc.open_cell(c) ? 0 : 1;
   // the bodies' boundary triangles and the fluid's nodal forces on them
   const solid::SolidWorld& world = sim.world();
   const std::vector<coupling::BodySurface>& surf = sim.remesh_policy()->surfaces();

@@ -618,6 +618,7 @@ class Parser {
         fp.sources.push_back(std::move(src));
       });
     }
+    if (has(n, "liquid")) liquid(child(n, "liquid"), f);
     if (has(n, "refine")) {
       const Node r = child(n, "refine");
       read(r, refine_keys(), fp.refine);
@@ -627,6 +628,69 @@ class Parser {
                          fp.refine.size));
     }
     return f;
+  }
+
+  /// A box or sphere of fluid.liquid that must overlap the fluid box (`where` names it).
+  void overlap_domain(const Node& where, const Vec3& lo, const Vec3& hi,
+                      const mesh::FluidDomain& d) const {
+    if ((lo.array() < d.hi.array()).all() && (hi.array() > d.lo.array()).all()) return;
+    fail(where.path, fmt::format("{}..{} lies outside the fluid box {}..{}; move it inside",
+                                 fmt_vec(lo), fmt_vec(hi), fmt_vec(d.lo), fmt_vec(d.hi)));
+  }
+
+  /// fluid.liquid: regions (a box or a sphere each) and sources, on the grid only.
+  void liquid(const Node& n, FluidSpec& f) const {
+    fluid::LiquidParams& lq = f.params.liquid;
+    read(n, liquid_keys(), lq);
+    lq.enabled = true;
+    if (f.discretization != Discretization::Grid)
+      fail(n.path,
+           "a free surface lives on the regular grid: set fluid.discretization to \"grid\" "
+           "and give fluid.grid");
+    if (has(n, "regions")) {
+      const Node list = child(n, "regions");
+      for_each(list, "expected an array", [&](const Node& e, std::size_t i) {
+        fluid::LiquidRegion r;
+        r.name = fmt::format("region{}", i);
+        read(e, liquid_region_keys(), r);
+        if (has(e, "box") == has(e, "sphere"))
+          fail(e.path, "give exactly one of box or sphere");
+        if (has(e, "box")) {
+          const Node bn = child(e, "box");
+          const BoxSpec b = box(bn, liquid_box_keys(false), true);
+          r.lo = b.lo;
+          r.hi = b.hi;
+          overlap_domain(bn, r.lo, r.hi, f.domain);
+        } else {
+          const Node sn = child(e, "sphere");
+          read(sn, liquid_sphere_keys(), r);
+          overlap_domain(sn, r.centre.array() - r.radius, r.centre.array() + r.radius, f.domain);
+        }
+        unique_name(lq.regions, r.name, "liquid region", list, i);
+        lq.regions.push_back(std::move(r));
+      });
+    }
+    if (has(n, "sources")) {
+      const Node list = child(n, "sources");
+      for_each(list, "expected an array", [&](const Node& e, std::size_t i) {
+        fluid::LiquidSource src;
+        src.name = fmt::format("source{}", i);
+        read(e, liquid_source_keys(), src);
+        const Node bn = require(e, "box");
+        const BoxSpec b = box(bn, liquid_box_keys(true), true);
+        src.lo = b.lo;
+        src.hi = b.hi;
+        overlap_domain(bn, src.lo, src.hi, f.domain);
+        if (!(src.stop > src.start))
+          fail(child_path(e.path, "stop"),
+               fmt::format("must be > start ({} s), got {} s: the source would emit nothing",
+                           src.start, src.stop));
+        unique_name(lq.sources, src.name, "liquid source", list, i);
+        lq.sources.push_back(std::move(src));
+      });
+    }
+    if (lq.regions.empty() && lq.sources.empty())
+      fail(n.path, "has neither regions nor sources: give the liquid somewhere to start");
   }
 
   /// fluid.grid of a grid scene: the grid's cells from cell_size or cells, within max_cells;
@@ -772,6 +836,25 @@ json fluid_json(const FluidSpec& f) {
     j["sources"].push_back(js);
   }
   if (!f.grid_spec) j["refine"] = refine_keys().write(fp.refine);
+  if (fp.liquid.enabled) {
+    json lq = liquid_keys().write(fp.liquid);
+    lq["regions"] = json::array();
+    for (const fluid::LiquidRegion& r : fp.liquid.regions) {
+      json jr = liquid_region_keys().write(r);
+      if (r.radius > 0)
+        jr["sphere"] = liquid_sphere_keys().write(r);
+      else
+        jr["box"] = liquid_box_keys(false).write({r.lo, r.hi});
+      lq["regions"].push_back(jr);
+    }
+    lq["sources"] = json::array();
+    for (const fluid::LiquidSource& src : fp.liquid.sources) {
+      json js = liquid_source_keys().write(src);
+      js["box"] = liquid_box_keys(true).write({src.lo, src.hi});
+      lq["sources"].push_back(js);
+    }
+    j["liquid"] = lq;
+  }
   return j;
 }
 

@@ -982,7 +982,10 @@ const Section<FluidSpec>& fluid_keys() {
                        .doc = "boxes emitting smoke and heat",
                        .default_text = "`[]`"}),
        sub<FluidSpec>(
-           {.key = "refine", .type = KeyType::Object, .doc = "mesh refinement where smoke is"})}};
+           {.key = "refine", .type = KeyType::Object, .doc = "mesh refinement where smoke is"}),
+       sub<FluidSpec>({.key = "liquid",
+                       .type = KeyType::Object,
+                       .doc = "a liquid with a free surface (grid)"})}};
   return s;
 }
 
@@ -1251,6 +1254,101 @@ const Section<BoxSpec>& source_box_keys() {
   return s;
 }
 
+const Section<fluid::LiquidParams>& liquid_keys() {
+  using L = fluid::LiquidParams;
+  static const Section<L> s{
+      "fluid.liquid",
+      "a liquid with a free surface (fluid.discretization grid): FLIP particles, p = 0 in the air",
+      {sub<L>({.key = "regions",
+               .type = KeyType::Array,
+               .doc = "where the liquid is at the start: boxes and spheres",
+               .default_text = "`[]`"}),
+       sub<L>({.key = "sources",
+               .type = KeyType::Array,
+               .doc = "boxes kept full of liquid moving at a velocity",
+               .default_text = "`[]`"}),
+       bind<L>({.key = "flip",
+                .type = KeyType::Number,
+                .doc = "FLIP share of the particles' velocity update; 0: PIC (more damping)",
+                .range = between(0, 1)},
+               TETFSI_AT(flip)),
+       bind<L>({.key = "particles_per_axis",
+                .type = KeyType::Integer,
+                .doc = "particles seeded per cell and axis (2: 8 per cell)",
+                .range = between(1, 4)},
+               TETFSI_AT(particles_per_axis))}};
+  return s;
+}
+
+const Section<fluid::LiquidRegion>& liquid_region_keys() {
+  using R = fluid::LiquidRegion;
+  static const Section<R> s{
+      "fluid.liquid.regions[]",
+      "a box or a sphere of liquid",
+      {name_row<R>("names it in messages", "region<i>", true, TETFSI_AT(name)),
+       sub<R>({.key = "box", .type = KeyType::Object, .doc = "lo < hi (or give sphere)"}),
+       sub<R>({.key = "sphere", .type = KeyType::Object, .doc = "center and radius (or give box)"})}};
+  return s;
+}
+
+const Section<BoxSpec>& liquid_box_keys(bool source) {
+  static const Section<BoxSpec> region{
+      "fluid.liquid.regions[].box",
+      "lo < hi",
+      {lo_row<BoxSpec>("low corner", k_self), hi_row<BoxSpec>("high corner", k_self)}};
+  static const Section<BoxSpec> nozzle{
+      "fluid.liquid.sources[].box",
+      "lo < hi",
+      {lo_row<BoxSpec>("low corner", k_self), hi_row<BoxSpec>("high corner", k_self)}};
+  return source ? nozzle : region;
+}
+
+const Section<fluid::LiquidRegion>& liquid_sphere_keys() {
+  using R = fluid::LiquidRegion;
+  static const Section<R> s{
+      "fluid.liquid.regions[].sphere",
+      "a ball of liquid",
+      {bind<R>({.key = "center", .type = KeyType::Vec3, .doc = "centre", .unit = "m", .required = true},
+               TETFSI_AT(centre)),
+       bind<R>({.key = "radius",
+                .type = KeyType::Number,
+                .doc = "radius",
+                .unit = "m",
+                .range = k_positive,
+                .required = true},
+               TETFSI_AT(radius))}};
+  return s;
+}
+
+const Section<fluid::LiquidSource>& liquid_source_keys() {
+  using S = fluid::LiquidSource;
+  static const Section<S> s{
+      "fluid.liquid.sources[]",
+      "a nozzle: its box is kept full of liquid moving at velocity from start to stop",
+      {name_row<S>("unique", "source<i>", true, TETFSI_AT(name)),
+       sub<S>({.key = "box",
+               .type = KeyType::Object,
+               .doc = "lo < hi, inside the fluid box",
+               .required = true}),
+       bind<S>({.key = "velocity", .type = KeyType::Vec3, .doc = "of the emitted liquid", .unit = "m/s"},
+               TETFSI_AT(velocity)),
+       bind<S>({.key = "start",
+                .type = KeyType::Number,
+                .doc = "when it opens",
+                .unit = "s",
+                .range = k_non_negative},
+               TETFSI_AT(start)),
+       {{.key = "stop",
+         .type = KeyType::Number,
+         .doc = "when it closes; > start",
+         .unit = "s",
+         .range = k_non_negative,
+         .default_text = "never"},
+        [](const S& t) { return std::isfinite(t.stop) ? json(t.stop) : json(); },
+        [](S& t, const json& v) { t.stop = v.get<double>(); }}}};
+  return s;
+}
+
 const Section<fluid::RefineParams>& refine_keys() {
   using R = fluid::RefineParams;
   static const Section<R> s{
@@ -1419,7 +1517,10 @@ const std::vector<KeySection>& scene_key_sections() {
       rows_of(patch_keys()),           rows_of(fluid_mesh_keys()),  rows_of(fluid_grid_keys()),
       rows_of(buoyancy_keys()),        rows_of(decay_keys()),       rows_of(transfer_keys()),
       rows_of(fluid_solver_keys()),    rows_of(source_keys()),      rows_of(source_box_keys()),
-      rows_of(refine_keys()),          rows_of(coupling_keys())};
+      rows_of(refine_keys()),          rows_of(liquid_keys()),      rows_of(liquid_region_keys()),
+      rows_of(liquid_box_keys(false)), rows_of(liquid_sphere_keys()), rows_of(liquid_source_keys()),
+      rows_of(liquid_box_keys(true)),
+      rows_of(coupling_keys())};
   return sections;
 }
 

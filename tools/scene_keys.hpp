@@ -185,6 +185,12 @@ const Section<fluid::FluidParams>& fluid_solver_keys();
 const Section<fluid::SmokeSource>& source_keys();
 const Section<BoxSpec>& source_box_keys();
 const Section<fluid::RefineParams>& refine_keys();
+const Section<fluid::LiquidParams>& liquid_keys();
+const Section<fluid::LiquidRegion>& liquid_region_keys();
+const Section<fluid::LiquidRegion>& liquid_sphere_keys();
+/// fluid.liquid.regions[].box, or fluid.liquid.sources[].box (`source`).
+const Section<BoxSpec>& liquid_box_keys(bool source);
+const Section<fluid::LiquidSource>& liquid_source_keys();
 const Section<CouplingSpec>& coupling_keys();
 
 // ---- the tables as documentation ----

@@ -1,0 +1,179 @@
+// A liquid with a free surface on the MAC grid (fluid/grid_liquid.hpp): a still pool, the
+// dam break against Martin & Moyce (1952), the ghost-fluid pressure and the volume.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/timer.hpp"
+#include "fluid/grid_liquid.hpp"
+#include "fluid/grid_simulation.hpp"
+
+using namespace tetfsi;
+using namespace tetfsi::fluid;
+
+namespace {
+
+constexpr double kG = 9.81;
+
+FluidParams water(const LiquidRegion& region) {
+  FluidParams p;
+  p.density = 1000;
+  p.gravity = Vec3(0, 0, -kG);
+  p.solver = SolverKind::Cholmod;
+  p.liquid.enabled = true;
+  p.liquid.regions = {region};
+  return p;
+}
+
+LiquidRegion box_region(const Vec3& lo, const Vec3& hi) {
+  LiquidRegion r;
+  r.name = "liquid";
+  r.lo = lo;
+  r.hi = hi;
+  return r;
+}
+
+/// The surge front along the floor (m): over the bottom layer of cells (mean over y), the
+/// last liquid cell in x and the zero of φ linear to the next one.
+double surge_front(const GridCells& gc) {
+  const GridSpec& g = gc.grid;
+  double front = g.lo[0];
+  for (Index j = 0; j < g.n[1]; ++j) {
+    double x = g.lo[0];
+    for (Index i = 0; i + 1 < g.n[0]; ++i) {
+      const double a = gc.phi[g.cell(i, j, 0)], b = gc.phi[g.cell(i + 1, j, 0)];
+      if (a < 0 && b >= 0) x = g.cell_centre(g.cell(i, j, 0))[0] + g.h[0] * a / (a - b);
+    }
+    front += (x - g.lo[0]) / static_cast<double>(g.n[1]);
+  }
+  return front;
+}
+
+}  // namespace
+
+TEST_CASE("liquid: a particle half-space's surface lies on its boundary") {
+  // φ at the two cell centres beside a seeded boundary is ±the same value: the linear zero
+  // (the ghost fluid's surface) is on the boundary
+  const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1, 1, 1), {8, 8, 8});
+  mesh::FluidDomain d;
+  d.lo = g.lo;
+  d.hi = g.hi();
+  GridCells gc = classify_grid(g, d, {});
+  LiquidParams lp;
+  lp.regions = {box_region(Vec3::Zero(), Vec3(1, 1, 0.5))};
+  const LiquidParticles parts = seed_liquid(gc, lp);
+  CHECK(parts.size() == 8 * 8 * 4 * 8);
+  const VecX phi = liquid_level_set(gc, parts.x, liquid_surface_params(g, 2));
+  const double below = phi[g.cell(4, 4, 3)], above = phi[g.cell(4, 4, 4)];
+  CHECK(below < 0);
+  CHECK(above > 0);
+  CHECK(std::abs(below + above) < 1e-12);
+  set_free_surface(gc, phi);
+  const LiquidMeasures m = liquid_measures(gc);
+  CHECK(m.volume == doctest::Approx(0.5).epsilon(1e-12));
+  CHECK(m.area == doctest::Approx(1.0).epsilon(1e-12));
+}
+
+TEST_CASE("liquid: a still pool in a closed tank stays still and flat") {
+  // 100 steps of a pool 0.3 m deep in a closed 0.4 m tank: max speed <= 1e-6 sqrt(g h) and the
+  // surface (the zero of φ in every column) flat to 1e-3 of a cell
+  const double depth = 0.3;
+  const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(0.4, 0.4, 0.4), {16, 16, 16});
+  mesh::FluidDomain d;
+  d.lo = g.lo;
+  d.hi = g.hi();
+  FluidParams p = water(box_region(Vec3::Zero(), Vec3(0.4, 0.4, depth)));
+  p.solver_rel_tol = 1e-12;
+  GridFluid fluid(p, g, d);
+  fluid.initialize({});
+  PhaseTimes phases;
+  double speed = 0;
+  for (int step = 0; step < 100; ++step)
+    speed = std::max(speed, fluid.step({}, {}, 0.01, phases).max_speed);
+  const GridCells& gc = fluid.cells();
+  double lo = 1e9, hi = -1e9;
+  for (Index j = 0; j < g.n[1]; ++j)
+    for (Index i = 0; i < g.n[0]; ++i)
+      for (Index k = 0; k + 1 < g.n[2]; ++k) {
+        const double a = gc.phi[g.cell(i, j, k)], b = gc.phi[g.cell(i, j, k + 1)];
+        if (a < 0 && b >= 0) {
+          const double z = g.cell_centre(g.cell(i, j, k))[2] + g.h[2] * a / (a - b);
+          lo = std::min(lo, z);
+          hi = std::max(hi, z);
+        }
+      }
+  MESSAGE("still pool: max speed " << speed << " m/s (limit " << 1e-6 * std::sqrt(kG * depth)
+                                   << "), surface " << lo << " .. " << hi << " m");
+  CHECK(speed <= 1e-6 * std::sqrt(kG * depth));
+  CHECK(hi - lo <= 1e-3 * g.h[2]);
+  CHECK(lo == doctest::Approx(depth).epsilon(1e-9));
+  // the pressure is hydrostatic: rho g (surface - z) at the bottom cells' centres, to 1e-6
+  const double p_bottom = 1000 * kG * (depth - 0.5 * g.h[2]);
+  CHECK(fluid.state().p[g.cell(5, 7, 0)] == doctest::Approx(p_bottom).epsilon(1e-6));
+  CHECK(fluid.state().p[g.cell(5, 7, 15)] == 0.0);  // an air cell
+}
+
+namespace {
+
+/// Martin & Moyce (1952), Phil. Trans. R. Soc. A 244, 312-324, Fig. 3: a column of width a
+/// and height 2a (n^2 = 2, a = 2.25 in) collapsing onto a dry floor; the surge front Z = x/a
+/// against T = t sqrt(2 g / a). Points as tabulated from the figure in PySPH's
+/// pysph/examples/db_exp_data.py (mm_data_2).
+const std::vector<std::pair<double, double>> k_martin_moyce = {
+    {1.219, 1.474}, {1.997, 2.292}, {2.547, 2.995}, {3.345, 4.134}, {4.034, 4.944},
+    {4.418, 5.881}, {5.091, 6.980}, {5.685, 7.945}, {6.306, 8.966}, {6.822, 9.986}};
+
+/// The dam break in a tank 12 a long (4 cells deep, free-slip walls) at a / h = per_a, until
+/// the last tabulated time: Z at each tabulated T, and the worst volume drift.
+std::pair<std::vector<double>, double> dam_break(int per_a) {
+  const double a = 0.05715, h = a / per_a;
+  const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(12 * a, 4 * h, 2.5 * a),
+                                          {12 * per_a, 4, static_cast<Index>(2.5 * per_a)});
+  mesh::FluidDomain d;
+  d.lo = g.lo;
+  d.hi = g.hi();
+  GridFluid fluid(water(box_region(Vec3::Zero(), Vec3(a, 4 * h, 2 * a))), g, d);
+  fluid.initialize({});
+  const double dt = 0.25 * h / std::sqrt(2 * kG * a), t_scale = std::sqrt(2 * kG / a);
+  PhaseTimes phases;
+  double worst = 0;
+  std::vector<double> Z;
+  while (Z.size() < k_martin_moyce.size()) {
+    const FluidStepReport r = fluid.step({}, {}, dt, phases);
+    worst = std::max(worst, std::abs(r.liquid_volume_drift));
+    const auto [T_ref, Z_ref] = k_martin_moyce[Z.size()];
+    if (fluid.time() * t_scale < T_ref) continue;
+    Z.push_back(surge_front(fluid.cells()) / a);
+    MESSAGE("a/h = " << per_a << "  T = " << fluid.time() * t_scale << "  Z = " << Z.back()
+                     << "  Martin & Moyce " << Z_ref << "  (" << 100 * (Z.back() / Z_ref - 1)
+                     << " %)  volume drift so far " << 100 * worst << " %");
+  }
+  return {Z, worst};
+}
+
+/// The front within 10 % of the experiment at T = 4.42, 5.09, 5.69 (earlier, the inviscid front leads
+/// the experiment by 13-19 %: the measured front is slowed by the gate's opening and the
+/// floor's friction, which the model does not have), and the volume within `max_drift`.
+void check_dam_break(int per_a, double max_drift) {
+  const auto [Z, worst] = dam_break(per_a);
+  for (size_t k = 5; k < 8; ++k) {
+    CAPTURE(k_martin_moyce[k].first);
+    CHECK(Z[k] == doctest::Approx(k_martin_moyce[k].second).epsilon(0.10));
+  }
+  CHECK(Z[1] > k_martin_moyce[1].second);  // the early lead, as stated above
+  CHECK(worst < max_drift);
+}
+
+}  // namespace
+
+TEST_CASE("liquid dam break: the surge front against Martin & Moyce (1952), a/h = 16") {
+  check_dam_break(16, 0.015);  // measured 1.01 %
+}
+
+TEST_CASE("liquid dam break: the surge front against Martin & Moyce (1952), a/h = 24" *
+          doctest::test_suite("long")) {
+  check_dam_break(24, 0.01);  // measured 0.68 %
+}
