@@ -38,7 +38,9 @@ double distance_to_mean(const Vec3& x, const Points& pts, double R) {
 
 /// The kernel radius of φ: two cells (the largest edge) [ZhuBridson05]. Measured on the dam
 /// break (a/h = 16): one cell lost 13 % of the volume by T = 4, two cells 1 %.
-double kernel_radius(const GridSpec& g) { return 2.0 * g.h.maxCoeff(); }
+double kernel_radius(const GridSpec& g) {
+  return 2.0 * g.h.maxCoeff();
+}
 
 /// The lattice point l (0 .. per_axis³ − 1) of cell c.
 Vec3 lattice_point(const GridSpec& g, Index c, int per_axis, int l) {
@@ -69,8 +71,7 @@ Index lattice_size(const GridSpec& g, int a, int face_axis) {
 }
 
 /// The trilinear stencil of point x on the lattice of axis-a faces: base index and fractions.
-void face_lattice(const GridSpec& g, int a, const Vec3& x, std::array<Index, 3>& base,
-                  Vec3& frac) {
+void face_lattice(const GridSpec& g, int a, const Vec3& x, std::array<Index, 3>& base, Vec3& frac) {
   for (int b = 0; b < 3; ++b) {
     const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
     const Index top = lattice_size(g, b, a) - 1;
@@ -125,7 +126,8 @@ LiquidSurfaceParams liquid_surface_params(const GridSpec& g, int per_axis) {
         pts.emplace_back((i + 0.5) * s[0], (j + 0.5) * s[1], -(k - 0.5) * s[2]);
   // cell centres sit on lattice corners when per_axis is even, on points when it is odd
   const double off = per_axis % 2 == 0 ? 0.0 : 0.5;
-  const Vec3 below(off * s[0], off * s[1], -0.5 * g.h[2]), above(off * s[0], off * s[1], 0.5 * g.h[2]);
+  const Vec3 below(off * s[0], off * s[1], -0.5 * g.h[2]),
+      above(off * s[0], off * s[1], 0.5 * g.h[2]);
   const double db = distance_to_mean(below, pts, R), da = distance_to_mean(above, pts, R);
   LiquidSurfaceParams sp;
   sp.radius = 0.5 * (db + da);
@@ -422,8 +424,7 @@ Index separate_particles(const GridCells& gc, int per_axis, LiquidParticles& lp)
     Vec3 dx = Vec3::Zero();
     for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
       for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
-        for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1);
-             ++i) {
+        for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1); ++i) {
           const Index d = g.cell(i, j, k);
           for (Index e = b.start[d]; e < b.start[d + 1]; ++e) {
             const Index q = b.order[e];
@@ -467,8 +468,8 @@ double phi_at(const GridCells& gc, const Vec3& x) {
   std::array<Index, 3> base{};
   Vec3 frac;
   for (int a = 0; a < 3; ++a) {
-    const double s = std::clamp((x[a] - g.lo[a]) / g.h[a] - 0.5, 0.0,
-                                static_cast<double>(g.n[a] - 1));
+    const double s =
+        std::clamp((x[a] - g.lo[a]) / g.h[a] - 0.5, 0.0, static_cast<double>(g.n[a] - 1));
     base[a] = std::min<Index>(static_cast<Index>(std::floor(s)), std::max<Index>(g.n[a] - 2, 0));
     frac[a] = g.n[a] > 1 ? s - static_cast<double>(base[a]) : 0.0;
   }

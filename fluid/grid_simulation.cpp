@@ -222,7 +222,9 @@ GridFluid::GridFluid(FluidParams params, GridSpec grid, mesh::FluidDomain domain
   m_surface = liquid_surface_params(m_grid, lq.particles_per_axis);
 }
 
-bool GridFluid::has_liquid() const { return m_params.liquid.enabled; }
+bool GridFluid::has_liquid() const {
+  return m_params.liquid.enabled;
+}
 
 int GridFluid::extrapolation_layers(const VecX& u, double h) const {
   const double reach = h * (u.size() ? u.cwiseAbs().maxCoeff() : 0.0) / m_grid.h.minCoeff();
@@ -235,8 +237,7 @@ void GridFluid::predict_liquid(GridPrediction& pred, double h) const {
   pred.particles_removed = advect_particles(pred.cells, m_state.u, h, pred.particles);
   separate_particles(pred.cells, lq.particles_per_axis, pred.particles);
   pred.particles_added = emit_liquid(pred.cells, lq, m_time + h, pred.particles);
-  set_free_surface(pred.cells,
-                   liquid_level_set(pred.cells, pred.particles.x, m_surface));
+  set_free_surface(pred.cells, liquid_level_set(pred.cells, pred.particles.x, m_surface));
   pred.rho = grid_cell_density(pred.cells, m_params);
   pred.u_star = particles_to_faces(m_grid, pred.particles, pred.particle_faces);
   extrapolate_faces(m_grid, pred.particle_faces, extrapolation_layers(pred.u_star, h), pred.u_star);
@@ -254,8 +255,7 @@ void GridFluid::initialize(std::vector<mesh::SolidSurface> surfaces) {
   apply_sources(m_cells, m_params, m_state.density, m_state.temperature);
   if (has_liquid()) {
     m_state.particles = seed_liquid(m_cells, m_params.liquid);
-    set_free_surface(m_cells,
-                     liquid_level_set(m_cells, m_state.particles.x, m_surface));
+    set_free_surface(m_cells, liquid_level_set(m_cells, m_state.particles.x, m_surface));
     m_liquid_expected = liquid_measures(m_cells).volume;
   }
   const VecX rho = grid_cell_density(m_cells, m_params);
@@ -499,14 +499,14 @@ void GridFluid::load_state(const CheckpointReader& r, const std::string& prefix)
     m_liquid_expected = r.get_double(prefix + "liquid/expected");
     if (s.particles.v.rows() != s.particles.x.rows() || !s.particles.x.allFinite() ||
         !s.particles.v.allFinite())
-      r.fail(fmt::format("its liquid particles ({} positions, {} velocities) are not a finite "
-                         "matching pair",
-                         s.particles.x.rows(), s.particles.v.rows()));
+      r.fail(
+          fmt::format("its liquid particles ({} positions, {} velocities) are not a finite "
+                      "matching pair",
+                      s.particles.x.rows(), s.particles.v.rows()));
   }
   const double t = r.get_double(prefix + "time");
   m_cells = classify_grid(m_grid, m_domain, std::move(surfaces));
-  if (has_liquid())
-    set_free_surface(m_cells, liquid_level_set(m_cells, s.particles.x, m_surface));
+  if (has_liquid()) set_free_surface(m_cells, liquid_level_set(m_cells, s.particles.x, m_surface));
   m_state = std::move(s);
   m_time = t;
   m_initialized = true;

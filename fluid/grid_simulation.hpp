@@ -25,10 +25,10 @@
 namespace tetfsi::fluid {
 
 struct GridState {
-  VecX u;            ///< #F face velocities along +e_a (m/s)
-  VecX p;            ///< #C total pressure at cell centres (Pa; 0 in solid cells)
-  VecX density;      ///< #C smoke density (kg/m³)
-  VecX temperature;  ///< #C (K)
+  VecX u;                     ///< #F face velocities along +e_a (m/s)
+  VecX p;                     ///< #C total pressure at cell centres (Pa; 0 in solid cells)
+  VecX density;               ///< #C smoke density (kg/m³)
+  VecX temperature;           ///< #C (K)
   LiquidParticles particles;  ///< a liquid with a free surface (empty without)
 };
 
@@ -109,15 +109,14 @@ class GridFluid {
   /// the free surface, v* from the particles (phase "transfer").
   void predict_liquid(GridPrediction& pred, double h) const;
   /// Forces, sources and boundary values (phase "forces").
-  GridPrediction predict_forces(GridPrediction pred,
-                                const std::vector<SolidSurfaceMotion>& motions,
+  GridPrediction predict_forces(GridPrediction pred, const std::vector<SolidSurfaceMotion>& motions,
                                 PhaseTimes& phases) const;
   /// Rings of faces to extrapolate a velocity u into: past the farthest a particle moves in h.
   int extrapolation_layers(const VecX& u, double h) const;
 
   std::unique_ptr<LinearSolver> m_solver;
   Vec3 m_liquid_gravity = Vec3::Zero();  ///< a free surface: gravity on the velocity
-  LiquidSurfaceParams m_surface;  ///< a free surface: how φ is read from the particles
+  LiquidSurfaceParams m_surface;         ///< a free surface: how φ is read from the particles
   double m_liquid_expected = 0.0;  ///< m³: the volume the particles carry (see liquid_volume_drift)
   double m_time = 0.0;
   bool m_initialized = false;

@@ -12,6 +12,7 @@
 #include <vtkCellArray.h>
 #include <vtkCellData.h>
 #include <vtkCommand.h>
+#include <vtkContourFilter.h>
 #include <vtkDoubleArray.h>
 #include <vtkErrorCode.h>
 #include <vtkImageData.h>
@@ -22,6 +23,7 @@
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
+#include <vtkRectilinearGrid.h>
 #include <vtkTypeInt32Array.h>
 #include <vtkUnsignedCharArray.h>
 #include <vtkUnstructuredGrid.h>
@@ -583,9 +585,60 @@ void write_grid_vti(const fs::path& path, const GridFrameFields& g, Compression 
   solid->SetNumberOfTuples(nc);
   std::memcpy(solid->GetPointer(0), g.solid.data(), static_cast<size_t>(nc));
   cd->AddArray(solid);
+  if (g.phi.size() == nc) cd->AddArray(scalar_array("phi", g.phi));
 
   vtkNew<vtkXMLImageDataWriter> writer;
   write_xml_atomic(writer, image, path, compression);
+}
+
+void write_liquid_surface_vtp(const fs::path& path, const GridFrameFields& g,
+                              Compression compression) {
+  install_vtk_output_window();
+  const Index nc = check_grid_cells(g);
+  TETFSI_CHECK(g.phi.size() == nc, "liquid surface: phi has {} values for {} cells", g.phi.size(),
+               nc);
+  // The cell centres and the box's walls as the points of a rectilinear grid: φ and the
+  // velocity are point data there, a wall point taking the value of the centre beside it (a
+  // free-slip wall mirrors the liquid), so that the surface meets the walls.
+  vtkNew<vtkRectilinearGrid> grid;
+  std::array<Index, 3> np{};
+  for (int a = 0; a < 3; ++a) np[a] = g.cells[a] + 2;
+  grid->SetDimensions(static_cast<int>(np[0]), static_cast<int>(np[1]), static_cast<int>(np[2]));
+  for (int a = 0; a < 3; ++a) {
+    vtkNew<vtkDoubleArray> c;
+    c->SetNumberOfTuples(np[a]);
+    c->SetValue(0, g.origin[a]);
+    for (Index i = 0; i < g.cells[a]; ++i)
+      c->SetValue(i + 1, g.origin[a] + (static_cast<double>(i) + 0.5) * g.spacing[a]);
+    c->SetValue(np[a] - 1, g.origin[a] + static_cast<double>(g.cells[a]) * g.spacing[a]);
+    if (a == 0) grid->SetXCoordinates(c);
+    if (a == 1) grid->SetYCoordinates(c);
+    if (a == 2) grid->SetZCoordinates(c);
+  }
+  const Index npts = np[0] * np[1] * np[2];
+  VecX phi(npts);
+  MatX3 vel(npts, 3);
+  for (Index k = 0; k < np[2]; ++k)
+    for (Index j = 0; j < np[1]; ++j)
+      for (Index i = 0; i < np[0]; ++i) {
+        const auto in = [&](Index v, int a) { return std::clamp<Index>(v - 1, 0, g.cells[a] - 1); };
+        const Index c = in(i, 0) + g.cells[0] * (in(j, 1) + g.cells[1] * in(k, 2));
+        const Index p = i + np[0] * (j + np[1] * k);
+        phi[p] = g.phi[c];
+        vel.row(p) = g.velocity.row(c);
+      }
+  grid->GetPointData()->SetScalars(scalar_array("phi", phi));
+  grid->GetPointData()->AddArray(vector_array("velocity", vel.data(), npts));
+  vtkNew<vtkContourFilter> contour;
+  contour->SetInputData(grid);
+  contour->SetValue(0, 0.0);
+  contour->ComputeNormalsOn();
+  contour->ComputeScalarsOff();
+  contour->Update();
+  vtkPolyData* surface = contour->GetOutput();
+  surface->GetPointData()->RemoveArray("phi");
+  vtkNew<vtkXMLPolyDataWriter> writer;
+  write_xml_atomic(writer, surface, path, compression);
 }
 
 void write_grid_interface_vtp(const fs::path& path, const GridFrameFields& g,
@@ -713,8 +766,8 @@ std::vector<std::string> StatsWriter::body_columns(const std::vector<std::string
 }
 
 std::vector<std::string> StatsWriter::columns(bool fluid, bool coupled,
-                                              const std::vector<std::string>& bodies,
-                                              bool contact, bool liquid) {
+                                              const std::vector<std::string>& bodies, bool contact,
+                                              bool liquid) {
   std::vector<std::string> v = make_columns(fluid, fluid && coupled);
   for (std::string& c : body_columns(bodies)) v.push_back(std::move(c));
   if (contact)
@@ -725,8 +778,8 @@ std::vector<std::string> StatsWriter::columns(bool fluid, bool coupled,
 }
 
 const std::vector<std::string>& StatsWriter::liquid_columns() {
-  static const std::vector<std::string> c = {"liquid_volume", "liquid_volume_drift",
-                                             "liquid_area", "liquid_particles"};
+  static const std::vector<std::string> c = {"liquid_volume", "liquid_volume_drift", "liquid_area",
+                                             "liquid_particles"};
   return c;
 }
 
@@ -958,6 +1011,14 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
     }
     m_fluid_pvd.emplace(m_out / "fluid.pvd");
     m_interface_pvd.emplace(m_out / "interface.pvd");
+    if (scene.fluid->params.liquid.enabled) {
+      std::error_code ec;
+      fs::create_directories(m_out / "liquid", ec);
+      if (ec)
+        throw InputError(fmt::format("cannot create output folder '{}': {}",
+                                     (m_out / "liquid").string(), ec.message()));
+      m_liquid_pvd.emplace(m_out / "liquid.pvd");
+    }
   }
 }
 
@@ -1009,9 +1070,12 @@ void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, do
   const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
   write_grid_vti(m_out / rel_f, grid, m_compression);
   write_grid_interface_vtp(m_out / rel_i, grid, m_compression);
+  const std::string rel_l = fmt::format("liquid/liquid_{:06d}.vtp", step);
+  if (m_liquid_pvd) write_liquid_surface_vtp(m_out / rel_l, grid, m_compression);
   add_bodies_to_pvds(rel, time);
   m_fluid_pvd->add(time, rel_f);
   m_interface_pvd->add(time, rel_i);
+  if (m_liquid_pvd) m_liquid_pvd->add(time, rel_l);
   ++m_frames;
   m_frame_steps.push_back(step);
 }
@@ -1025,6 +1089,7 @@ std::vector<const PvdWriter*> OutputWriter::streams() const {
   for (const PvdWriter& p : m_pvd) s.push_back(&p);
   if (m_fluid_pvd) s.push_back(&*m_fluid_pvd);
   if (m_interface_pvd) s.push_back(&*m_interface_pvd);
+  if (m_liquid_pvd) s.push_back(&*m_liquid_pvd);
   return s;
 }
 
@@ -1033,6 +1098,7 @@ std::vector<PvdWriter*> OutputWriter::streams() {
   for (PvdWriter& p : m_pvd) s.push_back(&p);
   if (m_fluid_pvd) s.push_back(&*m_fluid_pvd);
   if (m_interface_pvd) s.push_back(&*m_interface_pvd);
+  if (m_liquid_pvd) s.push_back(&*m_liquid_pvd);
   return s;
 }
 

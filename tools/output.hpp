@@ -147,7 +147,8 @@ struct GridFrameFields {
   VecX divergence;                  ///< 1/s
   VecX vorticity;                   ///< |curl u| (1/s)
   MatX3 velocity;                   ///< #C × 3 at the cell centres (m/s)
-  std::vector<std::uint8_t> solid;  ///< #C: 1 where the cell is not fluid (inside a body)
+  std::vector<std::uint8_t> solid;  ///< #C: 1 where the cell is inside a body
+  VecX phi;  ///< #C the liquid's level set (m, < 0 in the liquid); empty without a free surface
   // ---- the bodies' boundary triangles at the frame (the grid's solid interface) ----
   MatX3 surface_points;        ///< #P × 3 (m)
   MatX3i surface_triangles;    ///< #Tr × 3 into surface_points, outward-oriented
@@ -163,7 +164,8 @@ struct GridFrameFields {
 /// Extent 0..n_a points per axis (n_a + 1 points, n_a cells), `origin` and `spacing` as
 /// given. Cell data (Float64 unless noted): `pressure` (Pa), `smoke_density` (kg/m³),
 /// `temperature` (K), `divergence` (1/s), `vorticity` (1/s), `velocity` (3 components, m/s),
-/// `solid` (UInt8). Compression as write_body_vtu.
+/// `solid` (UInt8), and with a free surface `phi` (m, < 0 in the liquid). Compression as
+/// write_body_vtu.
 ///
 /// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
 /// @throws InternalError naming the array and both sizes if a cell array is not #C long, or
@@ -171,6 +173,14 @@ struct GridFrameFields {
 ///   InputError naming the file if it cannot be written.
 void write_grid_vti(const std::filesystem::path& path, const GridFrameFields& g,
                     Compression compression);
+
+/// Write the liquid's surface (the zero of `phi`, trilinear between the cell centres and
+/// carried to the box's walls, VTK's contour filter) as triangles (`.vtp`) with point data
+/// `velocity` (m/s, interpolated from the cell centres) and `Normals`. Written like
+/// write_grid_vti.
+/// @throws InternalError if `phi` is not #C long.
+void write_liquid_surface_vtp(const std::filesystem::path& path, const GridFrameFields& g,
+                              Compression compression);
 
 /// Write the grid fluid's solid interface, the bodies' surface triangles of the frame, as an
 /// XML poly data file (appended raw binary), in triangle order.
@@ -464,6 +474,7 @@ class OutputWriter {
   std::vector<PvdWriter> m_pvd;              ///< per body
   std::optional<PvdWriter> m_fluid_pvd;      ///< fluid scenes: OUT/fluid.pvd
   std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
+  std::optional<PvdWriter> m_liquid_pvd;     ///< a free surface: OUT/liquid.pvd
   StatsWriter m_stats;
   int m_frames = 0;
   std::vector<int> m_frame_steps;  ///< the step of every frame written, in order

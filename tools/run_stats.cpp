@@ -317,6 +317,7 @@ GridFrameFields grid_frame_fields(const coupling::FsiSimulation& sim) {
   f.vorticity = fluid::grid_vorticity(gc, f.velocity).rowwise().norm();
   f.solid.resize(spec.num_cells());
   for (Index c = 0; c < spec.num_cells(); ++c) f.solid[c] = gc.open_cell(c) ? 0 : 1;
+  f.phi = gc.phi;
   // the bodies' boundary triangles and the fluid's nodal forces on them
   const solid::SolidWorld& world = sim.world();
   const std::vector<coupling::BodySurface>& surf = sim.remesh_policy()->surfaces();

@@ -653,8 +653,7 @@ class Parser {
         fluid::LiquidRegion r;
         r.name = fmt::format("region{}", i);
         read(e, liquid_region_keys(), r);
-        if (has(e, "box") == has(e, "sphere"))
-          fail(e.path, "give exactly one of box or sphere");
+        if (has(e, "box") == has(e, "sphere")) fail(e.path, "give exactly one of box or sphere");
         if (has(e, "box")) {
           const Node bn = child(e, "box");
           const BoxSpec b = box(bn, liquid_box_keys(false), true);

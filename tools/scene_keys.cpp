@@ -1287,7 +1287,8 @@ const Section<fluid::LiquidRegion>& liquid_region_keys() {
       "a box or a sphere of liquid",
       {name_row<R>("names it in messages", "region<i>", true, TETFSI_AT(name)),
        sub<R>({.key = "box", .type = KeyType::Object, .doc = "lo < hi (or give sphere)"}),
-       sub<R>({.key = "sphere", .type = KeyType::Object, .doc = "center and radius (or give box)"})}};
+       sub<R>(
+           {.key = "sphere", .type = KeyType::Object, .doc = "center and radius (or give box)"})}};
   return s;
 }
 
@@ -1308,8 +1309,9 @@ const Section<fluid::LiquidRegion>& liquid_sphere_keys() {
   static const Section<R> s{
       "fluid.liquid.regions[].sphere",
       "a ball of liquid",
-      {bind<R>({.key = "center", .type = KeyType::Vec3, .doc = "centre", .unit = "m", .required = true},
-               TETFSI_AT(centre)),
+      {bind<R>(
+           {.key = "center", .type = KeyType::Vec3, .doc = "centre", .unit = "m", .required = true},
+           TETFSI_AT(centre)),
        bind<R>({.key = "radius",
                 .type = KeyType::Number,
                 .doc = "radius",
@@ -1330,7 +1332,10 @@ const Section<fluid::LiquidSource>& liquid_source_keys() {
                .type = KeyType::Object,
                .doc = "lo < hi, inside the fluid box",
                .required = true}),
-       bind<S>({.key = "velocity", .type = KeyType::Vec3, .doc = "of the emitted liquid", .unit = "m/s"},
+       bind<S>({.key = "velocity",
+                .type = KeyType::Vec3,
+                .doc = "of the emitted liquid",
+                .unit = "m/s"},
                TETFSI_AT(velocity)),
        bind<S>({.key = "start",
                 .type = KeyType::Number,
@@ -1505,22 +1510,47 @@ std::string key_value_text(const json& v) {
 }
 
 const std::vector<KeySection>& scene_key_sections() {
-  static const std::vector<KeySection> sections = {
-      rows_of(top_level_keys()),       rows_of(time_keys()),        rows_of(output_keys()),
-      rows_of(solver_keys()),          rows_of(solid_keys()),       rows_of(static_keys()),
-      rows_of(contact_keys()),         rows_of(body_keys()),        rows_of(mesh_keys()),
-      rows_of(mesh_box_keys()),        rows_of(mesh_sphere_keys()), rows_of(mesh_shell_keys()),
-      rows_of(mesh_hollow_box_keys()), rows_of(mesh_tube_keys()),   rows_of(transform_keys()),
-      rows_of(material_keys()),        rows_of(pin_keys()),         rows_of(load_keys()),
-      rows_of(selection_box_keys()),   rows_of(kinematic_keys()),   rows_of(plane_obstacle_keys()),
-      rows_of(box_obstacle_keys()),    rows_of(fluid_keys()),       rows_of(domain_keys()),
-      rows_of(patch_keys()),           rows_of(fluid_mesh_keys()),  rows_of(fluid_grid_keys()),
-      rows_of(buoyancy_keys()),        rows_of(decay_keys()),       rows_of(transfer_keys()),
-      rows_of(fluid_solver_keys()),    rows_of(source_keys()),      rows_of(source_box_keys()),
-      rows_of(refine_keys()),          rows_of(liquid_keys()),      rows_of(liquid_region_keys()),
-      rows_of(liquid_box_keys(false)), rows_of(liquid_sphere_keys()), rows_of(liquid_source_keys()),
-      rows_of(liquid_box_keys(true)),
-      rows_of(coupling_keys())};
+  static const std::vector<KeySection> sections = {rows_of(top_level_keys()),
+                                                   rows_of(time_keys()),
+                                                   rows_of(output_keys()),
+                                                   rows_of(solver_keys()),
+                                                   rows_of(solid_keys()),
+                                                   rows_of(static_keys()),
+                                                   rows_of(contact_keys()),
+                                                   rows_of(body_keys()),
+                                                   rows_of(mesh_keys()),
+                                                   rows_of(mesh_box_keys()),
+                                                   rows_of(mesh_sphere_keys()),
+                                                   rows_of(mesh_shell_keys()),
+                                                   rows_of(mesh_hollow_box_keys()),
+                                                   rows_of(mesh_tube_keys()),
+                                                   rows_of(transform_keys()),
+                                                   rows_of(material_keys()),
+                                                   rows_of(pin_keys()),
+                                                   rows_of(load_keys()),
+                                                   rows_of(selection_box_keys()),
+                                                   rows_of(kinematic_keys()),
+                                                   rows_of(plane_obstacle_keys()),
+                                                   rows_of(box_obstacle_keys()),
+                                                   rows_of(fluid_keys()),
+                                                   rows_of(domain_keys()),
+                                                   rows_of(patch_keys()),
+                                                   rows_of(fluid_mesh_keys()),
+                                                   rows_of(fluid_grid_keys()),
+                                                   rows_of(buoyancy_keys()),
+                                                   rows_of(decay_keys()),
+                                                   rows_of(transfer_keys()),
+                                                   rows_of(fluid_solver_keys()),
+                                                   rows_of(source_keys()),
+                                                   rows_of(source_box_keys()),
+                                                   rows_of(refine_keys()),
+                                                   rows_of(liquid_keys()),
+                                                   rows_of(liquid_region_keys()),
+                                                   rows_of(liquid_box_keys(false)),
+                                                   rows_of(liquid_sphere_keys()),
+                                                   rows_of(liquid_source_keys()),
+                                                   rows_of(liquid_box_keys(true)),
+                                                   rows_of(coupling_keys())};
   return sections;
 }
 

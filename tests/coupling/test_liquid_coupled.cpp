@@ -19,10 +19,9 @@ TEST_CASE("liquid coupled: a soft slab under a liquid column of height H feels r
   const double g = 9.81, rho = 1000, top = 0.16, surface = 0.36, H = surface - top;
   CoupledRig r;
   r.world().gravity = Vec3(0, 0, -g);
-  r.world().bodies.emplace_back("slab",
-                                mesh::make_box(Vec3(0.1, 0.1, 0.1), Vec3(0.3, 0.3, top),
-                                               Vec3i(4, 4, 2)),
-                                make_material(1000, 2e5, 0.3, 2.0, 0.002));
+  r.world().bodies.emplace_back(
+      "slab", mesh::make_box(Vec3(0.1, 0.1, 0.1), Vec3(0.3, 0.3, top), Vec3i(4, 4, 2)),
+      make_material(1000, 2e5, 0.3, 2.0, 0.002));
   solid::SolidBody& slab = r.world().bodies[0];
   const MatX3 rest = slab.positions();
   for (Index v = 0; v < rest.rows(); ++v)
@@ -44,7 +43,8 @@ TEST_CASE("liquid coupled: a soft slab under a liquid column of height H feels r
   for (int step = 1; step <= 40; ++step) {
     const CoupledStepReport rep = r.step(0.01);
     drift = std::max(drift, std::abs(rep.fluid.liquid_volume_drift));
-    REQUIRE(rep.fluid.liquid_volume == doctest::Approx(0.4 * 0.4 * surface - 0.2 * 0.2 * 0.06).epsilon(0.02));
+    REQUIRE(rep.fluid.liquid_volume ==
+            doctest::Approx(0.4 * 0.4 * surface - 0.2 * 0.2 * 0.06).epsilon(0.02));
     // no liquid cell inside the body: every cell holding a pressure unknown is outside it
     const fluid::GridCells& gc = r.sim->grid()->cells();
     Index inside = 0;

@@ -154,8 +154,8 @@ std::pair<std::vector<double>, double> dam_break(int per_a) {
   return {Z, worst};
 }
 
-/// The front within 10 % of the experiment at T = 4.42, 5.09, 5.69 (earlier, the inviscid front leads
-/// the experiment by 13-19 %: the measured front is slowed by the gate's opening and the
+/// The front within 10 % of the experiment at T = 4.42, 5.09, 5.69 (earlier, the inviscid front
+/// leads the experiment by 13-19 %: the measured front is slowed by the gate's opening and the
 /// floor's friction, which the model does not have), and the volume within `max_drift`.
 void check_dam_break(int per_a, double max_drift) {
   const auto [Z, worst] = dam_break(per_a);
@@ -169,11 +169,11 @@ void check_dam_break(int per_a, double max_drift) {
 
 }  // namespace
 
-TEST_CASE("liquid dam break: the surge front against Martin & Moyce (1952), a/h = 16") {
+TEST_CASE("liquid dam break: the surge front against Martin and Moyce (1952) at 16 cells per a") {
   check_dam_break(16, 0.015);  // measured 1.01 %
 }
 
-TEST_CASE("liquid dam break: the surge front against Martin & Moyce (1952), a/h = 24" *
+TEST_CASE("liquid dam break: the surge front against Martin and Moyce (1952) at 24 cells per a" *
           doctest::test_suite("long")) {
   check_dam_break(24, 0.01);  // measured 0.68 %
 }

@@ -1674,3 +1674,81 @@ TEST_CASE("generated meshes: missing keys, bad values and two kinds are one-line
   rejected(R"({ "ball": { "center": [0, 0, 0], "radius": 1 } })",
            {"bodies[0].mesh.ball: unknown key"});
 }
+
+namespace {
+
+/// fluid_json on the grid with a liquid column.
+json liquid_json() {
+  json j = fluid_json();
+  j["fluid"]["discretization"] = "grid";
+  j["fluid"]["grid"] = json::parse(R"({ "cell_size": 0.1 })");
+  j["fluid"]["gravity"] = true;
+  j["fluid"]["liquid"] = json::parse(R"({
+    "flip": 0.9,
+    "regions": [ { "name": "column", "box": { "lo": [-0.5, -0.5, 0], "hi": [0, 1, 1] } },
+                 { "sphere": { "center": [1, 0.5, 1.5], "radius": 0.2 } } ],
+    "sources": [ { "name": "tap", "box": { "lo": [1, 0, 1.8], "hi": [1.2, 0.2, 2] },
+                   "velocity": [0, 0, -1], "stop": 0.5 } ]
+  })");
+  return j;
+}
+
+void check_liquid_rejected(const std::function<void(json&)>& edit,
+                           std::initializer_list<std::string> parts) {
+  json j = liquid_json();
+  edit(j);
+  check_input_error([&] { parse_scene(j, "scene.json"); }, parts);
+}
+
+}  // namespace
+
+TEST_CASE("fluid.liquid parses regions and sources and resolves back") {
+  const Scene s = parse_scene(liquid_json(), "scene.json");
+  const fluid::LiquidParams& lq = s.fluid->params.liquid;
+  CHECK(lq.enabled);
+  CHECK(lq.flip == 0.9);
+  CHECK(lq.particles_per_axis == 2);
+  REQUIRE(lq.regions.size() == 2);
+  CHECK(lq.regions[0].name == "column");
+  CHECK(lq.regions[0].hi == Vec3(0, 1, 1));
+  CHECK(lq.regions[1].name == "region1");
+  CHECK(lq.regions[1].radius == 0.2);
+  CHECK(lq.regions[1].contains(Vec3(1, 0.5, 1.6)));
+  REQUIRE(lq.sources.size() == 1);
+  CHECK(lq.sources[0].velocity == Vec3(0, 0, -1));
+  CHECK(lq.sources[0].stop == 0.5);
+  const Scene back = parse_scene(s.resolved, "scene.json");
+  CHECK(back.resolved == s.resolved);
+  CHECK(back.fluid->params.liquid.regions[1].centre == Vec3(1, 0.5, 1.5));
+}
+
+TEST_CASE("fluid.liquid errors name the key") {
+  check_liquid_rejected([](json& j) { j["fluid"]["discretization"] = "tet"; },
+                        {"fluid.liquid", "fluid.discretization to \"grid\""});
+  check_liquid_rejected(
+      [](json& j) {
+        j["fluid"]["liquid"]["regions"][0]["box"]["lo"] = {5, 5, 5};
+      },
+      {"fluid.liquid.regions[0].box"});
+  check_liquid_rejected(
+      [](json& j) {
+        j["fluid"]["liquid"]["regions"][0]["box"] = {{"lo", {2, 2, 3}}, {"hi", {3, 3, 4}}};
+      },
+      {"fluid.liquid.regions[0].box", "outside the fluid box"});
+  check_liquid_rejected(
+      [](json& j) {
+        j["fluid"]["liquid"]["regions"][1]["box"] = {{"lo", {0, 0, 0}}, {"hi", {1, 1, 1}}};
+      },
+      {"fluid.liquid.regions[1]", "exactly one of box or sphere"});
+  check_liquid_rejected([](json& j) { j["fluid"]["liquid"]["sources"][0]["stop"] = 0; },
+                        {"fluid.liquid.sources[0].stop", "emit nothing"});
+  check_liquid_rejected([](json& j) { j["fluid"]["liquid"]["flip"] = 1.5; }, {"fluid.liquid.flip"});
+  check_liquid_rejected([](json& j) { j["fluid"]["liquid"]["volume"] = 1; },
+                        {"fluid.liquid", "volume"});
+  check_liquid_rejected(
+      [](json& j) {
+        j["fluid"]["liquid"].erase("regions");
+        j["fluid"]["liquid"].erase("sources");
+      },
+      {"fluid.liquid", "neither regions nor sources"});
+}
