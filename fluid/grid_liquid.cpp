@@ -196,10 +196,28 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
   const Index full = sp.per_axis * sp.per_axis * sp.per_axis;
   std::array<Index, 3> reach{};
   for (int a = 0; a < 3; ++a) reach[a] = static_cast<Index>(std::ceil(R / g.h[a]));
+  // A cell whose block of cells within the kernel radius all hold particles is deep inside
+  // the liquid: its mean is itself to within the particles' spacing, φ = −r (the sum over
+  // its ~1000 neighbours is what φ costs; only cells near the surface need it).
+  std::vector<std::uint8_t> occupied(static_cast<size_t>(g.num_cells()));
+  for (Index c = 0; c < g.num_cells(); ++c) occupied[c] = b.start[c + 1] > b.start[c];
+  const auto deep = [&](const std::array<Index, 3>& ijk) {
+    for (int a = 0; a < 3; ++a)
+      if (ijk[a] - reach[a] < 0 || ijk[a] + reach[a] >= g.n[a]) return false;  // near a wall
+    for (Index k = ijk[2] - reach[2]; k <= ijk[2] + reach[2]; ++k)
+      for (Index j = ijk[1] - reach[1]; j <= ijk[1] + reach[1]; ++j)
+        for (Index i = ijk[0] - reach[0]; i <= ijk[0] + reach[0]; ++i)
+          if (!occupied[g.cell(i, j, k)]) return false;
+    return true;
+  };
   VecX phi(g.num_cells());
   parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
     const auto ijk = g.cell_ijk(c);
     const Vec3 xc = g.cell_centre(c);
+    if (gc.open_cell(c) && deep(ijk)) {
+      phi[c] = -sp.radius;
+      return;
+    }
     // per axis, the particle's images: itself, and its mirrors in the walls within R
     std::array<int, 3> images{};
     for (int a = 0; a < 3; ++a) images[a] = 1 + (xc[a] - box_lo[a] < R) + (box_hi[a] - xc[a] < R);
