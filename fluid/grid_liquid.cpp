@@ -94,6 +94,24 @@ bool touches_body(const GridCells& gc, Index c) {
   return false;
 }
 
+/// fn(face, w) for the 8 faces of axis a around x and their trilinear weights (corner order).
+template <class F>
+void for_each_face_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
+  std::array<Index, 3> base{};
+  Vec3 frac;
+  face_lattice(g, a, x, base, frac);
+  for (int corner = 0; corner < 8; ++corner) {
+    std::array<Index, 3> ijk{};
+    double w = 1;
+    for (int b = 0; b < 3; ++b) {
+      const int up = (corner >> b) & 1;
+      ijk[b] = std::min(base[b] + up, lattice_size(g, b, a) - 1);
+      w *= up ? frac[b] : 1.0 - frac[b];
+    }
+    fn(g.face(a, ijk[0], ijk[1], ijk[2]), w);
+  }
+}
+
 }  // namespace
 
 ParticleBuckets bucket_particles(const GridSpec& g, const MatX3& x) {
@@ -267,20 +285,10 @@ void set_free_surface(GridCells& gc, VecX phi) {
 Vec3 face_velocity_at(const GridSpec& g, const VecX& u, const Vec3& x) {
   Vec3 v;
   for (int a = 0; a < 3; ++a) {
-    std::array<Index, 3> base{};
-    Vec3 frac;
-    face_lattice(g, a, x, base, frac);
     double s = 0;
-    for (int corner = 0; corner < 8; ++corner) {
-      std::array<Index, 3> ijk{};
-      double w = 1;
-      for (int b = 0; b < 3; ++b) {
-        const int up = (corner >> b) & 1;
-        ijk[b] = std::min(base[b] + up, lattice_size(g, b, a) - 1);
-        w *= up ? frac[b] : 1.0 - frac[b];
-      }
-      if (w != 0) s += w * u[g.face(a, ijk[0], ijk[1], ijk[2])];
-    }
+    for_each_face_weight(g, a, x, [&](Index f, double w) {
+      if (w != 0) s += w * u[f];
+    });
     v[a] = s;
   }
   return v;
@@ -293,24 +301,12 @@ VecX particles_to_faces(const GridSpec& g, const LiquidParticles& lp,
   // scatter in particle order (serial: the sums are bit for bit at any thread count)
   for (Index p = 0; p < lp.size(); ++p) {
     const Vec3 x = lp.x.row(p).transpose();
-    for (int a = 0; a < 3; ++a) {
-      std::array<Index, 3> base{};
-      Vec3 frac;
-      face_lattice(g, a, x, base, frac);
-      for (int corner = 0; corner < 8; ++corner) {
-        std::array<Index, 3> ijk{};
-        double w = 1;
-        for (int b = 0; b < 3; ++b) {
-          const int up = (corner >> b) & 1;
-          ijk[b] = std::min(base[b] + up, lattice_size(g, b, a) - 1);
-          w *= up ? frac[b] : 1.0 - frac[b];
-        }
-        if (w <= 0) continue;
-        const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
+    for (int a = 0; a < 3; ++a)
+      for_each_face_weight(g, a, x, [&](Index f, double w) {
+        if (w <= 0) return;
         num[f] += w * lp.v(p, a);
         den[f] += w;
-      }
-    }
+      });
   }
   known.assign(static_cast<size_t>(nf), 0);
   VecX u = VecX::Zero(nf);
