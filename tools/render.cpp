@@ -49,6 +49,7 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkWindowToImageFilter.h>
 #include <vtkXMLImageDataReader.h>
+#include <vtkXMLPolyDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <nlohmann/json.hpp>
 
@@ -75,6 +76,7 @@ struct FrameFiles {
   int step = 0;
   double time = 0.0;
   fs::path fluid;                ///< "" if the frame has no fluid mesh
+  fs::path liquid;               ///< the liquid's surface (liquid.pvd), "" if none
   std::vector<fs::path> bodies;  ///< per body, in body order
 };
 
@@ -92,6 +94,7 @@ struct RunIndex {
   std::vector<std::string> body_names;  ///< file-safe names, in body order
   std::vector<bool> kinematic;          ///< per body: moved rigidly (no stress to colour)
   bool has_fluid = false;
+  bool has_liquid = false;         ///< a free surface: liquid.pvd
   std::optional<Box> domain;       ///< fluid.domain
   double emitted_smoke = 0.0;      ///< largest smoke density of an inflow patch or source
   std::optional<double> jet_z;     ///< mean height of the inflow patches' centres (m)
@@ -218,7 +221,9 @@ RunIndex read_run(const fs::path& dir) {
       FrameFiles& fr = by_step[step];
       fr.step = step;
       fr.time = time;
-      if (body < 0)
+      if (body == -2)
+        fr.liquid = file;
+      else if (body < 0)
         fr.fluid = file;
       else {
         fr.bodies.resize(run.body_names.size());
@@ -229,6 +234,8 @@ RunIndex read_run(const fs::path& dir) {
   for (size_t b = 0; b < run.body_names.size(); ++b)
     add_stream(dir / (run.body_names[b] + ".pvd"), static_cast<int>(b));
   if (run.has_fluid) add_stream(dir / "fluid.pvd", -1);
+  run.has_liquid = run.has_fluid && fs::exists(dir / "liquid.pvd", ec);
+  if (run.has_liquid) add_stream(dir / "liquid.pvd", -2);
   for (auto& [step, fr] : by_step) {
     fr.bodies.resize(run.body_names.size());
     // A frame the bodies' collections do not all list (a frame being written) is left out.
@@ -599,6 +606,9 @@ ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const F
                                  opt.color, frame.step, listing()));
   }
   if (slice && !fluid.has(c.fluid)) c.fluid.clear();
+  // a liquid: its surface and no slice (the slice would hide it and show the air's p = 0),
+  // unless --slice asks for one
+  if (run.has_liquid && !opt.slice) c.fluid.clear();
   return c;
 }
 
@@ -653,6 +663,7 @@ class FrameRenderer {
       m_renderer->AddActor2D(make_bar(m_body_lut, unit_of(colors.bodies), true, opt.height));
     }
     add_bodies();
+    if (run.has_liquid) add_liquid();
     add_titles();
     place_camera(view_box);
   }
@@ -673,6 +684,13 @@ class FrameRenderer {
           m_cutter->SetInputData(fluid);
         }
         m_slice_actor->VisibilityOn();
+      }
+    }
+    if (m_run.has_liquid) {
+      m_liquid_actor->SetVisibility(!frame.liquid.empty());
+      if (!frame.liquid.empty()) {
+        m_liquid_reader->SetFileName(frame.liquid.string().c_str());
+        m_liquid_reader->Update();
       }
     }
     for (size_t b = 0; b < m_bodies.size(); ++b) {
@@ -740,6 +758,19 @@ class FrameRenderer {
     m_slice_actor->GetProperty()->SetDiffuse(0.0);
     m_renderer->AddActor(m_slice_actor);
     m_renderer->AddActor2D(make_bar(m_fluid_lut, unit_of(array, "\n"), false, m_opt.height));
+  }
+
+  /// The liquid's surface (liquid/liquid_<step>.vtp): water blue, lit, a little glossy.
+  void add_liquid() {
+    vtkNew<vtkPolyDataMapper> mapper;
+    mapper->SetInputConnection(m_liquid_reader->GetOutputPort());
+    mapper->ScalarVisibilityOff();
+    m_liquid_actor->SetMapper(mapper);
+    m_liquid_actor->GetProperty()->SetColor(0.22, 0.48, 0.85);
+    m_liquid_actor->GetProperty()->SetAmbient(0.3);  // no black where it faces away
+    m_liquid_actor->GetProperty()->SetSpecular(0.4);
+    m_liquid_actor->GetProperty()->SetSpecularPower(30);
+    m_renderer->AddActor(m_liquid_actor);
   }
 
   /// One surface actor per body, coloured through m_body_lut (kinematic bodies: plain).
@@ -837,6 +868,8 @@ class FrameRenderer {
   vtkNew<vtkCutter> m_cutter;
   vtkNew<vtkPolyDataMapper> m_slice_mapper;
   vtkNew<vtkActor> m_slice_actor;
+  vtkNew<vtkXMLPolyDataReader> m_liquid_reader;
+  vtkNew<vtkActor> m_liquid_actor;
   std::vector<std::unique_ptr<Body>> m_bodies;
   vtkNew<vtkTextActor> m_title, m_subtitle;
 };
@@ -943,8 +976,10 @@ std::vector<const FrameFiles*> frames_to_draw(const RunIndex& run, const RenderO
 }
 
 /// --slice, checked against the box, or the default: normal z through the inflow patches'
-/// mean height, else the box's centre.
+/// mean height, else the box's centre; with a liquid (liquid.pvd), upright, normal y through
+/// the box's centre (the liquid's pressure from its surface down).
 SlicePlane slice_of(const RunIndex& run, const RenderOptions& opt, const Box& box) {
+  if (!opt.slice && run.has_liquid) return SlicePlane{1, box.center()(1)};
   if (!opt.slice) return SlicePlane{2, run.jet_z ? *run.jet_z : box.center()(2)};
   const SlicePlane s = *opt.slice;
   if (s.value < box.lo(s.axis) || s.value > box.hi(s.axis))
@@ -1072,6 +1107,7 @@ int render_command(const fs::path& out_dir, const RenderOptions& opt, std::ostre
   if (!r.body_color.empty())
     what += fmt::format("{}bodies by {} in [{:.4g}, {:.4g}]", what.empty() ? "" : "; ",
                         r.body_color, r.body_range[0], r.body_range[1]);
+  if (what.empty()) what = "no slice";  // a liquid's surface alone
   if (r.frames.size() == 1) {
     out << fmt::format("{}: step {} (t = {:.6g} s), {}x{}, {}\n", r.frames[0].png.string(),
                        r.frames[0].step, r.frames[0].time, r.width, r.height, what);

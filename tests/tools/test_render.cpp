@@ -330,3 +330,28 @@ TEST_CASE(
   CHECK(contains(tetfsi::test::read_text(log), "error: no panel of"));
   CHECK_FALSE(fs::exists(solid.path / "x.png"));
 }
+
+TEST_CASE("tetfsi render: a liquid's surface is drawn, and no slice unless asked") {
+  TempDir dir("render_liquid");
+  run_scene(dir.path, "dam_break.json",
+            "--steps 20 --set output.every=10 --set fluid.grid.cells=[36,12,15]");
+  tools::RenderOptions opt;
+  opt.width = 480;
+  opt.height = 270;
+  opt.output = dir.path / "liquid.png";
+  const tools::RenderReport r = tools::render_output(dir.path / "o", opt);
+  REQUIRE(r.frames.size() == 1);
+  CHECK_FALSE(r.has_slice);
+  // the water's blue: 2.7 % of the picture at step 20 (the column, just starting to fall, at
+  // one end of the tank); without the surface the picture has no blue pixel (grey and white)
+  const Picture p = read_png(dir.path / "liquid.png");
+  size_t blue = 0;
+  for (const auto& c : p.rgb) blue += c[2] > c[0] + 60 ? 1 : 0;
+  MESSAGE("blue pixels: " << blue << " of " << p.rgb.size());
+  CHECK(blue > p.rgb.size() / 100);
+  opt.slice = tools::SlicePlane{1, 0.05};
+  opt.output = dir.path / "slice.png";
+  const tools::RenderReport s = tools::render_output(dir.path / "o", opt);
+  CHECK(s.has_slice);
+  CHECK(s.color == "pressure");
+}
