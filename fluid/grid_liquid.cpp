@@ -65,13 +65,16 @@ void append(LiquidParticles& lp, const std::vector<Vec3>& x, const std::vector<V
   }
 }
 
-/// The index range along axis a of the lattice points of axis-a faces (n_a + 1) or of cells.
+/// The index range along axis a of the lattice points of axis-`face_axis` faces (n_a + 1
+/// along face_axis), or of the cell centres (face_axis −1: n_a).
 Index lattice_size(const GridSpec& g, int a, int face_axis) {
   return g.n[a] + (a == face_axis ? 1 : 0);
 }
 
-/// The trilinear stencil of point x on the lattice of axis-a faces: base index and fractions.
-void face_lattice(const GridSpec& g, int a, const Vec3& x, std::array<Index, 3>& base, Vec3& frac) {
+/// The trilinear stencil of point x (clamped to the box) on the lattice of axis-a faces, or
+/// of the cell centres for a = −1: base index and fractions.
+void lattice_stencil(const GridSpec& g, int a, const Vec3& x, std::array<Index, 3>& base,
+                     Vec3& frac) {
   for (int b = 0; b < 3; ++b) {
     const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
     const Index top = lattice_size(g, b, a) - 1;
@@ -94,12 +97,13 @@ bool touches_body(const GridCells& gc, Index c) {
   return false;
 }
 
-/// fn(face, w) for the 8 faces of axis a around x and their trilinear weights (corner order).
+/// fn(ijk, w) for the 8 lattice points of lattice_stencil(g, a, x) and their trilinear
+/// weights (corner order).
 template <class F>
-void for_each_face_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
+void for_each_lattice_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
   std::array<Index, 3> base{};
   Vec3 frac;
-  face_lattice(g, a, x, base, frac);
+  lattice_stencil(g, a, x, base, frac);
   for (int corner = 0; corner < 8; ++corner) {
     std::array<Index, 3> ijk{};
     double w = 1;
@@ -108,8 +112,16 @@ void for_each_face_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
       ijk[b] = std::min(base[b] + up, lattice_size(g, b, a) - 1);
       w *= up ? frac[b] : 1.0 - frac[b];
     }
-    fn(g.face(a, ijk[0], ijk[1], ijk[2]), w);
+    fn(ijk, w);
   }
+}
+
+/// fn(face, w) for the 8 faces of axis a around x and their trilinear weights (corner order).
+template <class F>
+void for_each_face_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
+  for_each_lattice_weight(g, a, x, [&](const std::array<Index, 3>& ijk, double w) {
+    fn(g.face(a, ijk[0], ijk[1], ijk[2]), w);
+  });
 }
 
 }  // namespace
@@ -479,25 +491,10 @@ namespace {
 /// nearest values would: the caller only samples non-solid cells).
 double phi_at(const GridCells& gc, const Vec3& x) {
   const GridSpec& g = gc.grid;
-  std::array<Index, 3> base{};
-  Vec3 frac;
-  for (int a = 0; a < 3; ++a) {
-    const double s =
-        std::clamp((x[a] - g.lo[a]) / g.h[a] - 0.5, 0.0, static_cast<double>(g.n[a] - 1));
-    base[a] = std::min<Index>(static_cast<Index>(std::floor(s)), std::max<Index>(g.n[a] - 2, 0));
-    frac[a] = g.n[a] > 1 ? s - static_cast<double>(base[a]) : 0.0;
-  }
   double v = 0;
-  for (int corner = 0; corner < 8; ++corner) {
-    std::array<Index, 3> ijk{};
-    double w = 1;
-    for (int a = 0; a < 3; ++a) {
-      const int up = (corner >> a) & 1;
-      ijk[a] = std::min(base[a] + up, g.n[a] - 1);
-      w *= up ? frac[a] : 1.0 - frac[a];
-    }
+  for_each_lattice_weight(g, -1, x, [&](const std::array<Index, 3>& ijk, double w) {
     if (w != 0) v += w * gc.phi[g.cell(ijk[0], ijk[1], ijk[2])];
-  }
+  });
   return v;
 }
 

@@ -638,6 +638,13 @@ class Parser {
                                  fmt_vec(lo), fmt_vec(hi), fmt_vec(d.lo), fmt_vec(d.hi)));
   }
 
+  /// The box of a liquid region or (`source`) source, lo < hi, overlapping the fluid box.
+  BoxSpec liquid_box(const Node& n, bool source, const mesh::FluidDomain& d) const {
+    const BoxSpec b = box(n, liquid_box_keys(source), true);
+    overlap_domain(n, b.lo, b.hi, d);
+    return b;
+  }
+
   /// fluid.liquid: regions (a box or a sphere each) and sources, on the grid only.
   void liquid(const Node& n, FluidSpec& f) const {
     fluid::LiquidParams& lq = f.params.liquid;
@@ -655,11 +662,9 @@ class Parser {
         read(e, liquid_region_keys(), r);
         if (has(e, "box") == has(e, "sphere")) fail(e.path, "give exactly one of box or sphere");
         if (has(e, "box")) {
-          const Node bn = child(e, "box");
-          const BoxSpec b = box(bn, liquid_box_keys(false), true);
+          const BoxSpec b = liquid_box(child(e, "box"), false, f.domain);
           r.lo = b.lo;
           r.hi = b.hi;
-          overlap_domain(bn, r.lo, r.hi, f.domain);
         } else {
           const Node sn = child(e, "sphere");
           read(sn, liquid_sphere_keys(), r);
@@ -675,11 +680,9 @@ class Parser {
         fluid::LiquidSource src;
         src.name = fmt::format("source{}", i);
         read(e, liquid_source_keys(), src);
-        const Node bn = require(e, "box");
-        const BoxSpec b = box(bn, liquid_box_keys(true), true);
+        const BoxSpec b = liquid_box(require(e, "box"), true, f.domain);
         src.lo = b.lo;
         src.hi = b.hi;
-        overlap_domain(bn, src.lo, src.hi, f.domain);
         if (!(src.stop > src.start))
           fail(child_path(e.path, "stop"),
                fmt::format("must be > start ({} s), got {} s: the source would emit nothing",
