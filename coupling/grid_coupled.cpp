@@ -156,7 +156,7 @@ VecX second_row(const GridCoupledInput& in, const GridDofs& d, CoupledSystem& sy
   VecX v0 = *in.u_star;
   for (Index f = 0; f < nf; ++f)
     if (free_face(in, f)) v0[f] = 0.0;
-  const VecX flux = fluid::grid_net_flux(gc, v0);
+  const VecX flux = fluid::grid_flux_excess(gc, v0);
   rep.divergence_before =
       fluid::grid_net_flux(gc, *in.u_star).cwiseAbs().maxCoeff() / g.cell_volume();
   VecX r = r_prescribed;
@@ -306,7 +306,7 @@ void finish_grid_coupled(const GridCoupledInput& in, const CoupledSystem& sys, c
       if (sys.greg[q] == sys.enclosed[k])
         source[d.cells.cell[q]] = c[k] * sys.gvol[q] / sys.rvol[sys.enclosed[k]];
   rep.divergence_after =
-      (fluid::grid_net_flux(gc, sol.u_face) - source).cwiseAbs().maxCoeff() / g.cell_volume();
+      (fluid::grid_flux_excess(gc, sol.u_face) - source).cwiseAbs().maxCoeff() / g.cell_volume();
   const bool liquid = in.gravity.squaredNorm() > 0;
   VecX ph = VecX::Zero(nc);
   for (Index q = 0; q < nc && liquid; ++q)

@@ -193,6 +193,9 @@ struct GridCells {
   /// the cell centres (m, < 0 in the liquid) that places the surface between them.
   std::vector<std::uint8_t> air;
   VecX phi;
+  /// #C or empty: the net outflow (m³/s) the projection gives each fluid cell instead of zero
+  /// (liquid_volume_source, the liquid's density correction).
+  VecX volume_source;
 
   /// A cell with a pressure unknown: not inside a body, not air.
   bool fluid(Index c) const { return c >= 0 && cell_body[c] < 0 && (air.empty() || !air[c]); }

@@ -8,6 +8,7 @@
 
 #include "core/error.hpp"
 #include "core/parallel.hpp"
+#include "mesh/tetrahedralize.hpp"
 
 namespace tetfsi::fluid {
 
@@ -169,27 +170,33 @@ LiquidSurfaceParams liquid_surface_params(const GridSpec& g, int per_axis) {
 LiquidParticles seed_liquid(const GridCells& gc, const LiquidParams& p) {
   const GridSpec& g = gc.grid;
   const int m = p.particles_per_axis, per_cell = m * m * m;
-  LiquidParticles lp;
+  std::vector<Vec3> candidates;  // the lattice points of the cells outside the bodies
+  for (Index c = 0; c < g.num_cells(); ++c) {
+    if (!gc.open_cell(c)) continue;
+    for (int l = 0; l < per_cell; ++l) candidates.push_back(lattice_point(g, c, m, l));
+  }
+  std::vector<char> taken(candidates.size(), 0);  // regions may overlap: seeded once
   std::vector<Vec3> x;
   for (const LiquidRegion& r : p.regions) {
-    const size_t before = x.size();
-    for (Index c = 0; c < g.num_cells(); ++c) {
-      if (!gc.open_cell(c)) continue;
-      for (int l = 0; l < per_cell; ++l) {
-        const Vec3 q = lattice_point(g, c, m, l);
-        bool taken = false;  // regions may overlap: a point is seeded once
-        for (const LiquidRegion& e : p.regions) {
-          if (&e == &r) break;
-          taken = taken || e.contains(q);
-        }
-        if (!taken && r.contains(q)) x.push_back(q);
-      }
+    std::vector<char> in(candidates.size(), 0);
+    for (std::size_t i = 0; i < candidates.size(); ++i) in[i] = r.contains(candidates[i]);
+    if (r.surface) {
+      const std::vector<char> inside =
+          mesh::inside_surface(*r.surface, candidates, r.surface_file.string());
+      for (std::size_t i = 0; i < candidates.size(); ++i) in[i] = in[i] && inside[i];
+    }
+    const std::size_t before = x.size();
+    for (std::size_t i = 0; i < candidates.size(); ++i) {
+      if (!in[i] || taken[i]) continue;
+      taken[i] = 1;
+      x.push_back(candidates[i]);
     }
     TETFSI_REQUIRE(InputError, x.size() > before,
                    "fluid.liquid.regions '{}' holds no grid cell outside the bodies: move it "
                    "into fluid.domain or make it at least a cell across",
                    r.name);
   }
+  LiquidParticles lp;
   append(lp, x, std::vector<Vec3>(x.size(), Vec3::Zero()));
   return lp;
 }
@@ -472,6 +479,37 @@ Index separate_particles(const GridCells& gc, int per_axis, LiquidParticles& lp)
   Index n = 0;
   for (std::uint8_t v : pushed) n += v;
   return n;
+}
+
+VecX liquid_volume_source(const GridCells& gc, const MatX3& x, int per_axis, double rate,
+                          double h) {
+  const GridSpec& g = gc.grid;
+  const Index nc = g.num_cells();
+  const ParticleBuckets b = bucket_particles(g, x);
+  const double n0 = static_cast<double>(per_axis * per_axis * per_axis);
+  VecX source = VecX::Zero(nc);
+  parallel_for_each(nc, kGrain, [&](Index c) {
+    if (!gc.fluid(c)) return;
+    const auto ijk = g.cell_ijk(c);
+    double count = 0.0;
+    int cells = 0;
+    for (Index dk = -1; dk <= 1; ++dk) {
+      for (Index dj = -1; dj <= 1; ++dj) {
+        for (Index di = -1; di <= 1; ++di) {
+          const Index i = ijk[0] + di, j = ijk[1] + dj, k = ijk[2] + dk;
+          if (i < 0 || j < 0 || k < 0 || i >= g.n[0] || j >= g.n[1] || k >= g.n[2]) continue;
+          const Index e = g.cell(i, j, k);
+          if (!gc.fluid(e)) return;  // beside air or a body: a partly filled cell
+          count += static_cast<double>(b.start[e + 1] - b.start[e]);
+          ++cells;
+        }
+      }
+    }
+    const double error = count / (cells * n0) - 1.0;
+    const double beyond = std::max(0.0, std::abs(error) - k_density_tolerance);
+    source[c] = rate * std::copysign(beyond, error) * g.cell_volume() / h;
+  });
+  return source;
 }
 
 void faces_to_particles(const GridSpec& g, const VecX& u, const VecX& u_old, double flip,

@@ -104,6 +104,20 @@ inline constexpr double k_separation = 0.6;
 /// A regular lattice (a still pool) is left exactly in place. Returns the particles moved.
 Index separate_particles(const GridCells& gc, int per_axis, LiquidParticles& lp);
 
+/// Particle-density errors up to this share are left alone (FLIP's own fluctuations).
+inline constexpr double k_density_tolerance = 0.1;
+/// The liquid's density correction, as a net outflow (m³/s) for each cell (#C; zero where it
+/// does not apply) that the projection gives the velocity instead of zero: FLIP particles
+/// thin out where a splash or an impact spreads them (nothing pulls them back together), and
+/// the level set, which sees a cell as full whatever its particle count, then gains volume
+/// (the bunny's pool measured +28 % at 1.4 s without it). A cell deep in the liquid (its
+/// 3 × 3 × 3 block holds no air and no body cell) whose block's mean particle count n is off
+/// the seeded n₀ by e = n / n₀ − 1 beyond k_density_tolerance gets rate · (|e| − tolerance)
+/// · sign(e) · V / h (rate: LiquidParams::density_correction, the share corrected per step):
+/// a thinned cell draws in, a crowded one pushes out. A lattice (a still pool, a fresh
+/// region) has n = n₀ exactly and gets none.
+VecX liquid_volume_source(const GridCells& gc, const MatX3& x, int per_axis, double rate, double h);
+
 /// FLIP/PIC update of the particles' velocities [ZhuBridson05]:
 /// v ← flip (v + u(x) − u_old(x)) + (1 − flip) u(x).
 void faces_to_particles(const GridSpec& g, const VecX& u, const VecX& u_old, double flip,

@@ -120,6 +120,14 @@ VecX grid_net_flux(const GridCells& gc, const VecX& u) {
   return flux;
 }
 
+VecX grid_flux_excess(const GridCells& gc, const VecX& u) {
+  VecX flux = grid_net_flux(gc, u);
+  if (gc.volume_source.size() == flux.size())
+    for (Index c = 0; c < flux.size(); ++c)
+      if (gc.fluid(c)) flux[c] -= gc.volume_source[c];
+  return flux;
+}
+
 Regions grid_regions(const GridCells& gc) {
   const GridSpec& g = gc.grid;
   Regions r;
@@ -175,8 +183,8 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
   rep.groups = nu;
   // D u = 0 (see [Chentanez06, Eq. (2)]; its grid discretisation) for u = u* − G q: M q = −V D u* +
   // Σ_open (A/d) q_open.
-  const VecX flux = grid_net_flux(gc, u);
-  rep.divergence_before = flux.cwiseAbs().maxCoeff() / g.cell_volume();
+  rep.divergence_before = grid_net_flux(gc, u).cwiseAbs().maxCoeff() / g.cell_volume();
+  const VecX flux = grid_flux_excess(gc, u);
   VecX b(nu);
   for (Index i = 0; i < nu; ++i) b[i] = -flux[n.cell[i]];
   if (q_open.size() == nf)
@@ -222,7 +230,7 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
   q = VecX::Zero(nc);
   for (Index i = 0; i < nu; ++i) q[n.cell[i]] = x[i];
   grid_apply_gradient(gc, q, q_open, u);
-  rep.divergence_after = grid_net_flux(gc, u).cwiseAbs().maxCoeff() / g.cell_volume();
+  rep.divergence_after = grid_flux_excess(gc, u).cwiseAbs().maxCoeff() / g.cell_volume();
   return rep;
 }
 

@@ -50,6 +50,9 @@ void grid_apply_gradient(const GridCells& gc, const VecX& q, const VecX& q_open,
 
 /// Net outward flux per cell (#C, m³/s; 0 for solid cells) of face velocities u (#F).
 VecX grid_net_flux(const GridCells& gc, const VecX& u);
+/// The net outward flux beyond what the cell is to have (gc.volume_source, a liquid's density
+/// correction; none without it): what the projection drives to zero.
+VecX grid_flux_excess(const GridCells& gc, const VecX& u);
 
 /// Fluid regions of the grid: region per cell (−1 for solid cells), has_open, first cell.
 Regions grid_regions(const GridCells& gc);

@@ -211,6 +211,11 @@ GridFluid::GridFluid(FluidParams params, GridSpec grid, mesh::FluidDomain domain
   if (!lq.enabled) return;
   TETFSI_REQUIRE(InputError, std::isfinite(lq.flip) && lq.flip >= 0 && lq.flip <= 1,
                  "fluid.liquid.flip must be in [0, 1], got {}", lq.flip);
+  TETFSI_REQUIRE(InputError,
+                 std::isfinite(lq.density_correction) && lq.density_correction >= 0 &&
+                     lq.density_correction <= 1,
+                 "fluid.liquid.density_correction must be in [0, 1], got {}",
+                 lq.density_correction);
   TETFSI_REQUIRE(InputError, lq.particles_per_axis >= 1 && lq.particles_per_axis <= 4,
                  "fluid.liquid.particles_per_axis must be 1 to 4, got {}", lq.particles_per_axis);
   TETFSI_REQUIRE(InputError, !lq.regions.empty() || !lq.sources.empty(),
@@ -238,6 +243,9 @@ void GridFluid::predict_liquid(GridPrediction& pred, double h) const {
   separate_particles(pred.cells, lq.particles_per_axis, pred.particles);
   pred.particles_added = emit_liquid(pred.cells, lq, m_time + h, pred.particles);
   set_free_surface(pred.cells, liquid_level_set(pred.cells, pred.particles.x, m_surface));
+  if (lq.density_correction > 0)
+    pred.cells.volume_source = liquid_volume_source(
+        pred.cells, pred.particles.x, lq.particles_per_axis, lq.density_correction, h);
   pred.rho = grid_cell_density(pred.cells, m_params);
   pred.u_star = particles_to_faces(m_grid, pred.particles, pred.particle_faces);
   extrapolate_faces(m_grid, pred.particle_faces, extrapolation_layers(pred.u_star, h), pred.u_star);

@@ -2,13 +2,16 @@
 /// @file params.hpp
 /// Plain parameter structs of the fluid (what a scene's `fluid` section turns into). Physics
 /// never sees JSON: tools/scene.cpp fills these. SI units throughout.
+#include <filesystem>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "core/enum_names.hpp"
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
+#include "mesh/volume_mesh.hpp"
 
 namespace tetfsi::fluid {
 
@@ -81,16 +84,21 @@ inline constexpr EnumNames<TransferScheme, 3> k_transfer_scheme_names{
       {TransferScheme::Bfecc, "bfecc"}}}};
 const char* to_string(TransferScheme s);
 
-/// A region the liquid fills at the start (grid_liquid.hpp): a box [lo, hi], or a sphere
-/// when radius > 0.
+/// A region the liquid fills at the start (grid_liquid.hpp): the intersection of whichever of
+/// a box [lo, hi] (when lo < hi), a sphere (when radius > 0) and the inside of a closed
+/// surface (when `surface` is set) it has, at least one.
 struct LiquidRegion {
   std::string name;
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
   Vec3 centre = Vec3::Zero();
   double radius = 0.0;
+  std::filesystem::path surface_file;  ///< where `surface` was read from (scene coordinates)
+  std::shared_ptr<const mesh::SurfaceMesh> surface;
+  bool has_box() const { return (lo.array() < hi.array()).all(); }
+  /// Inside the box and the sphere, those it has (the surface is tested by seed_liquid).
   bool contains(const Vec3& x) const {
-    if (radius > 0) return (x - centre).squaredNorm() <= radius * radius;
-    return (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
+    if (radius > 0 && (x - centre).squaredNorm() > radius * radius) return false;
+    return !has_box() || ((x.array() >= lo.array()).all() && (x.array() <= hi.array()).all());
   }
 };
 
@@ -113,6 +121,9 @@ struct LiquidParams {
   /// The FLIP share of the particles' velocity update (1: pure FLIP, 0: PIC) [ZhuBridson05].
   double flip = 0.95;
   int particles_per_axis = 2;  ///< seeded per cell and axis (2: 8 per cell)
+  /// Share of a deep cell's particle-density error the projection corrects per step
+  /// (liquid_volume_source); 0: off.
+  double density_correction = 0.0;
 };
 
 /// The fluid's physics and numerics.

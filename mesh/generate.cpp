@@ -1,6 +1,7 @@
 /// @file generate.cpp
 /// Structured tet meshes: boxes and hollow boxes (Kuhn/Freudenthal split of a hexahedral
-/// grid), balls (a Kuhn cube mapped onto the ball), spherical shells (icosphere prisms), tubes
+/// grid), balls (a Kuhn cube mapped onto the ball), spherical shells (icosphere prisms), bowls
+/// (cube-sphere prisms), tubes
 /// (a Kuhn-split (r, θ, axis) grid, periodic in θ).
 #include "mesh/generate.hpp"
 
@@ -109,6 +110,93 @@ void append_uniform(std::vector<double>& lines, double a, double b, int cells) {
   }
 }
 
+/// The unit-sphere surface `unit` (vertices on the unit sphere about the origin) extruded
+/// radially into `layers` equal layers between the radii about `centre`: vertex v of layer k
+/// (k = 0 at inner_radius … layers at outer_radius) has index v + k·#V. Each prism (triangle
+/// × layer) is cut into 3 tets by the index order of its triangle's vertices: with v0 < v1 < v2,
+/// bottom b_i and top t_i, (b0 b1 b2 t2), (b0 b1 t1 t2), (b0 t0 t1 t2). The quad over edge
+/// (vi, vj), i < j, is cut by the diagonal b_i–t_j in both prisms that share it, so
+/// neighbours conform; each tet is made positive by swapping its last two vertices.
+VolumeMesh extrude_radially(const SurfaceMesh& unit, const Vec3& centre, double inner_radius,
+                            double outer_radius, int layers) {
+  const long long nv = unit.num_vertices(), nf = unit.num_triangles();
+  VolumeMesh m;
+  m.vertices.resize(static_cast<Index>(nv * (layers + 1LL)), 3);
+  const double dr = (outer_radius - inner_radius) / layers;
+  for (int k = 0; k <= layers; ++k) {
+    const double r = k == layers ? outer_radius : inner_radius + k * dr;  // exact ends
+    for (Index v = 0; v < nv; ++v)
+      m.vertices.row(static_cast<Index>(v + nv * k)) =
+          centre.transpose() + r * unit.vertices.row(v);
+  }
+  m.tets.resize(static_cast<Index>(3 * nf * layers), 4);
+  Index t = 0;
+  for (int k = 0; k < layers; ++k) {
+    const Index bottom = static_cast<Index>(nv * k), top = static_cast<Index>(nv * (k + 1));
+    for (Index f = 0; f < nf; ++f) {
+      std::array<Index, 3> v = {unit.triangles(f, 0), unit.triangles(f, 1), unit.triangles(f, 2)};
+      std::sort(v.begin(), v.end());
+      const std::array<Vec4i, 3> prism = {
+          Vec4i(bottom + v[0], bottom + v[1], bottom + v[2], top + v[2]),
+          Vec4i(bottom + v[0], bottom + v[1], top + v[1], top + v[2]),
+          Vec4i(bottom + v[0], top + v[0], top + v[1], top + v[2])};
+      for (Vec4i tet : prism) {
+        const auto x = [&](int c) { return Vec3(m.vertices.row(tet(c)).transpose()); };
+        if (signed_volume(x(0), x(1), x(2), x(3)) < 0) std::swap(tet(2), tet(3));
+        m.tets.row(t++) = tet.transpose();
+      }
+    }
+  }
+  return m;
+}
+
+/// The lower half (z ≤ 0) of the unit sphere as an equiangular cube sphere: the lattice
+/// points (i, j, k) on the surface of the cube [−m, m]³ with k ≤ 0 (the bottom face and the
+/// lower halves of the four sides), mapped to the unit vector along
+/// (tan(π i / 4m), tan(π j / 4m), tan(π k / 4m)); each lattice square is cut into two
+/// triangles along its shorter diagonal on the sphere. The rim (k = 0) lies on z = 0 exactly.
+SurfaceMesh unit_hemisphere(int m) {
+  std::map<std::array<int, 3>, Index> index;
+  std::vector<Vec3> points;
+  const auto vertex = [&](const std::array<int, 3>& p) {
+    const auto [it, inserted] = index.try_emplace(p, static_cast<Index>(points.size()));
+    if (inserted) {
+      Vec3 x;
+      for (int a = 0; a < 3; ++a) x(a) = std::tan(0.25 * M_PI * p[a] / m);
+      points.push_back(x.normalized());
+    }
+    return it->second;
+  };
+  std::vector<Vec3i> triangles;
+  const auto quad = [&](const std::array<int, 3>& o, int u, int v) {  // square at o in axes u, v
+    std::array<int, 3> a = o, b = o, c = o, d = o;
+    b[u] += 1, c[u] += 1, c[v] += 1, d[v] += 1;
+    const Index ia = vertex(a), ib = vertex(b), ic = vertex(c), id = vertex(d);
+    if ((points[ia] - points[ic]).norm() <= (points[ib] - points[id]).norm())
+      triangles.insert(triangles.end(), {Vec3i(ia, ib, ic), Vec3i(ia, ic, id)});
+    else
+      triangles.insert(triangles.end(), {Vec3i(ia, ib, id), Vec3i(ib, ic, id)});
+  };
+  for (int i = -m; i < m; ++i)
+    for (int j = -m; j < m; ++j) quad({i, j, -m}, 0, 1);  // bottom
+  for (int s = -m; s < m; ++s) {
+    for (int k = -m; k < 0; ++k) {
+      for (const int side : {-m, m}) {
+        quad({side, s, k}, 1, 2);  // x = ±m
+        quad({s, side, k}, 0, 2);  // y = ±m
+      }
+    }
+  }
+  SurfaceMesh unit;
+  unit.vertices.resize(static_cast<Index>(points.size()), 3);
+  for (std::size_t v = 0; v < points.size(); ++v)
+    unit.vertices.row(static_cast<Index>(v)) = points[v].transpose();
+  unit.triangles.resize(static_cast<Index>(triangles.size()), 3);
+  for (std::size_t f = 0; f < triangles.size(); ++f)
+    unit.triangles.row(static_cast<Index>(f)) = triangles[f].transpose();
+  return unit;
+}
+
 }  // namespace
 
 VolumeMesh make_box(const Vec3& lo, const Vec3& hi, const Vec3i& cells) {
@@ -197,38 +285,7 @@ VolumeMesh make_spherical_shell(const Vec3& centre, double inner_radius, double 
                  "index can hold; use fewer layers or subdivisions",
                  layers, nf);
 
-  VolumeMesh m;
-  m.vertices.resize(static_cast<Index>(nv * (layers + 1LL)), 3);
-  const double dr = (outer_radius - inner_radius) / layers;
-  for (int k = 0; k <= layers; ++k) {
-    const double r = k == layers ? outer_radius : inner_radius + k * dr;  // exact ends
-    for (Index v = 0; v < nv; ++v)
-      m.vertices.row(static_cast<Index>(v + nv * k)) =
-          centre.transpose() + r * unit.vertices.row(v);
-  }
-
-  // Prism (a, b, c) × [r_k, r_k+1] with its triangle's vertices sorted by index, v0 < v1 < v2,
-  // bottom b_i and top t_i: tets (b0 b1 b2 t2), (b0 b1 t1 t2), (b0 t0 t1 t2). The quad over
-  // edge (vi, vj), i < j, is cut by the diagonal b_i–t_j in both prisms that share it, so
-  // neighbours conform.
-  m.tets.resize(static_cast<Index>(3 * nf * layers), 4);
-  Index t = 0;
-  for (int k = 0; k < layers; ++k) {
-    const Index bottom = static_cast<Index>(nv * k), top = static_cast<Index>(nv * (k + 1));
-    for (Index f = 0; f < nf; ++f) {
-      std::array<Index, 3> v = {unit.triangles(f, 0), unit.triangles(f, 1), unit.triangles(f, 2)};
-      std::sort(v.begin(), v.end());
-      const std::array<Vec4i, 3> prism = {
-          Vec4i(bottom + v[0], bottom + v[1], bottom + v[2], top + v[2]),
-          Vec4i(bottom + v[0], bottom + v[1], top + v[1], top + v[2]),
-          Vec4i(bottom + v[0], top + v[0], top + v[1], top + v[2])};
-      for (Vec4i tet : prism) {
-        const auto x = [&](int c) { return Vec3(m.vertices.row(tet(c)).transpose()); };
-        if (signed_volume(x(0), x(1), x(2), x(3)) < 0) std::swap(tet(2), tet(3));
-        m.tets.row(t++) = tet.transpose();
-      }
-    }
-  }
+  VolumeMesh m = extrude_radially(unit, centre, inner_radius, outer_radius, layers);
   logger().debug("make_spherical_shell: radii {} .. {}, {} layers of {} prisms, {} tets",
                  inner_radius, outer_radius, layers, nf, m.num_tets());
   return m;
@@ -464,6 +521,35 @@ VolumeMesh make_tube(const Vec3& centre, int axis, double inner_radius, double o
       "{} tets",
       inner_radius, outer_radius, length, "xyz"[axis], radial_cells, around_cells, axial_cells,
       m.num_vertices(), m.num_tets());
+  return m;
+}
+
+VolumeMesh make_bowl(const Vec3& centre, double inner_radius, double outer_radius, int cells,
+                     int layers) {
+  TETFSI_REQUIRE(InputError,
+                 centre.allFinite() && std::isfinite(inner_radius) && std::isfinite(outer_radius),
+                 "make_bowl: centre and radii must be finite, got centre ({} {} {}), "
+                 "inner_radius {}, outer_radius {}",
+                 centre.x(), centre.y(), centre.z(), inner_radius, outer_radius);
+  TETFSI_REQUIRE(InputError, inner_radius > 0 && inner_radius < outer_radius,
+                 "make_bowl: need 0 < inner_radius < outer_radius, got inner_radius {} and "
+                 "outer_radius {}",
+                 inner_radius, outer_radius);
+  TETFSI_REQUIRE(InputError, cells >= 2 && cells <= 512 && cells % 2 == 0,
+                 "make_bowl: cells (from the bottom to the rim) must be even and in 2..512, got {}",
+                 cells);
+  TETFSI_REQUIRE(InputError, layers >= 1 && layers <= 10000,
+                 "make_bowl: layers must be 1..10000, got {}", layers);
+  const SurfaceMesh unit = unit_hemisphere(cells / 2);
+  TETFSI_REQUIRE(InputError,
+                 unit.num_vertices() * (layers + 1LL) < (1LL << 31) &&
+                     3LL * unit.num_triangles() * layers < (1LL << 31),
+                 "make_bowl: {} layers of {} triangles give more tets than an int index can "
+                 "hold; use fewer layers or cells",
+                 layers, unit.num_triangles());
+  VolumeMesh m = extrude_radially(unit, centre, inner_radius, outer_radius, layers);
+  logger().debug("make_bowl: radii {} .. {}, {} cells to the rim, {} layers, {} tets", inner_radius,
+                 outer_radius, cells, layers, m.num_tets());
   return m;
 }
 

@@ -1,7 +1,8 @@
 #pragma once
 /// @file generate.hpp
 /// Meshes generated in code: boxes (and thin boxes = sheets), hollow boxes, balls, spherical
-/// shells, icospheres, tubes. Every volume mesh is conforming with positively oriented tets.
+/// shells, bowls, icospheres, tubes. Every volume mesh is conforming with positively oriented
+/// tets.
 #include "mesh/volume_mesh.hpp"
 
 namespace tetfsi::mesh {
@@ -81,5 +82,22 @@ VolumeMesh make_hollow_box(const Vec3& lo, const Vec3& hi, double wall_thickness
 ///   indices.
 VolumeMesh make_tube(const Vec3& centre, int axis, double inner_radius, double outer_radius,
                      double length, int radial_cells, int around_cells, int axial_cells);
+
+/// A bowl: the lower half (z ≤ centre.z) of the spherical shell inner_radius ≤ |x − centre| ≤
+/// outer_radius, open upward, its rim the annulus on the plane z = centre.z. The unit
+/// hemisphere is an equiangular cube sphere (the bottom face of the cube [−m, m]³, m =
+/// cells / 2, and the lower halves of its four sides, lattice squares cut along the shorter
+/// diagonal: `cells` edges from the bottom to the rim along the meridians through the side
+/// faces' centres, 4·cells around the rim), extruded radially into `layers` equal layers and
+/// each prism cut into 3 tets by vertex index order (as make_spherical_shell: conforming,
+/// positive). Boundary (one closed surface): the outer hemisphere (normals outward), the inner
+/// one (normals toward the centre, into the bowl) and the rim (normals +z). 6·cells²
+/// triangles per layer, 18·layers·cells² tets. Turn it with bodies[].transform.
+/// @param centre the centre of the spheres, on the rim's plane (m)
+/// @param inner_radius, outer_radius 0 < R_i < R_o (m)
+/// @throws InputError for non-finite values, R_i ≤ 0, R_i ≥ R_o, cells odd or outside 2..512,
+///   layers outside 1..10000.
+VolumeMesh make_bowl(const Vec3& centre, double inner_radius, double outer_radius, int cells,
+                     int layers);
 
 }  // namespace tetfsi::mesh

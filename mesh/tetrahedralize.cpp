@@ -14,6 +14,7 @@
 #include <CGAL/Mesh_triangulation_3.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Polyhedral_mesh_domain_with_features_3.h>
+#include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/exceptions.h>
 #include <CGAL/make_mesh_3.h>
@@ -183,6 +184,18 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
                 now_seconds() - t0);
   validate_volume_mesh(m, source + " (tetrahedralized)");
   return m;
+}
+
+std::vector<char> inside_surface(const SurfaceMesh& surface, const std::vector<Vec3>& points,
+                                 const std::string& source) {
+  validate_closed_surface(surface, source);
+  const CgalSurface sm = to_cgal(surface, source);
+  require_no_self_intersection(sm, source);
+  const CGAL::Side_of_triangle_mesh<CgalSurface, Kernel> side(sm);  // an AABB tree, built once
+  std::vector<char> inside(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    inside[i] = side(Point(points[i].x(), points[i].y(), points[i].z())) == CGAL::ON_BOUNDED_SIDE;
+  return inside;
 }
 
 }  // namespace tetfsi::mesh

@@ -1,6 +1,10 @@
 #pragma once
 /// @file tetrahedralize.hpp
-/// Tetrahedralise the inside of a closed triangle surface with CGAL Mesh_3.
+/// Tetrahedralise the inside of a closed triangle surface with CGAL Mesh_3; which points lie
+/// inside one.
+#include <string>
+#include <vector>
+
 #include "mesh/volume_mesh.hpp"
 
 namespace tetfsi::mesh {
@@ -19,5 +23,13 @@ struct TetrahedralizeParams {
 /// @throws MeshError if the surface is not closed or meshing yields no tets.
 VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const TetrahedralizeParams& params,
                                   const std::string& source);
+
+/// For each point, whether it lies strictly inside `surface` (validated closed and free of
+/// self-intersections first; CGAL's Side_of_triangle_mesh over an AABB tree, exact predicates):
+/// 1 inside, 0 outside or on the surface.
+/// @param source name used in error messages
+/// @throws MeshError if the surface is open, not manifold or intersects itself.
+std::vector<char> inside_surface(const SurfaceMesh& surface, const std::vector<Vec3>& points,
+                                 const std::string& source);
 
 }  // namespace tetfsi::mesh

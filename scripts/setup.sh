@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install tetfsi's build dependencies from Debian 12 packages, only those missing.
-# Idempotent: a second run installs nothing and takes well under a second.
+# Idempotent: a second run installs nothing and takes well under a second. Also extracts the
+# Stanford bunny from CGAL's data (libcgal-demo) into data/meshes/bunny00.off.
 set -euo pipefail
 
 packages=(
@@ -11,6 +12,7 @@ packages=(
   doctest-dev libtbb-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   libpetsc-real-dev libhypre-dev
   xvfb python3-numpy python3-matplotlib   # tetfsi render (VTK needs X: Xvfb), tetfsi plot
+  libcgal-demo                            # CGAL's data: the Stanford bunny of data/scenes/bunny.json
 )
 
 missing=()
@@ -31,4 +33,13 @@ if ((${#missing[@]})); then
   "${sudo_cmd[@]}" apt-get update -qq
   "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
   echo "setup: done"
+fi
+
+# The Stanford bunny (data/scenes/bunny.json) comes from CGAL's data in libcgal-demo; only
+# that one file is extracted, into data/meshes/ (ignored by git: not ours to commit).
+bunny="$(cd "$(dirname "$0")/.." && pwd)/data/meshes/bunny00.off"
+if [[ ! -s "$bunny" ]]; then
+  tar -xzOf /usr/share/doc/libcgal-dev/data.tar.gz data/meshes/bunny00.off >"$bunny.tmp"
+  mv "$bunny.tmp" "$bunny"
+  echo "setup: extracted $bunny from libcgal-demo's CGAL data"
 fi

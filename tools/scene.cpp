@@ -379,7 +379,7 @@ class Parser {
 
   MeshSpec mesh(const Node& n) const {
     const std::vector<std::string> kinds = {"box",   "file",       "surface", "sphere",
-                                            "shell", "hollow_box", "tube"};
+                                            "shell", "hollow_box", "tube",    "bowl"};
     expect_object(n, mesh_keys().keys());
     std::vector<std::string> given;
     for (const std::string& k : kinds) {
@@ -387,8 +387,8 @@ class Parser {
     }
     if (given.size() != 1) {
       const std::string what =
-          "give exactly one of 'box', 'file', 'surface', 'sphere', 'shell', 'hollow_box' or "
-          "'tube'";
+          "give exactly one of 'box', 'file', 'surface', 'sphere', 'shell', 'hollow_box', "
+          "'tube' or 'bowl'";
       fail(n.path, given.empty() ? what : what + ", got " + join(given, " and "));
     }
     MeshSpec m;
@@ -415,6 +415,15 @@ class Parser {
         fail(index_path(child_path(b.path, "cells"), 1),
              fmt::format("must be >= 6 (sectors around the axis), got {}", m.cells[1]));
       }
+    } else if (has(n, "bowl")) {
+      m.kind = MeshSpec::Kind::Bowl;
+      const Node b = child(n, "bowl");
+      read(b, mesh_bowl_keys(), m);
+      inner_below_outer(b, m, true);
+      if (m.meridian_cells % 2 != 0)
+        fail(child_path(b.path, "cells"),
+             fmt::format("must be even (the cube sphere's face is cut in two), got {}",
+                         m.meridian_cells));
     } else if (has(n, "hollow_box")) {
       m.kind = MeshSpec::Kind::HollowBox;
       const Node b = child(n, "hollow_box");
@@ -660,15 +669,32 @@ class Parser {
         fluid::LiquidRegion r;
         r.name = fmt::format("region{}", i);
         read(e, liquid_region_keys(), r);
-        if (has(e, "box") == has(e, "sphere")) fail(e.path, "give exactly one of box or sphere");
+        if (!has(e, "box") && !has(e, "sphere") && !has(e, "surface"))
+          fail(e.path,
+               "give a box, a sphere or a surface (or several: the liquid fills where "
+               "they overlap)");
         if (has(e, "box")) {
           const BoxSpec b = liquid_box(child(e, "box"), false, f.domain);
           r.lo = b.lo;
           r.hi = b.hi;
-        } else {
+        }
+        if (has(e, "sphere")) {
           const Node sn = child(e, "sphere");
           read(sn, liquid_sphere_keys(), r);
           overlap_domain(sn, r.centre.array() - r.radius, r.centre.array() + r.radius, f.domain);
+        }
+        if (has(e, "surface")) {
+          const Node sn = child(e, "surface");
+          auto s = std::make_shared<mesh::SurfaceMesh>();
+          try {
+            *s = mesh::read_surface_mesh(r.surface_file);
+            mesh::validate_closed_surface(*s, r.surface_file.filename().string());
+          } catch (const Error& err) {
+            fail(sn.path, err.what());
+          }
+          overlap_domain(sn, s->vertices.colwise().minCoeff().transpose(),
+                         s->vertices.colwise().maxCoeff().transpose(), f.domain);
+          r.surface = std::move(s);
         }
         unique_name(lq.regions, r.name, "liquid region", list, i);
         lq.regions.push_back(std::move(r));
@@ -785,6 +811,9 @@ json mesh_json(const MeshSpec& m) {
     case MeshSpec::Kind::Tube:
       j["tube"] = mesh_tube_keys().write(m);
       break;
+    case MeshSpec::Kind::Bowl:
+      j["bowl"] = mesh_bowl_keys().write(m);
+      break;
     case MeshSpec::Kind::File:
     case MeshSpec::Kind::Surface:
       break;
@@ -843,10 +872,8 @@ json fluid_json(const FluidSpec& f) {
     lq["regions"] = json::array();
     for (const fluid::LiquidRegion& r : fp.liquid.regions) {
       json jr = liquid_region_keys().write(r);
-      if (r.radius > 0)
-        jr["sphere"] = liquid_sphere_keys().write(r);
-      else
-        jr["box"] = liquid_box_keys(false).write({r.lo, r.hi});
+      if (r.radius > 0) jr["sphere"] = liquid_sphere_keys().write(r);
+      if (r.has_box()) jr["box"] = liquid_box_keys(false).write({r.lo, r.hi});
       lq["regions"].push_back(jr);
     }
     lq["sources"] = json::array();
@@ -1219,6 +1246,8 @@ mesh::VolumeMesh make_mesh(const MeshSpec& m) {
     case MeshSpec::Kind::Tube:
       return mesh::make_tube(m.center, m.axis, m.inner_radius, m.outer_radius, m.length,
                              m.cells.x(), m.cells.y(), m.cells.z());
+    case MeshSpec::Kind::Bowl:
+      return mesh::make_bowl(m.center, m.inner_radius, m.outer_radius, m.meridian_cells, m.layers);
   }
   throw InternalError("unknown mesh kind");
 }

@@ -170,7 +170,7 @@ struct BoxSpec {
 
 /// A body's mesh: read, tetrahedralised (CGAL) or generated (mesh/generate.hpp).
 struct MeshSpec {
-  enum class Kind { Box, File, Surface, Sphere, Shell, HollowBox, Tube };
+  enum class Kind { Box, File, Surface, Sphere, Shell, HollowBox, Tube, Bowl };
   Kind kind = Kind::Box;
   std::filesystem::path file;  ///< File / Surface: absolute (resolved against the scene folder)
   BoxSpec box;                 ///< Box, HollowBox: extent (m)
@@ -178,12 +178,13 @@ struct MeshSpec {
   /// round(thickness / cavity cell) cells, at least one); Tube: (radial, around, axial)
   Vec3i cells = Vec3i::Ones();
   double cell_size = 0.0;      ///< Surface: Mesh_3 cell size (m)
-  Vec3 center = Vec3::Zero();  ///< Sphere, Shell, Tube (m)
+  Vec3 center = Vec3::Zero();  ///< Sphere, Shell, Tube, Bowl (m)
   double radius = 0.0;         ///< Sphere: mesh::make_ball (m)
-  double inner_radius = 0.0;   ///< Shell: mesh::make_spherical_shell, Tube; < outer_radius (m)
-  double outer_radius = 0.0;   ///< Shell, Tube (m)
+  double inner_radius = 0.0;   ///< Shell: mesh::make_spherical_shell, Tube, Bowl; < outer (m)
+  double outer_radius = 0.0;   ///< Shell, Tube, Bowl (m)
   int subdivisions = 2;        ///< Sphere (0..6), Shell (0..7): icosphere level of the surface
-  int layers = 1;              ///< Shell: prism layers across the wall (1..10000)
+  int layers = 1;              ///< Shell, Bowl: prism layers across the wall (1..10000)
+  int meridian_cells = 8;      ///< Bowl: mesh::make_bowl's cells from the bottom to the rim
   double thickness = 0.0;      ///< HollowBox: wall thickness on all six sides (m)
   int axis = 2;                ///< Tube: mesh::make_tube's axis, 0, 1, 2 = x, y, z
   double length = 0.0;         ///< Tube: along the axis, centred on center (m)

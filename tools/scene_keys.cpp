@@ -599,7 +599,7 @@ const Section<MeshSpec>& mesh_keys() {
   };
   static const Section<MeshSpec> s{
       "bodies[].mesh",
-      "exactly one of box, file, surface, sphere, shell, hollow_box, tube",
+      "exactly one of box, file, surface, sphere, shell, hollow_box, tube, bowl",
       {sub<MeshSpec>(
            {.key = "box", .type = KeyType::Object, .doc = "a box of hexahedra, 6 tets each"}),
        file_row("file", K::File, "a tet mesh: Gmsh .msh v2/v4 ASCII, TetGen .node/.ele, .vtu"),
@@ -621,7 +621,10 @@ const Section<MeshSpec>& mesh_keys() {
                       .doc = "a box with one closed box cavity"}),
        sub<MeshSpec>({.key = "tube",
                       .type = KeyType::Object,
-                      .doc = "a cylindrical tube, open at both ends"})}};
+                      .doc = "a cylindrical tube, open at both ends"}),
+       sub<MeshSpec>({.key = "bowl",
+                      .type = KeyType::Object,
+                      .doc = "a hemispherical bowl, open upward (a thick open shell)"})}};
   return s;
 }
 
@@ -693,6 +696,27 @@ const Section<MeshSpec>& mesh_tube_keys() {
                        .note = "m, along the axis"},
                       TETFSI_AT(length)),
        cells_row("radial, around (>= 6), axial", true)}};
+  return s;
+}
+
+const Section<MeshSpec>& mesh_bowl_keys() {
+  static const Section<MeshSpec> s{
+      "bodies[].mesh.bowl",
+      "the lower half of a spherical shell (mesh::make_bowl), rim on the centre's plane z, open "
+      "toward +z; inner_radius < outer_radius",
+      {center_row("centre of the spheres (on the rim's plane)"),
+       radius_row("inner_radius", "radius of the inside"),
+       radius_row("outer_radius", "outer radius"),
+       bind<MeshSpec>({.key = "cells",
+                       .type = KeyType::Integer,
+                       .doc = "edges from the bottom to the rim (even); 4 x cells around the rim",
+                       .range = between(2, 512)},
+                      TETFSI_AT(meridian_cells)),
+       bind<MeshSpec>({.key = "layers",
+                       .type = KeyType::Integer,
+                       .doc = "prism layers across the wall (3 tets each)",
+                       .range = between(1, 10000)},
+                      TETFSI_AT(layers))}};
   return s;
 }
 
@@ -1272,6 +1296,12 @@ const Section<fluid::LiquidParams>& liquid_keys() {
                 .doc = "FLIP share of the particles' velocity update; 0: PIC (more damping)",
                 .range = between(0, 1)},
                TETFSI_AT(flip)),
+       bind<L>({.key = "density_correction",
+                .type = KeyType::Number,
+                .doc = "share of a deep cell's particle-density error (beyond 10 %) the "
+                       "projection corrects per step; 0: off (README: when to use it)",
+                .range = between(0, 1)},
+               TETFSI_AT(density_correction)),
        bind<L>({.key = "particles_per_axis",
                 .type = KeyType::Integer,
                 .doc = "particles seeded per cell and axis (2: 8 per cell)",
@@ -1284,11 +1314,17 @@ const Section<fluid::LiquidRegion>& liquid_region_keys() {
   using R = fluid::LiquidRegion;
   static const Section<R> s{
       "fluid.liquid.regions[]",
-      "a box or a sphere of liquid",
+      "liquid inside a box, a sphere or a closed surface; where two or three are given, inside "
+      "all of them",
       {name_row<R>("names it in messages", "region<i>", true, TETFSI_AT(name)),
-       sub<R>({.key = "box", .type = KeyType::Object, .doc = "lo < hi (or give sphere)"}),
-       sub<R>(
-           {.key = "sphere", .type = KeyType::Object, .doc = "center and radius (or give box)"})}};
+       sub<R>({.key = "box", .type = KeyType::Object, .doc = "lo < hi"}),
+       sub<R>({.key = "sphere", .type = KeyType::Object, .doc = "center and radius"}),
+       {{.key = "surface",
+         .type = KeyType::File,
+         .doc = "a closed surface (.off .obj .stl) in the scene's coordinates (m)",
+         .default_text = "-"},
+        [](const R& r) { return r.surface ? json(r.surface_file.string()) : json(); },
+        [](R& r, const json& v) { r.surface_file = v.get<std::string>(); }}}};
   return s;
 }
 
@@ -1524,6 +1560,7 @@ const std::vector<KeySection>& scene_key_sections() {
                                                    rows_of(mesh_shell_keys()),
                                                    rows_of(mesh_hollow_box_keys()),
                                                    rows_of(mesh_tube_keys()),
+                                                   rows_of(mesh_bowl_keys()),
                                                    rows_of(transform_keys()),
                                                    rows_of(material_keys()),
                                                    rows_of(pin_keys()),

@@ -165,6 +165,7 @@ const Section<MeshSpec>& mesh_sphere_keys();
 const Section<MeshSpec>& mesh_shell_keys();
 const Section<MeshSpec>& mesh_hollow_box_keys();
 const Section<MeshSpec>& mesh_tube_keys();
+const Section<MeshSpec>& mesh_bowl_keys();
 const Section<TransformSpec>& transform_keys();
 const Section<solid::Material>& material_keys();
 const Section<PinSpec>& pin_keys();

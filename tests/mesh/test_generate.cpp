@@ -374,6 +374,76 @@ TEST_CASE("make_tube: conforming across the seam, one torus, exact polygonal vol
   CHECK(q.max_dihedral_deg.maxCoeff() < 98.0);
 }
 
+TEST_CASE("make_bowl: one closed surface, rim on the plane, volume of the half shell") {
+  const Vec3 c(0.3, -0.2, 1.1);
+  const double ri = 0.08, ro = 0.1;
+  for (int cells : {2, 8, 16}) {
+    for (int layers : {1, 2}) {
+      CAPTURE(cells);
+      CAPTURE(layers);
+      const VolumeMesh m = make_bowl(c, ri, ro, cells, layers);
+      CHECK(m.num_tets() == 18 * layers * cells * cells);
+      const MatX3i boundary = check_body(m, 1);  // one topological sphere: inside, rim, outside
+      // Every vertex lies on a layer's sphere at or below the rim's plane; the rim's vertices
+      // (4 cells around, layers + 1 radii) lie on the plane exactly.
+      Index on_rim = 0, above = 0, off_sphere = 0;
+      for (Index v = 0; v < m.num_vertices(); ++v) {
+        const Vec3 d = m.vertices.row(v).transpose() - c;
+        above += d.z() > 0.0;
+        on_rim += d.z() == 0.0;
+        const double layer = (d.norm() - ri) / (ro - ri) * layers;
+        off_sphere += std::abs(layer - std::round(layer)) > 1e-12;
+      }
+      CHECK(above == 0);
+      CHECK(off_sphere == 0);
+      CHECK(on_rim == 4 * cells * (layers + 1));
+      // Boundary triangles: on the rim (normal +z), the outside (normal away from the centre)
+      // or the inside (toward it).
+      Index rim = 0, wrong = 0;
+      for (Index f = 0; f < boundary.rows(); ++f) {
+        const Vec3 a = m.vertices.row(boundary(f, 0)), b = m.vertices.row(boundary(f, 1)),
+                   d = m.vertices.row(boundary(f, 2));
+        const Vec3 n = (b - a).cross(d - a).normalized(), mid = (a + b + d) / 3.0 - c;
+        if (a.z() == c.z() && b.z() == c.z() && d.z() == c.z()) {
+          ++rim;
+          wrong += n.z() < 1.0 - 1e-12;
+        } else if ((a - c).norm() < 0.5 * (ri + ro)) {
+          wrong += n.dot(mid.normalized()) > -0.5;
+        } else {
+          wrong += n.dot(mid.normalized()) < 0.5;
+        }
+      }
+      CHECK(rim == 2 * 4 * cells * layers);
+      CHECK(wrong == 0);
+      // Inscribed in the half shell (2/3)π(R_o³ − R_i³): below it, by a deficit that falls
+      // about 4x per doubling of cells (second order); 16 cells: under 1 %.
+      const double exact = 2.0 / 3.0 * M_PI * (ro * ro * ro - ri * ri * ri);
+      const double deficit = (exact - total_volume(m)) / exact;
+      MESSAGE("bowl cells " << cells << " volume deficit " << deficit);
+      CHECK(deficit > 0.0);
+      if (cells == 16) CHECK(deficit < 0.01);
+      if (cells == 8 && layers == 2) {
+        const TetQuality q = tet_quality(m.vertices, m.tets);
+        MESSAGE("bowl min dihedral " << q.min_dihedral_deg.minCoeff());
+        CHECK(q.min_dihedral_deg.minCoeff() > 15.0);
+      }
+    }
+  }
+  CHECK(message_of<InputError>([&] {
+          make_bowl(c, 0.1, 0.1, 8, 1);
+        }).find("make_bowl: need 0 < inner_radius < outer_radius") != std::string::npos);
+  CHECK(message_of<InputError>([&] {
+          make_bowl(c, 0.05, 0.1, 7, 1);
+        }).find("cells (from the bottom to the rim) must be even and in 2..512, got 7") !=
+        std::string::npos);
+  CHECK(message_of<InputError>([&] {
+          make_bowl(c, 0.05, 0.1, 8, 0);
+        }).find("make_bowl: layers must be 1..10000, got 0") != std::string::npos);
+  CHECK(message_of<InputError>([&] {
+          make_bowl(c, std::nan(""), 0.1, 8, 1);
+        }).find("must be finite") != std::string::npos);
+}
+
 TEST_CASE("generators: bad parameters are InputErrors that say what to change") {
   const Vec3 c = Vec3::Zero();
   const double nan = std::nan("");

@@ -345,7 +345,7 @@ TEST_CASE("out-of-range values say what the range is") {
   check_edit_rejected(
       [](json& j) { j["bodies"][0]["mesh"]["file"] = "x.msh"; },
       {"bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', 'shell', "
-       "'hollow_box' or 'tube', got 'box' and 'file'"});
+       "'hollow_box', 'tube' or 'bowl', got 'box' and 'file'"});
   check_edit_rejected([](json& j) { j["bodies"][0]["mesh"] = json::object(); },
                       {"bodies[0].mesh: give exactly one of"});
   check_edit_rejected([](json& j) { j["bodies"][0]["transform"]["scale"] = 0; },
@@ -1552,6 +1552,44 @@ TEST_CASE("generated meshes: sphere, shell, hollow_box parse, resolve back and b
   CHECK(t.num_fixed_dofs() == 3 * 6 * 5);
 }
 
+TEST_CASE("generated meshes: a bowl parses, resolves back and builds, bad values name the key") {
+  json j = minimal_json();
+  j["bodies"][0]["mesh"] = json::parse(R"({ "bowl": { "center": [0.5, 0, 0.2],
+      "inner_radius": 0.08, "outer_radius": 0.1, "cells": 8, "layers": 2 } })");
+  const Scene s = parse_scene(j, "scene.json");
+  const MeshSpec& bowl = s.bodies[0].mesh;
+  CHECK(bowl.kind == MeshSpec::Kind::Bowl);
+  CHECK(bowl.meridian_cells == 8);
+  CHECK(bowl.layers == 2);
+  CHECK(s.resolved["bodies"][0]["mesh"] ==
+        json::parse(R"({ "bowl": { "center": [0.5, 0.0, 0.2], "inner_radius": 0.08,
+                         "outer_radius": 0.1, "cells": 8, "layers": 2 } })"));
+  const Scene back = parse_scene(json::parse(s.resolved.dump(2)), "scene.resolved.json");
+  CHECK(back.resolved == s.resolved);
+  // make_bowl's counts; the rim on z = 0.2, the bottom at 0.2 - outer_radius.
+  const solid::SolidWorld w = build_world(s);
+  const solid::SolidBody& b = w.bodies[0];
+  CHECK(b.num_tets() == 18 * 2 * 8 * 8);
+  CHECK(b.rest_positions().col(2).maxCoeff() == doctest::Approx(0.2));
+  CHECK(b.rest_positions().col(2).minCoeff() == doctest::Approx(0.1));
+  const auto rejected = [](const char* mesh, std::initializer_list<std::string> parts) {
+    json jj = minimal_json();
+    jj["bodies"][0]["mesh"] = json::parse(mesh);
+    check_input_error([&] { parse_scene(jj, "scene.json"); }, parts);
+  };
+  rejected(R"({ "bowl": { "center": [0, 0, 0], "inner_radius": 0.1, "outer_radius": 0.1 } })",
+           {"bodies[0].mesh.bowl.inner_radius", "must be < outer_radius"});
+  rejected(R"({ "bowl": { "center": [0, 0, 0], "inner_radius": 0.1, "outer_radius": 0.2,
+                "cells": 7 } })",
+           {"bodies[0].mesh.bowl.cells", "must be even"});
+  rejected(R"({ "bowl": { "center": [0, 0, 0], "inner_radius": 0.1, "outer_radius": 0.2,
+                "cells": 1024 } })",
+           {"bodies[0].mesh.bowl.cells"});
+  rejected(R"({ "bowl": { "center": [0, 0, 0], "inner_radius": 0.1, "outer_radius": 0.2,
+                "depth": 1 } })",
+           {"bodies[0].mesh.bowl", "depth"});
+}
+
 TEST_CASE("generated meshes: a tube parses, resolves back and builds, bad values name the key") {
   json j = minimal_json();
   j["bodies"][0]["mesh"] = json::parse(R"({ "tube": { "center": [0.5, 0, 0.2], "axis": "x",
@@ -1722,6 +1760,27 @@ TEST_CASE("fluid.liquid parses regions and sources and resolves back") {
   CHECK(back.fluid->params.liquid.regions[1].centre == Vec3(1, 0.5, 1.5));
 }
 
+TEST_CASE("fluid.liquid regions: a box and a sphere together are their overlap; a surface") {
+  json j = liquid_json();
+  // A half ball: the sphere cut by a box below its centre (a bowl's filling).
+  j["fluid"]["liquid"]["regions"][1]["box"] = {{"lo", {0, 0, 0}}, {"hi", {2, 1, 1.5}}};
+  // The unit cube of data/meshes/cube.obj, moved nowhere: [0, 1]^3 in the scene's coordinates.
+  j["fluid"]["liquid"]["regions"].push_back(
+      {{"name", "cube"}, {"surface", (source_dir / "data" / "meshes" / "cube.obj").string()}});
+  const Scene s = parse_scene(j, "scene.json");
+  const fluid::LiquidParams& lq = s.fluid->params.liquid;
+  REQUIRE(lq.regions.size() == 3);
+  CHECK(lq.regions[1].contains(Vec3(1, 0.5, 1.4)));
+  CHECK_FALSE(lq.regions[1].contains(Vec3(1, 0.5, 1.6)));    // in the sphere, above the box
+  CHECK_FALSE(lq.regions[1].contains(Vec3(1.5, 0.5, 1.4)));  // in the box, out of the sphere
+  REQUIRE(lq.regions[2].surface);
+  CHECK(lq.regions[2].surface->num_triangles() == 12);
+  const Scene back = parse_scene(s.resolved, "scene.json");
+  CHECK(back.resolved == s.resolved);
+  CHECK(back.fluid->params.liquid.regions[1].has_box());
+  CHECK(back.fluid->params.liquid.regions[1].radius == 0.2);
+}
+
 TEST_CASE("fluid.liquid errors name the key") {
   check_liquid_rejected([](json& j) { j["fluid"]["discretization"] = "tet"; },
                         {"fluid.liquid", "fluid.discretization to \"grid\""});
@@ -1735,11 +1794,17 @@ TEST_CASE("fluid.liquid errors name the key") {
         j["fluid"]["liquid"]["regions"][0]["box"] = {{"lo", {2, 2, 3}}, {"hi", {3, 3, 4}}};
       },
       {"fluid.liquid.regions[0].box", "outside the fluid box"});
+  check_liquid_rejected([](json& j) { j["fluid"]["liquid"]["regions"][1] = json::object(); },
+                        {"fluid.liquid.regions[1]", "give a box, a sphere or a surface"});
   check_liquid_rejected(
-      [](json& j) {
-        j["fluid"]["liquid"]["regions"][1]["box"] = {{"lo", {0, 0, 0}}, {"hi", {1, 1, 1}}};
+      [](json& j) { j["fluid"]["liquid"]["regions"][1]["surface"] = "no_such.off"; },
+      {"fluid.liquid.regions[1].surface", "no_such.off"});
+  check_liquid_rejected(
+      [&](json& j) {
+        j["fluid"]["liquid"]["regions"][1]["surface"] =
+            (source_dir / "data" / "meshes" / "open_cube.off").string();
       },
-      {"fluid.liquid.regions[1]", "exactly one of box or sphere"});
+      {"fluid.liquid.regions[1].surface", "open"});
   check_liquid_rejected([](json& j) { j["fluid"]["liquid"]["sources"][0]["stop"] = 0; },
                         {"fluid.liquid.sources[0].stop", "emit nothing"});
   check_liquid_rejected([](json& j) { j["fluid"]["liquid"]["flip"] = 1.5; }, {"fluid.liquid.flip"});
