@@ -606,7 +606,8 @@ const Section<MeshSpec>& mesh_keys() {
        file_row("surface", K::Surface, "a closed surface (.off .obj .stl) meshed by CGAL"),
        {{.key = "cell_size",
          .type = KeyType::Number,
-         .doc = "`surface` only (required there): the target tet size",
+         .doc = "`surface` only (required there): the target tet size, in the file's units (meshed "
+                "before the transform)",
          .unit = "m",
          .range = k_positive,
          .default_text = "-"},
