@@ -122,6 +122,44 @@ TEST_CASE("liquid: a region seeds the lattice points inside its box, sphere and 
   CHECK(std::abs(parts.size() / expected - 1.0) < 0.05);
 }
 
+TEST_CASE("liquid: the density correction leaves a lattice alone and draws a thinned block in") {
+  // 12^3 cells of 0.1 m with a box of liquid [0, 1.2] x [0, 1.2] x [0, 0.8]: 8 cells deep.
+  const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1.2, 1.2, 1.2), {12, 12, 12});
+  mesh::FluidDomain d;
+  d.lo = g.lo;
+  d.hi = g.hi();
+  GridCells gc = classify_grid(g, d, {});
+  LiquidParams lp;
+  lp.regions = {box_region(Vec3::Zero(), Vec3(1.2, 1.2, 0.8))};
+  LiquidParticles parts = seed_liquid(gc, lp);
+  set_free_surface(gc, liquid_level_set(gc, parts.x, liquid_surface_params(g, 2)));
+  const double dt = 0.01, rate = 0.2, V = g.cell_volume();
+  // The seeded lattice: 8 per cell everywhere, no correction at all.
+  CHECK(liquid_volume_source(gc, parts.x, 2, rate, dt).cwiseAbs().maxCoeff() == 0.0);
+  // Remove half the particles of the cells with k = 2..4: a deep cell of k = 3 has a block of
+  // 4 per cell (error −0.5), one of k = 5 a block of two thinned layers and one full (−1/3).
+  std::vector<Vec3> kept;
+  for (Index i = 0; i < parts.size(); ++i) {
+    const Vec3 x = parts.x.row(i).transpose();
+    const Index k = static_cast<Index>(x.z() / 0.1);
+    if (k >= 2 && k <= 4 && static_cast<Index>(x.x() / 0.05) % 2 == 1) continue;
+    kept.push_back(x);
+  }
+  MatX3 x(static_cast<Index>(kept.size()), 3);
+  for (std::size_t i = 0; i < kept.size(); ++i) x.row(static_cast<Index>(i)) = kept[i].transpose();
+  const VecX s = liquid_volume_source(gc, x, 2, rate, dt);
+  const auto expect = [&](double error) {
+    return rate * std::copysign(std::max(0.0, std::abs(error) - k_density_tolerance), error) * V /
+           dt;
+  };
+  CHECK(s[g.cell(5, 5, 3)] == doctest::Approx(expect(-0.5)).epsilon(1e-12));
+  CHECK(s[g.cell(5, 5, 5)] == doctest::Approx(expect(-1.0 / 6.0)).epsilon(1e-12));
+  CHECK(s[g.cell(5, 5, 6)] == 0.0);  // its block (k = 5..7) is full
+  CHECK(s[g.cell(5, 5, 7)] == 0.0);  // beside the air (k = 8): not deep
+  CHECK(s[g.cell(5, 5, 1)] == doctest::Approx(expect(-1.0 / 6.0)).epsilon(1e-12));
+  CHECK(s.maxCoeff() <= 0.0);  // nothing is crowded
+}
+
 TEST_CASE("liquid: a still pool in a closed tank stays still and flat") {
   // 100 steps of a pool 0.3 m deep in a closed 0.4 m tank: max speed <= 1e-6 sqrt(g h) and the
   // surface (the zero of φ in every column) flat to 1e-3 of a cell
