@@ -235,15 +235,19 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
   for (int a = 0; a < 3; ++a) reach[a] = static_cast<Index>(std::ceil(R / g.h[a]));
   // A cell whose block of cells within the kernel radius all hold particles is deep inside
   // the liquid: its mean is itself to within the particles' spacing, φ = −r (the sum over
-  // its ~1000 neighbours is what φ costs; only cells near the surface need it).
+  // its ~1000 neighbours is what φ costs; only cells near the surface need it). Beside a wall
+  // the block is clipped to the box: the walls' mirror images fill the rest alike.
   std::vector<std::uint8_t> occupied(static_cast<size_t>(g.num_cells()));
   for (Index c = 0; c < g.num_cells(); ++c) occupied[c] = b.start[c + 1] > b.start[c];
   const auto deep = [&](const std::array<Index, 3>& ijk) {
-    for (int a = 0; a < 3; ++a)
-      if (ijk[a] - reach[a] < 0 || ijk[a] + reach[a] >= g.n[a]) return false;  // near a wall
-    for (Index k = ijk[2] - reach[2]; k <= ijk[2] + reach[2]; ++k)
-      for (Index j = ijk[1] - reach[1]; j <= ijk[1] + reach[1]; ++j)
-        for (Index i = ijk[0] - reach[0]; i <= ijk[0] + reach[0]; ++i)
+    std::array<Index, 3> lo{}, hi{};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::max<Index>(0, ijk[a] - reach[a]);
+      hi[a] = std::min<Index>(g.n[a] - 1, ijk[a] + reach[a]);
+    }
+    for (Index k = lo[2]; k <= hi[2]; ++k)
+      for (Index j = lo[1]; j <= hi[1]; ++j)
+        for (Index i = lo[0]; i <= hi[0]; ++i)
           if (!occupied[g.cell(i, j, k)]) return false;
     return true;
   };
@@ -453,11 +457,13 @@ Index separate_particles(const GridCells& gc, int per_axis, LiquidParticles& lp)
   // one Jacobi sweep from the old positions (bit for bit at any thread count)
   parallel_for_each(lp.size(), kGrain, [&](Index p) {
     const Vec3 x = lp.x.row(p).transpose();
-    const auto ijk = g.cell_ijk(g.cell_at(x));
+    // the cells that the ball of radius `reach` about x overlaps (at most 2 per axis)
+    const auto lo_ijk = g.cell_ijk(g.cell_at(x.array() - reach));
+    const auto hi_ijk = g.cell_ijk(g.cell_at(x.array() + reach));
     Vec3 dx = Vec3::Zero();
-    for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
-      for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
-        for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1); ++i) {
+    for (Index k = lo_ijk[2]; k <= hi_ijk[2]; ++k)
+      for (Index j = lo_ijk[1]; j <= hi_ijk[1]; ++j)
+        for (Index i = lo_ijk[0]; i <= hi_ijk[0]; ++i) {
           const Index d = g.cell(i, j, k);
           for (Index e = b.start[d]; e < b.start[d + 1]; ++e) {
             const Index q = b.order[e];

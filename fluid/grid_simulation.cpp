@@ -238,17 +238,23 @@ int GridFluid::extrapolation_layers(const VecX& u, double h) const {
 
 void GridFluid::predict_liquid(GridPrediction& pred, double h) const {
   const LiquidParams& lq = m_params.liquid;
+  double t0 = now_seconds();
   pred.particles = m_state.particles;
   pred.particles_removed = advect_particles(pred.cells, m_state.u, h, pred.particles);
   separate_particles(pred.cells, lq.particles_per_axis, pred.particles);
   pred.particles_added = emit_liquid(pred.cells, lq, m_time + h, pred.particles);
+  pred.liquid_advect_s = now_seconds() - t0;
+  t0 = now_seconds();
   set_free_surface(pred.cells, liquid_level_set(pred.cells, pred.particles.x, m_surface));
   if (lq.density_correction > 0)
     pred.cells.volume_source = liquid_volume_source(
         pred.cells, pred.particles.x, lq.particles_per_axis, lq.density_correction, h);
+  pred.liquid_surface_s = now_seconds() - t0;
+  t0 = now_seconds();
   pred.rho = grid_cell_density(pred.cells, m_params);
   pred.u_star = particles_to_faces(m_grid, pred.particles, pred.particle_faces);
   extrapolate_faces(m_grid, pred.particle_faces, extrapolation_layers(pred.u_star, h), pred.u_star);
+  pred.liquid_p2g_s = now_seconds() - t0;
   pred.density = VecX::Zero(m_grid.num_cells());
   pred.temperature = VecX::Constant(m_grid.num_cells(), m_params.ambient_temperature);
 }
@@ -385,6 +391,9 @@ FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, Fluid
         m_liquid_expected > 0 ? (lm.volume - m_liquid_expected) / m_liquid_expected : 0.0;
     rep.liquid_area = lm.area;
     rep.liquid_particles = pred.particles.size();
+    rep.liquid_advect_s = pred.liquid_advect_s;
+    rep.liquid_surface_s = pred.liquid_surface_s;
+    rep.liquid_p2g_s = pred.liquid_p2g_s;
   }
   for (Index c = 0; c < g.num_cells(); ++c)
     p_dyn[c] = gc.fluid(c)

@@ -45,6 +45,7 @@ struct GridPrediction {
   VecX u_old;                 ///< a free surface: #F the particles' velocity on the faces
   std::vector<std::uint8_t> particle_faces;  ///< a free surface: #F, 1 where particles reached
   Index particles_added = 0, particles_removed = 0;  ///< a free surface: by sources, Open faces
+  double liquid_advect_s = 0, liquid_surface_s = 0, liquid_p2g_s = 0;  ///< FluidStepReport's
 };
 
 /// Velocity at the cell centres (#C × 3): the mean of each axis' two faces.

@@ -60,6 +60,10 @@ struct FluidStepReport {
   double liquid_volume_drift = 0.0;
   double liquid_area = 0.0;
   Index liquid_particles = 0;
+  /// Seconds of the step's surface tracking (inside the transfer phase): the particles'
+  /// move, separation and sources; the level set, free surface and density correction; the
+  /// particles' velocity to the faces and its extrapolation.
+  double liquid_advect_s = 0.0, liquid_surface_s = 0.0, liquid_p2g_s = 0.0;
 };
 
 /// The fluid's part of a step up to its pressure (DESIGN.md §2 steps 3–4) on the new mesh:

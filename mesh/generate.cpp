@@ -110,6 +110,21 @@ void append_uniform(std::vector<double>& lines, double a, double b, int cells) {
   }
 }
 
+/// Throws unless the centre and radii are finite and 0 < inner_radius < outer_radius; `what`
+/// names the generator, `hint` is appended to the second message.
+void check_shell_radii(const char* what, const Vec3& centre, double inner_radius,
+                       double outer_radius, const char* hint) {
+  TETFSI_REQUIRE(InputError,
+                 centre.allFinite() && std::isfinite(inner_radius) && std::isfinite(outer_radius),
+                 "{}: centre and radii must be finite, got centre ({} {} {}), inner_radius {}, "
+                 "outer_radius {}",
+                 what, centre.x(), centre.y(), centre.z(), inner_radius, outer_radius);
+  TETFSI_REQUIRE(InputError, inner_radius > 0 && inner_radius < outer_radius,
+                 "{}: need 0 < inner_radius < outer_radius, got inner_radius {} and outer_radius "
+                 "{}{}",
+                 what, inner_radius, outer_radius, hint);
+}
+
 /// The unit-sphere surface `unit` (vertices on the unit sphere about the origin) extruded
 /// radially into `layers` equal layers between the radii about `centre`: vertex v of layer k
 /// (k = 0 at inner_radius … layers at outer_radius) has index v + k·#V. Each prism (triangle
@@ -265,15 +280,8 @@ SurfaceMesh make_icosphere(const Vec3& centre, double radius, int subdivisions) 
 
 VolumeMesh make_spherical_shell(const Vec3& centre, double inner_radius, double outer_radius,
                                 int subdivisions, int layers) {
-  TETFSI_REQUIRE(InputError,
-                 centre.allFinite() && std::isfinite(inner_radius) && std::isfinite(outer_radius),
-                 "make_spherical_shell: centre and radii must be finite, got centre ({} {} {}), "
-                 "inner_radius {}, outer_radius {}",
-                 centre.x(), centre.y(), centre.z(), inner_radius, outer_radius);
-  TETFSI_REQUIRE(InputError, inner_radius > 0 && inner_radius < outer_radius,
-                 "make_spherical_shell: need 0 < inner_radius < outer_radius, got inner_radius "
-                 "{} and outer_radius {}; for a solid ball use make_ball",
-                 inner_radius, outer_radius);
+  check_shell_radii("make_spherical_shell", centre, inner_radius, outer_radius,
+                    "; for a solid ball use make_ball");
   TETFSI_REQUIRE(InputError, subdivisions >= 0 && subdivisions <= 7,
                  "make_spherical_shell: subdivisions must be 0..7, got {}", subdivisions);
   TETFSI_REQUIRE(InputError, layers >= 1 && layers <= 10000,
@@ -526,15 +534,7 @@ VolumeMesh make_tube(const Vec3& centre, int axis, double inner_radius, double o
 
 VolumeMesh make_bowl(const Vec3& centre, double inner_radius, double outer_radius, int cells,
                      int layers) {
-  TETFSI_REQUIRE(InputError,
-                 centre.allFinite() && std::isfinite(inner_radius) && std::isfinite(outer_radius),
-                 "make_bowl: centre and radii must be finite, got centre ({} {} {}), "
-                 "inner_radius {}, outer_radius {}",
-                 centre.x(), centre.y(), centre.z(), inner_radius, outer_radius);
-  TETFSI_REQUIRE(InputError, inner_radius > 0 && inner_radius < outer_radius,
-                 "make_bowl: need 0 < inner_radius < outer_radius, got inner_radius {} and "
-                 "outer_radius {}",
-                 inner_radius, outer_radius);
+  check_shell_radii("make_bowl", centre, inner_radius, outer_radius, "");
   TETFSI_REQUIRE(InputError, cells >= 2 && cells <= 512 && cells % 2 == 0,
                  "make_bowl: cells (from the bottom to the rim) must be even and in 2..512, got {}",
                  cells);

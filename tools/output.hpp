@@ -274,6 +274,7 @@ struct FluidStepStats {
   double liquid_volume_drift = NAN;  ///< relative to what the particles carry
   double liquid_area = NAN;          ///< m²
   Index liquid_particles = 0;
+  double liquid_advect_s = NAN, liquid_surface_s = NAN, liquid_p2g_s = NAN;  ///< seconds
 };
 
 /// The two-way coupling part of a stats.csv row (coupling::CoupledStepReport of the step).
@@ -376,7 +377,10 @@ class StatsWriter {
                                           const std::vector<std::string>& bodies = {},
                                           bool contact = false, bool liquid = false);
   /// liquid_volume (m³), liquid_volume_drift (relative to what the particles carry: the
-  /// first volume plus emitted less drained), liquid_area (m²), liquid_particles.
+  /// first volume plus emitted less drained), liquid_area (m²), liquid_particles, and the
+  /// seconds of the surface tracking within `transfer`: liquid_advect_s (particles moved,
+  /// separated, emitted), liquid_surface_s (level set, free surface), liquid_p2g_s
+  /// (particles to faces, extrapolation).
   static const std::vector<std::string>& liquid_columns();
   /// contact_pairs, contact_min_gap, contact_force, contact_crossings, contact_solves,
   /// contact_s (ContactStepStats).

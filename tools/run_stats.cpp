@@ -94,6 +94,9 @@ void RunRecorder::record_fluid_step(const fluid::FluidStepReport& r, double seco
   s.liquid_volume_drift = r.liquid_volume_drift;
   s.liquid_area = r.liquid_area;
   s.liquid_particles = r.liquid_particles;
+  s.liquid_advect_s = r.liquid_advect_s;
+  s.liquid_surface_s = r.liquid_surface_s;
+  s.liquid_p2g_s = r.liquid_p2g_s;
   FluidSummary& f = m_summary;
   f.fluid_steps += 1;
   f.pressure_iterations += r.iterations;

@@ -30,6 +30,14 @@ FluidParams water(const LiquidRegion& region) {
   return p;
 }
 
+/// The cells of grid g in a closed box of its own size, without bodies.
+GridCells box_cells(const GridSpec& g) {
+  mesh::FluidDomain d;
+  d.lo = g.lo;
+  d.hi = g.hi();
+  return classify_grid(g, d, {});
+}
+
 LiquidRegion box_region(const Vec3& lo, const Vec3& hi) {
   LiquidRegion r;
   r.name = "liquid";
@@ -60,10 +68,7 @@ TEST_CASE("liquid: a particle half-space's surface lies on its boundary") {
   // φ at the two cell centres beside a seeded boundary is ±the same value: the linear zero
   // (the ghost fluid's surface) is on the boundary
   const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1, 1, 1), {8, 8, 8});
-  mesh::FluidDomain d;
-  d.lo = g.lo;
-  d.hi = g.hi();
-  GridCells gc = classify_grid(g, d, {});
+  GridCells gc = box_cells(g);
   LiquidParams lp;
   lp.regions = {box_region(Vec3::Zero(), Vec3(1, 1, 0.5))};
   const LiquidParticles parts = seed_liquid(gc, lp);
@@ -82,10 +87,7 @@ TEST_CASE("liquid: a particle half-space's surface lies on its boundary") {
 TEST_CASE("liquid: a region seeds the lattice points inside its box, sphere and surface") {
   // 10^3 cells of 0.1 m, 8 lattice points per cell at 1/4 and 3/4 of it along each axis.
   const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1, 1, 1), {10, 10, 10});
-  mesh::FluidDomain d;
-  d.lo = g.lo;
-  d.hi = g.hi();
-  const GridCells gc = classify_grid(g, d, {});
+  const GridCells gc = box_cells(g);
   // A closed surface: the box [0.2, 0.6]^3's boundary (4^3 cells, 512 points inside).
   const mesh::VolumeMesh cube = mesh::make_box(Vec3::Constant(0.2), Vec3::Constant(0.6), {1, 1, 1});
   auto surface = std::make_shared<mesh::SurfaceMesh>();
@@ -125,10 +127,7 @@ TEST_CASE("liquid: a region seeds the lattice points inside its box, sphere and 
 TEST_CASE("liquid: the density correction leaves a lattice alone and draws a thinned block in") {
   // 12^3 cells of 0.1 m with a box of liquid [0, 1.2] x [0, 1.2] x [0, 0.8]: 8 cells deep.
   const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1.2, 1.2, 1.2), {12, 12, 12});
-  mesh::FluidDomain d;
-  d.lo = g.lo;
-  d.hi = g.hi();
-  GridCells gc = classify_grid(g, d, {});
+  GridCells gc = box_cells(g);
   LiquidParams lp;
   lp.regions = {box_region(Vec3::Zero(), Vec3(1.2, 1.2, 0.8))};
   LiquidParticles parts = seed_liquid(gc, lp);

@@ -93,13 +93,20 @@ struct FluidFrame {
   }
 };
 
-FluidFrame read_fluid_frame(const fs::path& p) {
+/// A VTK XML reader of type R that has read frame p (REQUIREs it exists and reads cleanly).
+template <class R>
+vtkSmartPointer<R> read_xml(const fs::path& p) {
   INFO("frame " << p);
   REQUIRE(fs::exists(p));
-  vtkNew<vtkXMLUnstructuredGridReader> r;
+  auto r = vtkSmartPointer<R>::New();
   r->SetFileName(p.c_str());
   r->Update();
   REQUIRE(r->GetErrorCode() == 0);
+  return r;
+}
+
+FluidFrame read_fluid_frame(const fs::path& p) {
+  const auto r = read_xml<vtkXMLUnstructuredGridReader>(p);
   FluidFrame f;
   f.grid = r->GetOutput();
   REQUIRE(f.grid != nullptr);
@@ -426,12 +433,7 @@ namespace {
 
 /// The points of a frame's liquid surface (liquid/liquid_<step>.vtp).
 std::vector<Vec3> liquid_points(const fs::path& p) {
-  INFO("frame " << p);
-  REQUIRE(fs::exists(p));
-  vtkNew<vtkXMLPolyDataReader> r;
-  r->SetFileName(p.c_str());
-  r->Update();
-  REQUIRE(r->GetErrorCode() == 0);
+  const auto r = read_xml<vtkXMLPolyDataReader>(p);
   std::vector<Vec3> x;
   vtkPoints* pts = r->GetOutput()->GetPoints();
   for (vtkIdType i = 0; pts && i < pts->GetNumberOfPoints(); ++i) {
@@ -444,12 +446,7 @@ std::vector<Vec3> liquid_points(const fs::path& p) {
 
 /// A body frame's tets at their deformed positions.
 mesh::VolumeMesh body_frame(const fs::path& p) {
-  INFO("frame " << p);
-  REQUIRE(fs::exists(p));
-  vtkNew<vtkXMLUnstructuredGridReader> r;
-  r->SetFileName(p.c_str());
-  r->Update();
-  REQUIRE(r->GetErrorCode() == 0);
+  const auto r = read_xml<vtkXMLUnstructuredGridReader>(p);
   vtkUnstructuredGrid* g = r->GetOutput();
   mesh::VolumeMesh m;
   m.vertices.resize(g->GetNumberOfPoints(), 3);

@@ -1706,7 +1706,7 @@ TEST_CASE("generated meshes: missing keys, bad values and two kinds are one-line
   rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1 },
                 "box": { "lo": [0, 0, 0], "hi": [1, 1, 1] } })",
            {"scene.json: bodies[0].mesh: give exactly one of 'box', 'file', 'surface', 'sphere', "
-            "'shell', 'hollow_box' or 'tube', got 'box' and 'sphere'"});
+            "'shell', 'hollow_box', 'tube' or 'bowl', got 'box' and 'sphere'"});
   rejected(R"({ "sphere": { "center": [0, 0, 0], "radius": 1 }, "cell_size": 0.1 })",
            {"bodies[0].mesh.cell_size: cell_size applies only to a 'surface' mesh"});
   rejected(R"({ "ball": { "center": [0, 0, 0], "radius": 1 } })",
