@@ -194,7 +194,7 @@ struct GridCells {
   std::vector<std::uint8_t> air;
   VecX phi;
   /// #C or empty: the net outflow (m³/s) the projection gives each fluid cell instead of zero
-  /// (liquid_volume_source, the liquid's density correction).
+  /// (liquid_volume_source, the liquid's density correction; 0 in every other cell).
   VecX volume_source;
 
   /// A cell with a pressure unknown: not inside a body, not air.

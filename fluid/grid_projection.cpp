@@ -122,9 +122,7 @@ VecX grid_net_flux(const GridCells& gc, const VecX& u) {
 
 VecX grid_flux_excess(const GridCells& gc, const VecX& u) {
   VecX flux = grid_net_flux(gc, u);
-  if (gc.volume_source.size() == flux.size())
-    for (Index c = 0; c < flux.size(); ++c)
-      if (gc.fluid(c)) flux[c] -= gc.volume_source[c];
+  if (gc.volume_source.size() == flux.size()) flux -= gc.volume_source;  // 0 off fluid cells
   return flux;
 }
 

@@ -654,7 +654,8 @@ class Parser {
     return b;
   }
 
-  /// fluid.liquid: regions (a box or a sphere each) and sources, on the grid only.
+  /// fluid.liquid: regions (a box, a sphere, a closed surface, or their overlap) and sources,
+  /// on the grid only.
   void liquid(const Node& n, FluidSpec& f) const {
     fluid::LiquidParams& lq = f.params.liquid;
     read(n, liquid_keys(), lq);

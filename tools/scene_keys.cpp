@@ -254,6 +254,16 @@ Field<MeshSpec> radius_row(const char* key, const std::string& doc) {
                                                     : t.outer_radius;
       });
 }
+/// Prism layers across a shell's or a bowl's wall.
+Field<MeshSpec> layers_row() {
+  return bind<MeshSpec>({.key = "layers",
+                         .type = KeyType::Integer,
+                         .doc = "prism layers across the wall (3 tets each)",
+                         .range = between(1, 10000),
+                         .note = "tets across the wall: 3 each"},
+                        TETFSI_AT(layers));
+}
+
 Field<MeshSpec> subdivisions_row(int max) {
   return bind<MeshSpec>({.key = "subdivisions",
                          .type = KeyType::Integer,
@@ -651,13 +661,7 @@ const Section<MeshSpec>& mesh_shell_keys() {
       "bodies[].mesh.shell",
       "a hollow ball (mesh::make_spherical_shell), inner_radius < outer_radius",
       {center_row("centre"), radius_row("inner_radius", "radius of the cavity"),
-       radius_row("outer_radius", "outer radius"), subdivisions_row(7),
-       bind<MeshSpec>({.key = "layers",
-                       .type = KeyType::Integer,
-                       .doc = "prism layers across the wall (3 tets each)",
-                       .range = between(1, 10000),
-                       .note = "tets across the wall: 3 each"},
-                      TETFSI_AT(layers))}};
+       radius_row("outer_radius", "outer radius"), subdivisions_row(7), layers_row()}};
   return s;
 }
 
@@ -713,11 +717,7 @@ const Section<MeshSpec>& mesh_bowl_keys() {
                        .doc = "edges from the bottom to the rim (even); 4 x cells around the rim",
                        .range = between(2, 512)},
                       TETFSI_AT(meridian_cells)),
-       bind<MeshSpec>({.key = "layers",
-                       .type = KeyType::Integer,
-                       .doc = "prism layers across the wall (3 tets each)",
-                       .range = between(1, 10000)},
-                      TETFSI_AT(layers))}};
+       layers_row()}};
   return s;
 }
 
