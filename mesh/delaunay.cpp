@@ -14,6 +14,7 @@
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
 #include <boost/container_hash/hash.hpp>
+#include <boost/iterator/function_output_iterator.hpp>
 #include <boost/unordered_map.hpp>
 
 #include "core/error.hpp"
@@ -105,6 +106,14 @@ struct Delaunay::Impl {
   DT dt;
   std::vector<DT::Vertex_handle> handles;  ///< by id (null if absent)
   DT::Cell_handle hint;
+  bool tracking = false;
+  std::vector<int> changed;  ///< track_changes: ids whose star changed
+  /// Record v and its finite neighbours.
+  void record(DT::Vertex_handle v) {
+    changed.push_back(v->info());
+    dt.finite_adjacent_vertices(v, boost::iterators::make_function_output_iterator(
+                                       [&](DT::Vertex_handle w) { changed.push_back(w->info()); }));
+  }
 };
 
 Delaunay::Delaunay() : m_impl(std::make_unique<Impl>()) {
@@ -141,15 +150,28 @@ void Delaunay::insert(const Vec3& p, int id) {
   if (static_cast<std::size_t>(id) >= d.handles.size()) d.handles.resize(id + 1);
   d.handles[id] = v;
   d.hint = v->cell();
+  if (d.tracking) d.record(v);
 }
 
 void Delaunay::remove(int id) {
   Impl& d = *m_impl;
   if (id < 0 || static_cast<std::size_t>(id) >= d.handles.size() || d.handles[id] == nullptr)
     return;
+  if (d.tracking) d.record(d.handles[id]);
   d.dt.remove(d.handles[id]);
   d.handles[id] = DT::Vertex_handle();
   d.hint = DT::Cell_handle();
+}
+
+void Delaunay::track_changes(bool on) {
+  m_impl->tracking = on;
+  m_impl->changed.clear();
+}
+
+std::vector<int> Delaunay::take_changed() {
+  std::vector<int> out;
+  out.swap(m_impl->changed);
+  return out;
 }
 
 Index Delaunay::num_vertices() const {

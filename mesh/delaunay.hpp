@@ -33,6 +33,13 @@ class Delaunay {
   void insert(const Vec3& p, int id);
   /// Remove the vertex with this id (no-op if absent).
   void remove(int id);
+  /// From now on (or no longer), record the ids of the vertices whose star an insert or a
+  /// remove changes: the vertex inserted or removed and its neighbours. Every cell created or
+  /// destroyed has all four vertices among them (an insertion's conflict region has no vertex
+  /// inside it [Bowyer–Watson]; a removal refills the removed vertex's star from its link).
+  void track_changes(bool on);
+  /// The ids recorded since the last call (unsorted, may repeat); clears the record.
+  std::vector<int> take_changed();
   Index num_vertices() const;
   Index num_finite_cells() const;
 

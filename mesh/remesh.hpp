@@ -80,6 +80,9 @@ struct Sizing {
 
 struct RemeshOptions {
   int max_recovery_rounds = 30;  ///< rounds of Steiner insertion before giving up
+  /// Each recovery round re-examines only the cells the last round changed (true), or every
+  /// cell touching a solid (false: the reference; the same mesh, slower).
+  bool local_recovery = true;
 };
 
 struct RemeshReport {
@@ -96,6 +99,10 @@ struct RemeshReport {
   /// its centroid, so those two triangles are tiled only together (0 in every test).
   Index straddling_faces = 0;
   int recovery_rounds = 0;  ///< rounds that added Steiner points after the Delaunay
+  int cleanup_rounds = 0;   ///< sliver passes (perturbation, deletion) after conformity
+  /// Of seconds_recovery: the conformity checks (surface faces, missing triangles, flat
+  /// cells), the Steiner insertions, and the sliver passes.
+  double seconds_recovery_check = 0, seconds_recovery_insert = 0, seconds_recovery_slivers = 0;
   double size_scale = 1.0;  ///< factor the cell budget (Sizing::max_cells) scaled all sizes by
   double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0, seconds_classify = 0,
          seconds_build = 0, seconds_total = 0;

@@ -7,10 +7,12 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include <fmt/format.h>
 
 #include "core/error.hpp"
+#include "core/timer.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/remesh_stages.hpp"
 
@@ -146,32 +148,40 @@ bool RemeshContext::is_flat_surface_cell(int v0, int v1, int v2, int v3) const {
 void RemeshContext::recover_conformity() {
   prepare_recovery();
   for (int round = 0;; ++round) {
-    dt.cells_touching(nL, near);
-    const std::vector<double> covered = collect_surface_facets();
-    const std::vector<int> missing = missing_triangles(covered);
+    double t0 = now_seconds();
+    sync_surface_cells(round == 0 || !options.local_recovery);
+    const std::vector<int> missing = missing_triangles();
     std::vector<int> split;
     if (missing.empty()) {
       // Conforming. A flat cell whose four surface points span two coplanar triangles (a
       // co-circular quad of a rotated box face) would leave fluid faces straddling both:
       // split the sub-triangles under it instead (their shared edge, by LEPP), within the
       // round budget.
-      split = flat_cell_subs(near);
+      split = flat_cell_subs(all_surface_cells());
+      report.seconds_recovery_check += now_seconds() - t0;
       if (split.empty() || round >= options.max_recovery_rounds) {
         // Slivers are removed by deleting a lattice vertex of each, then conformity is
         // checked again. They come from points that are coplanar in exact arithmetic but not
         // after rounding (a lattice plane through a box solid's face, or lattice points at
         // octree transitions when the box needs an anisotropic lattice).
-        if (!clean_up_slivers()) break;
+        t0 = now_seconds();
+        const bool changed = clean_up_slivers();
+        report.seconds_recovery_slivers += now_seconds() - t0;
+        if (!changed) break;
+        ++report.cleanup_rounds;
         continue;
       }
     } else {
-      if (round >= options.max_recovery_rounds) throw_unrecovered(missing, covered, round);
+      report.seconds_recovery_check += now_seconds() - t0;
+      if (round >= options.max_recovery_rounds) throw_unrecovered(missing, round);
       split = unrecovered_subs(missing);
     }
     report.recovery_rounds = round + 1;
     // Straddled quads are split off-centre: a midpoint makes right isosceles triangles whose
     // quads with the neighbours are co-circular again (22 rounds at 1M cells; 0.45: a few).
+    t0 = now_seconds();
     insert_steiner_points(split, missing.empty() ? kStraddleSplitAt : 0.5);
+    report.seconds_recovery_insert += now_seconds() - t0;
   }
   report.steiner_points = static_cast<Index>(surf->points.size()) - report.surface_points;
   report.cells_delaunay = static_cast<Index>(tets.rows());
@@ -195,46 +205,148 @@ void RemeshContext::prepare_recovery() {
   lattice_removed.assign(nL, 0);
 }
 
-std::vector<double> RemeshContext::collect_surface_facets() {
-  facet_tri.clear();
-  std::vector<double> covered(set.corners.size(), 0.0);
-  for (Index t = 0; t < near.rows(); ++t) {
-    for (int k = 0; k < 4; ++k) {
-      const int a = near(t, (k + 1) % 4), b = near(t, (k + 2) % 4), c = near(t, (k + 3) % 4);
-      if (a < nL || b < nL || c < nL) continue;
-      auto [it, fresh] = facet_tri.try_emplace(sorted_key(a, b, c), -1);
-      if (!fresh) continue;
-      const int g = common_triangle(a, b, c);
-      it->second = g >= 0 ? g : (in_surface(a, b, c) ? -2 : -1);
-      if (g >= 0) covered[g] += 0.5 * (pts[b] - pts[a]).cross(pts[c] - pts[a]).norm();
+void RemeshContext::sync_surface_cells(bool full) {
+  surface_cells.resize(pts.size() - nL);
+  tri_dirty.resize(set.corners.size(), 0);
+  if (full) {
+    for (auto& list : surface_cells) list.clear();
+    facet_tri.clear();
+    facet_cells.clear();
+    covered.assign(set.corners.size(), 0.0);
+    MatX4i cells;
+    dt.cells_touching(nL, cells);
+    for (Index t = 0; t < cells.rows(); ++t)
+      add_surface_cell({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
+    dirty_tris.resize(set.corners.size());
+    std::iota(dirty_tris.begin(), dirty_tris.end(), 0);
+    tri_dirty.assign(set.corners.size(), 1);
+    dt.track_changes(true);
+    return;
+  }
+  std::vector<int> changed = dt.take_changed();
+  changed_mark.assign(pts.size(), 0);
+  for (int v : changed) changed_mark[v] = 1;
+  // Every cell created or destroyed since the last call has all four vertices changed, so
+  // its smallest surface vertex too.
+  const auto all_changed = [&](const std::array<int, 4>& c) {
+    return changed_mark[c[0]] && changed_mark[c[1]] && changed_mark[c[2]] && changed_mark[c[3]];
+  };
+  std::vector<int> around;  // the changed surface vertices, in order
+  for (int v : changed)
+    if (v >= nL && changed_mark[v] == 1) {
+      changed_mark[v] = 2;
+      around.push_back(v);
+    }
+  // Past a third of the surface (the first round's Steiner points and lattice removals
+  // touch most of it), one pass over every cell costs less than the stars (measured: 0.09 s
+  // against 0.24 s at 1M cells).
+  if (3 * around.size() > surface_cells.size()) return sync_surface_cells(true);
+  std::sort(around.begin(), around.end());
+  for (int v : around) {
+    auto& list = surface_cells[v - nL];
+    for (std::size_t i = 0; i < list.size();) {
+      if (!all_changed(list[i])) {
+        ++i;
+        continue;
+      }
+      remove_surface_facets(list[i]);
+      list[i] = list.back();
+      list.pop_back();
     }
   }
-  return covered;
+  MatX4i cells;
+  dt.cells_around(around, cells);
+  for (Index t = 0; t < cells.rows(); ++t) {
+    const std::array<int, 4> c = {cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)};
+    if (all_changed(c)) add_surface_cell(c);
+  }
+}
+
+void RemeshContext::add_surface_cell(const std::array<int, 4>& c) {
+  int lowest = std::numeric_limits<int>::max(), n = 0;
+  for (int v : c)
+    if (v >= nL) lowest = std::min(lowest, v), ++n;
+  if (n < 3) return;
+  surface_cells[lowest - nL].push_back(c);
+  for (int k = 0; k < 4; ++k) {
+    const int a = c[(k + 1) % 4], b = c[(k + 2) % 4], e = c[(k + 3) % 4];
+    if (a < nL || b < nL || e < nL) continue;
+    const TripleKey key = sorted_key(a, b, e);
+    if (++facet_cells[key] > 1) continue;
+    const int g = common_triangle(a, b, e);
+    facet_tri[key] = g >= 0 ? g : (in_surface(a, b, e) ? -2 : -1);
+    if (g >= 0) covered[g] += 0.5 * (pts[b] - pts[a]).cross(pts[e] - pts[a]).norm();
+    mark_dirty(a, b, e);
+  }
+}
+
+void RemeshContext::remove_surface_facets(const std::array<int, 4>& c) {
+  for (int k = 0; k < 4; ++k) {
+    const int a = c[(k + 1) % 4], b = c[(k + 2) % 4], e = c[(k + 3) % 4];
+    if (a < nL || b < nL || e < nL) continue;
+    const TripleKey key = sorted_key(a, b, e);
+    auto n = facet_cells.find(key);
+    if (--n->second > 0) continue;
+    facet_cells.erase(n);
+    auto f = facet_tri.find(key);
+    if (f->second >= 0) covered[f->second] -= 0.5 * (pts[b] - pts[a]).cross(pts[e] - pts[a]).norm();
+    facet_tri.erase(f);
+    mark_dirty(a, b, e);
+  }
+}
+
+void RemeshContext::mark_dirty(int a, int b, int c) {
+  for (int v : {a, b, c})
+    for (const auto& e : surf->points[surface_id(v)].on)
+      if (!tri_dirty[e.first]) {
+        tri_dirty[e.first] = 1;
+        dirty_tris.push_back(e.first);
+      }
+}
+
+MatX4i RemeshContext::all_surface_cells() const {
+  std::vector<int> ids;
+  for (const auto& list : surface_cells)
+    for (const auto& c : list)
+      if (c[0] >= nL && c[1] >= nL && c[2] >= nL && c[3] >= nL)
+        ids.insert(ids.end(), c.begin(), c.end());
+  return Eigen::Map<MatX4i>(ids.data(), static_cast<Index>(ids.size() / 4), 4);
 }
 
 // A triangle is recovered if each of its sub-triangles is a Delaunay face, or if other
 // faces on it tile it exactly (another diagonal of a co-circular quad). Over-coverage
 // comes from flat cells on the surface (both diagonals), which classification handles.
-std::vector<int> RemeshContext::missing_triangles(const std::vector<double>& covered) const {
+std::vector<int> RemeshContext::missing_triangles() {
+  std::vector<int> check;
+  if (options.local_recovery) {
+    check = dirty_tris;
+    check.insert(check.end(), last_missing.begin(), last_missing.end());
+    std::sort(check.begin(), check.end());
+    check.erase(std::unique(check.begin(), check.end()), check.end());
+  } else {
+    check.resize(covered.size());
+    std::iota(check.begin(), check.end(), 0);
+  }
+  for (int g : dirty_tris) tri_dirty[g] = 0;
+  dirty_tris.clear();
   std::vector<int> missing;
-  const auto by_tri_now = surf->subs_by_triangle();
-  for (std::size_t g = 0; g < covered.size(); ++g) {
+  for (int g : check) {
     if (std::abs(covered[g] - tri_area[g]) <= 1e-9 * tri_area[g]) continue;
     bool all = true;
-    for (int sub : by_tri_now[g]) {
+    for (int sub : surf->subs_of(g)) {
       const SubTri& st = surf->subs[sub];
       all &= facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)) > 0;
     }
-    if (!all) missing.push_back(static_cast<int>(g));
+    if (!all) missing.push_back(g);
   }
+  last_missing = missing;
   return missing;
 }
 
 std::vector<int> RemeshContext::unrecovered_subs(const std::vector<int>& missing) const {
   std::vector<int> split;
-  const auto by_tri = surf->subs_by_triangle();
   for (int g : missing)
-    for (int s : by_tri[g]) {
+    for (int s : surf->subs_of(g)) {
       const SubTri& st = surf->subs[s];
       if (!facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)))
         split.push_back(s);
@@ -242,8 +354,7 @@ std::vector<int> RemeshContext::unrecovered_subs(const std::vector<int>& missing
   return split;
 }
 
-void RemeshContext::throw_unrecovered(const std::vector<int>& missing,
-                                      const std::vector<double>& covered, int round) const {
+void RemeshContext::throw_unrecovered(const std::vector<int>& missing, int round) const {
   const int g = missing.front();
   const int b = set.tri_body[g];
   throw MeshError(fmt::format(
@@ -260,6 +371,10 @@ void RemeshContext::insert_steiner_points(const std::vector<int>& split, double 
   surf->refine_subs(split, &new_subs, at);
   // Keep the new sub-triangles' diametral spheres empty of lattice points.
   for (int s : new_subs) {
+    if (!tri_dirty[surf->subs[s].tri]) {
+      tri_dirty[surf->subs[s].tri] = 1;
+      dirty_tris.push_back(surf->subs[s].tri);
+    }
     if (!surf->subs[s].alive) continue;
     Vec3 c;
     double r2;
@@ -347,6 +462,9 @@ std::vector<int> RemeshContext::flat_cell_subs(const MatX4i& cells) const {
       if (it != sub_of.end()) out.push_back(it->second);
     }
   }
+  // In the order of the subs' ids, each once: the same list whatever the cells' order.
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
 }
 

@@ -64,7 +64,6 @@ inline TripleKey sorted_key(int a, int b, int c) {
 struct TripleHash {
   std::size_t operator()(const TripleKey& k) const { return hash_triple(k.a, k.b, k.c); }
 };
-
 /// Uniform hash grid of integer items registered by boxes.
 class HashGrid {
  public:
@@ -199,14 +198,15 @@ class RefinedSurface {
   /// the number of points added.
   int refine_subs(const std::vector<int>& list, std::vector<int>* new_subs = nullptr,
                   double at = 0.5);
-  /// Alive sub-triangles of each global triangle.
-  std::vector<std::vector<int>> subs_by_triangle() const;
+  /// The alive sub-triangles of global triangle g, in increasing order.
+  const std::vector<int>& subs_of(int g) const { return m_by_tri[g]; }
 
  private:
   int add_sub(const SubTri& st);
   void remove_sub(int s);
   const SolidSet& m_set;
   std::unordered_map<std::uint64_t, std::array<int, 2>> m_edges;
+  std::vector<std::vector<int>> m_by_tri;  ///< per global triangle: its alive subs
 };
 
 /// Refine the surfaces: split sub-triangles longer than the surface size, then until every
@@ -272,13 +272,26 @@ struct RemeshContext {
   /// Lattice points near the solids, to drop those inside new sub-triangles' spheres.
   HashGrid lattice_grid{1.0};
   std::vector<char> lattice_removed;  ///< per lattice point: deleted from the Delaunay
-  MatX4i near;                        ///< cells touching the surface (this round)
   MatX4i tets, nbrs;                  ///< the final Delaunay cells and their neighbours
+  /// The Delaunay cells with at least three surface vertices (ids, positively oriented),
+  /// each in the list of its smallest surface vertex (index v − nL): every face of three
+  /// surface vertices is a face of one of them. Kept up to date from the Delaunay's changes
+  /// (sync_surface_cells), so a recovery round costs what changed, not a pass over every cell.
+  std::vector<std::vector<std::array<int, 4>>> surface_cells;
   /// Surface facet (sorted surface vertex ids) -> global triangle holding it, −2 if it lies
   /// in the surface across coplanar triangles (in_surface), −1 if it is not on the surface.
   std::unordered_map<TripleKey, int, TripleHash> facet_tri;
-  int cleanup_rounds = 0;  ///< sliver / degenerate-cell deletion passes done
-  int perturb_rounds = 0;  ///< sliver perturbation passes done
+  /// Per surface facet of facet_tri: the number of surface_cells holding it (1 or 2).
+  std::unordered_map<TripleKey, int, TripleHash> facet_cells;
+  std::vector<double> covered;     ///< per global triangle: area (m²) of the facets on it
+  std::vector<char> changed_mark;  ///< per vertex id: scratch of sync_surface_cells
+  /// Per global triangle: a facet on it or one of its sub-triangles changed since the last
+  /// missing_triangles (tri_dirty), and the list of those triangles.
+  std::vector<char> tri_dirty;
+  std::vector<int> dirty_tris;
+  std::vector<int> last_missing;  ///< missing_triangles' last answer
+  int cleanup_rounds = 0;         ///< sliver / degenerate-cell deletion passes done
+  int perturb_rounds = 0;         ///< sliver perturbation passes done
 
   // ---- stage 5: classification ----
   std::vector<char> flat;          ///< per cell: is_flat_surface_cell (belongs to the solid)
@@ -321,15 +334,26 @@ struct RemeshContext {
   void recover_conformity();
   /// Set up the recovery: tri_area, lattice_grid, lattice_removed.
   void prepare_recovery();
-  /// From the cells in `near`: fill facet_tri, and return per global triangle the area (m²)
-  /// of the Delaunay faces lying on it.
-  std::vector<double> collect_surface_facets();
-  /// Triangles neither tiled by faces (area `covered`) nor with every sub-triangle a face.
-  std::vector<int> missing_triangles(const std::vector<double>& covered) const;
+  /// Bring surface_cells, facet_tri, facet_cells and covered up to date: from every cell at
+  /// the first call (`full`), then from the vertices whose stars the Delaunay reports changed
+  /// (Delaunay::take_changed): the cells all of whose vertices changed are dropped and the
+  /// current cells around the changed surface vertices with every vertex changed added.
+  void sync_surface_cells(bool full);
+  /// Add cell c (ids) to surface_cells and its surface facets to facet_tri and covered.
+  void add_surface_cell(const std::array<int, 4>& c);
+  /// Remove cell c's surface facets that no other cell holds (c leaves surface_cells).
+  void remove_surface_facets(const std::array<int, 4>& c);
+  /// Mark the triangles the surface points of facet (a, b, c) lie on dirty.
+  void mark_dirty(int a, int b, int c);
+  /// The surface_cells with four surface vertices (any order).
+  MatX4i all_surface_cells() const;
+  /// Of the dirty triangles and the last missing ones (every triangle if !local_recovery),
+  /// in increasing order, those neither tiled by faces (area covered) nor with every sub-triangle a
+  /// face.
+  std::vector<int> missing_triangles();
   /// Sub-triangles of the `missing` triangles that are not Delaunay faces (facet_tri).
   std::vector<int> unrecovered_subs(const std::vector<int>& missing) const;
-  [[noreturn]] void throw_unrecovered(const std::vector<int>& missing,
-                                      const std::vector<double>& covered, int round) const;
+  [[noreturn]] void throw_unrecovered(const std::vector<int>& missing, int round) const;
   /// Refine the listed sub-triangles (edges split at `at`), delete the lattice points inside
   /// the new sub-triangles' diametral spheres and insert the new surface points.
   void insert_steiner_points(const std::vector<int>& split, double at);

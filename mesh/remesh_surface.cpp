@@ -139,16 +139,11 @@ int RefinedSurface::refine_subs(const std::vector<int>& list, std::vector<int>* 
   return added;
 }
 
-std::vector<std::vector<int>> RefinedSurface::subs_by_triangle() const {
-  std::vector<std::vector<int>> out(m_set.corners.size());
-  for (std::size_t s = 0; s < subs.size(); ++s)
-    if (subs[s].alive) out[subs[s].tri].push_back(static_cast<int>(s));
-  return out;
-}
-
 int RefinedSurface::add_sub(const SubTri& st) {
   const int id = static_cast<int>(subs.size());
   subs.push_back(st);
+  if (static_cast<std::size_t>(st.tri) >= m_by_tri.size()) m_by_tri.resize(st.tri + 1);
+  m_by_tri[st.tri].push_back(id);  // ids grow: the list stays in order
   for (int k = 0; k < 3; ++k) {
     auto& slot =
         m_edges.try_emplace(edge_key(st.v[k], st.v[(k + 1) % 3]), std::array<int, 2>{-1, -1})
@@ -165,6 +160,8 @@ int RefinedSurface::add_sub(const SubTri& st) {
 
 void RefinedSurface::remove_sub(int s) {
   subs[s].alive = false;
+  auto& of = m_by_tri[subs[s].tri];
+  of.erase(std::find(of.begin(), of.end(), s));
   for (int k = 0; k < 3; ++k) {
     auto it = m_edges.find(edge_key(subs[s].v[k], subs[s].v[(k + 1) % 3]));
     for (int& e : it->second)

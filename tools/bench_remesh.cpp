@@ -61,10 +61,11 @@ int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out
              "of radius 0.12 m\n"
              "floor = CGAL Delaunay of the final mesh's vertices, same run, one thread\n\n");
   fmt::print(out,
-             "{:>9} {:>9} {:>10} {:>8} {:>7} {:>9} | {:>6} {:>6} {:>6} {:>6} {:>6} | {:>7} {:>7} "
-             "{:>7} {:>8} {:>8}\n",
+             "{:>9} {:>9} {:>10} {:>8} {:>7} {:>9} | {:>6} {:>6} {:>6} {:>6} {:>6} | {:>6} {:>6} "
+             "{:>6} {:>6} {:>8} {:>4} | {:>7} {:>7} {:>7} {:>8} {:>8}\n",
              "cells", "remesh_s", "delaunay_s", "ratio", "Mcell/s", "steiner", "place", "delny",
-             "recov", "class", "build", "min_dih", "away", "slivers", "df<=0", "df_tiny");
+             "recov", "class", "build", "rounds", "check", "insert", "sliver", "rec_full", "same",
+             "min_dih", "away", "slivers", "df<=0", "df_tiny");
   nlohmann::json cases = nlohmann::json::array();
   for (const auto& sz : sizes) {
     if (sz.target > max_cells) continue;
@@ -80,15 +81,25 @@ int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out
     const MatX4i floor_tets = mesh::delaunay_tets(m.vertices);
     const double delaunay_s = now_seconds() - t1;
     const mesh::QualitySummary q = mesh::summarize_quality(m);
+    // The same remesh with the full recovery (every round re-examines every cell touching a
+    // solid): the reference the local one is measured against; the mesh must be the same.
+    mesh::RemeshOptions full_opt;
+    full_opt.local_recovery = false;
+    mesh::RemeshReport rf;
+    const mesh::TetMesh mf = mesh::remesh(domain, solids, sizing, &rf, full_opt);
+    const bool same = mf.tets == m.tets && mf.vertices == m.vertices;
     const double ratio = remesh_s / delaunay_s;
     fmt::print(
         out,
         "{:>9} {:>9.3f} {:>10.3f} {:>8.2f} {:>7.2f} {:>9} | {:>6.3f} {:>6.3f} {:>6.3f} {:>6.3f} "
-        "{:>6.3f} | {:>7.2f} {:>7.2f} {:>7} {:>8} {:>8}\n",
+        "{:>6.3f} | {:>6} {:>6.3f} {:>6.3f} {:>6.3f} {:>8.3f} {:>4} | {:>7.2f} {:>7.2f} {:>7} "
+        "{:>8} {:>8}\n",
         m.num_tets(), remesh_s, delaunay_s, ratio, 1e-6 * m.num_tets() / remesh_s, r.steiner_points,
         r.seconds_placement, r.seconds_delaunay, r.seconds_recovery, r.seconds_classify,
-        r.seconds_build, q.min_dihedral_deg, q.min_dihedral_away_deg, q.slivers, q.nonpositive_dual,
-        q.tiny_dual);
+        r.seconds_build, fmt::format("{}+{}", r.recovery_rounds, r.cleanup_rounds),
+        r.seconds_recovery_check, r.seconds_recovery_insert, r.seconds_recovery_slivers,
+        rf.seconds_recovery, same ? "yes" : "NO", q.min_dihedral_deg, q.min_dihedral_away_deg,
+        q.slivers, q.nonpositive_dual, q.tiny_dual);
     cases.push_back({{"cells", m.num_tets()},
                      {"floor_cells", floor_tets.rows()},
                      {"remesh_s", remesh_s},
@@ -101,17 +112,26 @@ int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out
                      {"tiny_dual", q.tiny_dual},
                      {"steiner_points", r.steiner_points},
                      {"recovery_rounds", r.recovery_rounds},
+                     {"cleanup_rounds", r.cleanup_rounds},
+                     {"recovery_full_s", rf.seconds_recovery},
+                     {"same_as_full_recovery", same},
                      {"phases",
                       {{"placement", r.seconds_placement},
                        {"delaunay", r.seconds_delaunay},
                        {"recovery", r.seconds_recovery},
+                       {"recovery_check", r.seconds_recovery_check},
+                       {"recovery_insert", r.seconds_recovery_insert},
+                       {"recovery_slivers", r.seconds_recovery_slivers},
                        {"classify", r.seconds_classify},
                        {"build", r.seconds_build}}}});
   }
   fmt::print(
       out,
       "\nphases (s): place = octree + surface refinement + exclusion, delny = the remesher's "
-      "own Delaunay,\nrecov = conformity checks, Steiner points and sliver removal, class = "
+      "own Delaunay,\nrecov = conformity checks, Steiner points and sliver removal (rounds: "
+      "Steiner + sliver\n"
+      "passes; check, insert, sliver: their seconds; rec_full: the recovery re-examining every\n"
+      "cell touching a solid each round, and whether its mesh is the same), class = "
       "flood fill + winding numbers,\nbuild = TetMesh faces/geometry and tags. df<=0 counts "
       "interior faces of co-spherical cells (d_f = 0 up to round-off).\n");
   if (!json_path.empty())

@@ -510,7 +510,7 @@ TEST_SUITE("unit") {
             " straddling faces over 50 remeshes");
   }
 
-  TEST_CASE("remesh: the same input gives the same mesh, bit for bit") {
+  TEST_CASE("remesh: the same input gives the same mesh bit for bit and local recovery = full") {
     // Vertex removal in CGAL used to fill holes in an order hashed by addresses, so meshes
     // whose recovery removed lattice points (diametral spheres, slivers, perturbation) were
     // numbered differently from run to run. Each case is meshed twice in this process; the
@@ -564,7 +564,7 @@ TEST_SUITE("unit") {
       Sizing s;
       s.surface_size = c.surface;
       s.far_size = c.far;
-      RemeshReport r1, r2;
+      RemeshReport r1, r2, r3;
       const TetMesh a = remesh(d, c.solids, s, &r1);
       const TetMesh b = remesh(d, c.solids, s, &r2);
       check_identical(a, b);
@@ -572,6 +572,14 @@ TEST_SUITE("unit") {
       CHECK(r1.sliver_points_removed == r2.sliver_points_removed);
       CHECK(r1.sliver_points_moved == r2.sliver_points_moved);
       CHECK(r1.recovery_rounds == r2.recovery_rounds);
+      // The local recovery (each round re-examines what the last one changed) gives the mesh
+      // the full one (every cell touching a solid, every round) gives.
+      RemeshOptions full;
+      full.local_recovery = false;
+      const TetMesh e = remesh(d, c.solids, s, &r3, full);
+      check_identical(a, e);
+      CHECK(r1.recovery_rounds == r3.recovery_rounds);
+      CHECK(r1.cleanup_rounds == r3.cleanup_rounds);
       removed += r1.sliver_points_removed;
       moved += r1.sliver_points_moved;
       rounds += r1.recovery_rounds;
