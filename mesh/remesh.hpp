@@ -76,13 +76,13 @@ struct Sizing {
   /// Cell budget: if > 0 and the placement would exceed it, all sizes are scaled up so the
   /// mesh stays within the budget (logged).
   Index max_cells = 0;
+  /// Each conformity recovery round re-examines only the cells the last round changed
+  /// (true), or every cell touching a solid (false: the reference; the same mesh, slower).
+  bool local_recovery = true;
 };
 
 struct RemeshOptions {
   int max_recovery_rounds = 30;  ///< rounds of Steiner insertion before giving up
-  /// Each recovery round re-examines only the cells the last round changed (true), or every
-  /// cell touching a solid (false: the reference; the same mesh, slower).
-  bool local_recovery = true;
 };
 
 struct RemeshReport {

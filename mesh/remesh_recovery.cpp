@@ -149,7 +149,7 @@ void RemeshContext::recover_conformity() {
   prepare_recovery();
   for (int round = 0;; ++round) {
     double t0 = now_seconds();
-    sync_surface_cells(round == 0 || !options.local_recovery);
+    sync_surface_cells(round == 0 || !sizing.local_recovery);
     const std::vector<int> missing = missing_triangles();
     std::vector<int> split;
     if (missing.empty()) {
@@ -318,7 +318,7 @@ MatX4i RemeshContext::all_surface_cells() const {
 // comes from flat cells on the surface (both diagonals), which classification handles.
 std::vector<int> RemeshContext::missing_triangles() {
   std::vector<int> check;
-  if (options.local_recovery) {
+  if (sizing.local_recovery) {
     check = dirty_tris;
     check.insert(check.end(), last_missing.begin(), last_missing.end());
     std::sort(check.begin(), check.end());

@@ -83,10 +83,10 @@ int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out
     const mesh::QualitySummary q = mesh::summarize_quality(m);
     // The same remesh with the full recovery (every round re-examines every cell touching a
     // solid): the reference the local one is measured against; the mesh must be the same.
-    mesh::RemeshOptions full_opt;
-    full_opt.local_recovery = false;
+    mesh::Sizing full = sizing;
+    full.local_recovery = false;
     mesh::RemeshReport rf;
-    const mesh::TetMesh mf = mesh::remesh(domain, solids, sizing, &rf, full_opt);
+    const mesh::TetMesh mf = mesh::remesh(domain, solids, full, &rf);
     const bool same = mf.tets == m.tets && mf.vertices == m.vertices;
     const double ratio = remesh_s / delaunay_s;
     fmt::print(

@@ -1133,7 +1133,13 @@ const Section<mesh::Sizing>& fluid_mesh_keys() {
                 .doc = "> 0: all sizes scaled up to stay within this many cells",
                 .range = k_non_negative,
                 .note = "0: no budget"},
-               TETFSI_AT(max_cells))}};
+               TETFSI_AT(max_cells)),
+       bind<Z>({.key = "local_recovery",
+                .type = KeyType::Boolean,
+                .doc = "each conformity recovery round re-examines only what the last one "
+                       "changed; false: every cell at the solids (the same mesh, slower: a "
+                       "cross-check)"},
+               TETFSI_AT(local_recovery))}};
   return s;
 }
 

@@ -574,9 +574,9 @@ TEST_SUITE("unit") {
       CHECK(r1.recovery_rounds == r2.recovery_rounds);
       // The local recovery (each round re-examines what the last one changed) gives the mesh
       // the full one (every cell touching a solid, every round) gives.
-      RemeshOptions full;
+      Sizing full = s;
       full.local_recovery = false;
-      const TetMesh e = remesh(d, c.solids, s, &r3, full);
+      const TetMesh e = remesh(d, c.solids, full, &r3);
       check_identical(a, e);
       CHECK(r1.recovery_rounds == r3.recovery_rounds);
       CHECK(r1.cleanup_rounds == r3.cleanup_rounds);
