@@ -114,15 +114,20 @@ VolumeMesh tetrahedralize_surface(const SurfaceMesh& surface, const Tetrahedrali
                           P::facet_size = size, P::facet_distance = distance,
                           P::cell_radius_edge_ratio = params.cell_radius_edge, P::cell_size = size);
   C3t3 c3t3;
+  // The sliver perturbation and exudation get no time limit: by default CGAL stops each
+  // after as many seconds as the refinement took, so a busier machine gave another mesh
+  // (the bunny: 5708 or 5710 tets from one binary). Without it, the same input gives the
+  // same mesh in every run (tested).
+  const auto perturb = P::perturb(P::time_limit = 0);
   try {
     if (params.lloyd && params.exude) {
-      c3t3 = run_mesher(domain, criteria, P::lloyd(), P::exude());
+      c3t3 = run_mesher(domain, criteria, P::lloyd(), perturb, P::exude(P::time_limit = 0));
     } else if (params.lloyd) {
-      c3t3 = run_mesher(domain, criteria, P::lloyd(), P::no_exude());
+      c3t3 = run_mesher(domain, criteria, P::lloyd(), perturb, P::no_exude());
     } else if (params.exude) {
-      c3t3 = run_mesher(domain, criteria, P::no_lloyd(), P::exude());
+      c3t3 = run_mesher(domain, criteria, P::no_lloyd(), perturb, P::exude(P::time_limit = 0));
     } else {
-      c3t3 = run_mesher(domain, criteria, P::no_lloyd(), P::no_exude());
+      c3t3 = run_mesher(domain, criteria, P::no_lloyd(), perturb, P::no_exude());
     }
   } catch (const CGAL::Failure_exception& e) {
     throw MeshError(
