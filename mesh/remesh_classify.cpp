@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "mesh/remesh_stages.hpp"
 
 namespace tetfsi::mesh::detail {
@@ -25,8 +26,9 @@ void RemeshContext::classify_cells() {
   // Flat cells on a surface (is_flat_surface_cell) belong to the solid: the fluid meets the
   // surface through their other two faces, which cover the same quad.
   flat.assign(nT, 0);
-  for (Index t = 0; t < nT; ++t)
+  parallel_for_each(nT, 16384, [&](Index t) {
     flat[t] = is_flat_surface_cell(tets(t, 0), tets(t, 1), tets(t, 2), tets(t, 3));
+  });
   for (Index seed = 0; seed < nT; ++seed) {
     if (region[seed] >= 0) continue;
     const int r = static_cast<int>(region_fluid.size());

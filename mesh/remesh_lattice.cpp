@@ -8,6 +8,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/parallel.hpp"
 #include "mesh/remesh_stages.hpp"
 
 namespace tetfsi::mesh::detail {
@@ -362,24 +363,25 @@ std::vector<char> exclude_near_surface(const Lattice& lat, const RefinedSurface&
     const Vec3 pp = Vec3::Constant(protect);
     grid.add_box(lo.cwiseMin(cs[s] - rr) - pp, hi.cwiseMax(cs[s] + rr) + pp, static_cast<int>(s));
   }
-  for (std::size_t p = 0; p < lat.points.size(); ++p) {
+  // Each point decides its own flag: in parallel, the same flags at any thread count.
+  parallel_for_each(static_cast<Index>(lat.points.size()), 4096, [&](Index p) {
     const Vec3& x = lat.points[p];
     const auto* items = grid.at(x);
-    if (!items) continue;
+    if (!items) return;
     const double prot = std::min(protect, kProtection * lat.size[p]);
     for (int s : *items) {
       if ((x - cs[s]).squaredNorm() <= r2s[s] * (1.0 + 1e-9)) {
         keep[p] = 0;
-        break;
+        return;
       }
       const SubTri& st = surf.subs[s];
       if ((closest_on_triangle(x, surf.x(st.v[0]), surf.x(st.v[1]), surf.x(st.v[2])) - x)
               .squaredNorm() < prot * prot) {
         keep[p] = 0;
-        break;
+        return;
       }
     }
-  }
+  });
   return keep;
 }
 

@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "core/timer.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/remesh_stages.hpp"
@@ -36,6 +37,22 @@ constexpr int kDegenerateRounds = 6;
 constexpr double kFlat = 1e-9;
 /// Where the shared edge under a flat cell straddling two triangles is split.
 constexpr double kStraddleSplitAt = 0.45;
+
+/// The rows t of T (in increasing order) for which keep(t): the cells are screened in
+/// parallel chunks, whose lists are joined in chunk order (the same at any thread count).
+template <class Pred>
+std::vector<Index> filter_cells(const MatX4i& T, Pred&& keep) {
+  constexpr Index kGrain = 16384;
+  std::vector<std::vector<Index>> parts(static_cast<std::size_t>(num_chunks(T.rows(), kGrain)));
+  parallel_for_chunks(T.rows(), kGrain, [&](Index begin, Index end) {
+    auto& part = parts[static_cast<std::size_t>(begin / kGrain)];
+    for (Index t = begin; t < end; ++t)
+      if (keep(t)) part.push_back(t);
+  });
+  std::vector<Index> out;
+  for (const auto& part : parts) out.insert(out.end(), part.begin(), part.end());
+  return out;
+}
 
 }  // namespace
 
@@ -519,17 +536,13 @@ bool RemeshContext::clean_up_slivers() {
 }
 
 std::vector<int> RemeshContext::sliver_vertices(const MatX4i& T, bool degenerate_only) const {
-  std::vector<Index> cand;
-  std::vector<char> degenerate;
-  for (Index t = 0; t < T.rows(); ++t) {
+  const std::vector<Index> cand = filter_cells(T, [&](Index t) {
     bool lattice = false;
     for (int k = 0; k < 4; ++k) lattice |= T(t, k) < nL;
-    if (!lattice || !maybe_flat(T, t, 0.3)) continue;
-    const bool d = is_degenerate(T, t);
-    if (degenerate_only && !d) continue;
-    cand.push_back(t);
-    degenerate.push_back(d);
-  }
+    return lattice && maybe_flat(T, t, 0.3) && (!degenerate_only || is_degenerate(T, t));
+  });
+  std::vector<char> degenerate(cand.size());
+  for (std::size_t i = 0; i < cand.size(); ++i) degenerate[i] = is_degenerate(T, cand[i]);
   MatX4i sub(static_cast<Index>(cand.size()), 4);
   for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
   MatX3 P(static_cast<Index>(pts.size()), 3);
@@ -574,12 +587,12 @@ int RemeshContext::perturb_away_slivers(const MatX4i& T) {
 
 std::vector<int> RemeshContext::away_sliver_targets(const MatX4i& T, MatX3& P) const {
   std::vector<int> targets;
-  std::vector<Index> cand;  // cells with no solid vertex that may have a small angle
-  for (Index t = 0; t < T.rows(); ++t) {
+  // Cells with no solid vertex that may have a small angle.
+  const std::vector<Index> cand = filter_cells(T, [&](Index t) {
     bool surface = false;
     for (int k = 0; k < 4; ++k) surface |= T(t, k) >= nL;
-    if (!surface && maybe_flat(T, t, 0.5)) cand.push_back(t);
-  }
+    return !surface && maybe_flat(T, t, 0.5);
+  });
   for (std::size_t v = 0; v < pts.size(); ++v) P.row(v) = pts[v].transpose();
   MatX4i sub(static_cast<Index>(cand.size()), 4);
   for (std::size_t i = 0; i < cand.size(); ++i) sub.row(i) = T.row(cand[i]);
