@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "core/error.hpp"
+#include "core/log.hpp"
 #include "core/timer.hpp"
 #include "mesh/delaunay.hpp"
 #include "mesh/remesh_stages.hpp"
@@ -201,6 +202,14 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   TetMesh m = ctx.build_fluid_mesh();
   report.seconds_build = now_seconds() - t0;
   report.seconds_total = now_seconds() - t_start;
+  logger().debug(
+      "remesh: {} cells in {:.3f} s: placement {:.3f}, Delaunay {:.3f}, recovery {:.3f} ({} + "
+      "{} rounds: checks {:.3f}, Steiner points {:.3f}, slivers {:.3f}), classification "
+      "{:.3f}, TetMesh {:.3f}",
+      m.num_tets(), report.seconds_total, report.seconds_placement, report.seconds_delaunay,
+      report.seconds_recovery, report.recovery_rounds, report.cleanup_rounds,
+      report.seconds_recovery_check, report.seconds_recovery_insert,
+      report.seconds_recovery_slivers, report.seconds_classify, report.seconds_build);
   if (report_out) *report_out = report;
   return m;
 }
