@@ -80,9 +80,11 @@ void RemeshContext::collect_fluid_cells() {
   Index nF = 0;
   for (Index t = 0; t < nT; ++t) nF += region_fluid[region[t]];
   ftets.resize(nF, 4);
+  std::vector<Index> row_of(static_cast<std::size_t>(nT), -1);
   Index row = 0;
   for (Index t = 0; t < nT; ++t) {
     if (!region_fluid[region[t]]) continue;
+    row_of[static_cast<std::size_t>(t)] = row;
     for (int k = 0; k < 4; ++k) {
       int& id = new_id[tets(t, k)];
       if (id < 0) {
@@ -92,6 +94,13 @@ void RemeshContext::collect_fluid_cells() {
       ftets(row, k) = id;
     }
     ++row;
+  }
+  fnbrs.resize(nF, 4);
+  for (Index t = 0; t < nT; ++t) {
+    const Index r = row_of[static_cast<std::size_t>(t)];
+    if (r < 0) continue;
+    for (int k = 0; k < 4; ++k)
+      fnbrs(r, k) = nbrs(t, k) < 0 ? -1 : row_of[static_cast<std::size_t>(nbrs(t, k))];
   }
   report.cells_removed = nT - nF;
   TETFSI_REQUIRE(MeshError, nF > 0, "remesh: no fluid cell is left: the solids fill the domain");
@@ -143,7 +152,7 @@ void RemeshContext::check_fluid_volume() const {
 TetMesh RemeshContext::build_fluid_mesh() {
   MatX3 verts(old_id.size(), 3);
   for (std::size_t v = 0; v < old_id.size(); ++v) verts.row(v) = pts[old_id[v]].transpose();
-  TetMesh m = build_tet_mesh(std::move(verts), std::move(ftets));
+  TetMesh m = build_tet_mesh(std::move(verts), std::move(ftets), fnbrs);
   for (std::size_t v = 0; v < old_id.size(); ++v) {
     const int o = old_id[v];
     if (o < nL) continue;

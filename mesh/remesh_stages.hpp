@@ -299,6 +299,7 @@ struct RemeshContext {
   std::vector<char> region_fluid;  ///< per region: 1 = fluid
   std::vector<int> old_id;         ///< per fluid mesh vertex: its id in pts
   MatX4i ftets;                    ///< fluid cells in fluid mesh vertex ids
+  MatX4i fnbrs;                    ///< their neighbours as fluid cell rows (−1: none / solid)
 
   RemeshReport report;
 
@@ -408,8 +409,8 @@ struct RemeshContext {
   bool is_barrier(Index t, int k) const;
   /// Whether the region seeded at cell `seed` is fluid (0 for a flat cell).
   bool region_is_fluid(Index seed);
-  /// The fluid cells with their vertices renumbered compactly. Writes ftets, old_id,
-  /// report.cells_removed. @throws MeshError if none is left.
+  /// The fluid cells with their vertices renumbered compactly, and their neighbours. Writes
+  /// ftets, fnbrs, old_id, report.cells_removed. @throws MeshError if none is left.
   void collect_fluid_cells();
   /// Safety net: no fluid cell is degenerate and the fluid volume is box − solids.
   /// @throws MeshError otherwise.

@@ -108,7 +108,11 @@ Vec3 circumcentre(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   return a + (u.squaredNorm() * vw + v.squaredNorm() * wu + w.squaredNorm() * uv) / det2;
 }
 
-TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets) {
+namespace {
+
+/// The start of build_tet_mesh: the arrays moved in, indices in range and every tet
+/// positively oriented (everything after relies on both).
+TetMesh start_tet_mesh(MatX3 vertices, MatX4i tets) {
   TetMesh m;
   m.vertices = std::move(vertices);
   m.tets = std::move(tets);
@@ -138,6 +142,51 @@ TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets) {
                    t, r(0), r(1), r(2), r(3), vol6 / 6.0);
   }
 
+  return m;
+}
+
+/// The end of build_tet_mesh, once tet_faces, tet_face_signs and neighbours are set for nf
+/// faces: the face arrays (a face's stored order is its first tet's outward order), the
+/// default tags and the geometry.
+void finish_tet_mesh(TetMesh& m, int nf) {
+  const Index nv = m.num_vertices();
+  const Index nt = m.num_tets();
+  m.faces.resize(nf, 3);
+  m.face_tets.resize(nf, 2);
+  for (Index t = 0; t < nt; ++t) {
+    for (int k = 0; k < 4; ++k) {
+      const Index f = m.tet_faces(t, k);
+      if (m.tet_face_signs(t, k) > 0) {
+        m.faces.row(f) << m.tets(t, kOutwardFace[k][0]), m.tets(t, kOutwardFace[k][1]),
+            m.tets(t, kOutwardFace[k][2]);
+        m.face_tets.row(f) << t, m.neighbours(t, k);
+      }
+    }
+  }
+
+  // Tags and provenance: everything on the boundary is a wall until the remesher says more.
+  m.face_kind.resize(static_cast<std::size_t>(nf));
+  for (Index f = 0; f < nf; ++f) {
+    m.face_kind[static_cast<std::size_t>(f)] =
+        m.face_tets(f, 1) < 0 ? FaceKind::Wall : FaceKind::Interior;
+  }
+  m.face_patch.setConstant(nf, -1);
+  m.face_body.setConstant(nf, -1);
+  m.face_triangle.setConstant(nf, -1);
+  m.face_bary.setZero(nf, 3);
+  m.vertex_body.setConstant(nv, -1);
+  m.vertex_triangle.setConstant(nv, -1);
+  m.vertex_bary.setZero(nv, 3);
+
+  update_geometry(m);
+  logger().debug("build_tet_mesh: {} vertices, {} tets, {} faces", nv, nt, nf);
+}
+
+}  // namespace
+
+TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets) {
+  TetMesh m = start_tet_mesh(std::move(vertices), std::move(tets));
+  const Index nt = m.num_tets();
   // Unique faces in order of first appearance (tets in increasing index), so t1 < t2 and the
   // stored order is t1's outward order: n_f points out of t1 into t2, and outward on the
   // boundary. Pass 1 numbers the faces and links neighbours; pass 2 writes the face arrays.
@@ -190,35 +239,61 @@ TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets) {
       m.neighbours(t1, k1) = t;
     }
   }
-  m.faces.resize(nf, 3);
-  m.face_tets.resize(nf, 2);
+  finish_tet_mesh(m, nf);
+  return m;
+}
+
+TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets, const MatX4i& neighbours) {
+  TetMesh m = start_tet_mesh(std::move(vertices), std::move(tets));
+  const Index nt = m.num_tets();
+  TETFSI_REQUIRE(MeshError, neighbours.rows() == nt,
+                 "build_tet_mesh: {} neighbour rows for {} tets", neighbours.rows(), nt);
+  // The faces numbered as the hash version numbers them: at (t, k) in increasing order, a
+  // face is new unless its other tet u < t brought it.
+  m.tet_faces.setConstant(nt, 4, -1);
+  m.tet_face_signs.resize(nt, 4);
+  m.neighbours = neighbours;
+  int nf = 0;
   for (Index t = 0; t < nt; ++t) {
     for (int k = 0; k < 4; ++k) {
-      const Index f = m.tet_faces(t, k);
-      if (m.tet_face_signs(t, k) > 0) {
-        m.faces.row(f) << m.tets(t, kOutwardFace[k][0]), m.tets(t, kOutwardFace[k][1]),
-            m.tets(t, kOutwardFace[k][2]);
-        m.face_tets.row(f) << t, m.neighbours(t, k);
+      const Index u = neighbours(t, k);
+      TETFSI_REQUIRE(MeshError, u >= -1 && u < nt && u != t,
+                     "build_tet_mesh: tet {} has neighbour {} across face {} ({} tets)", t, u, k,
+                     nt);
+      if (u >= 0 && u < t) {
+        TETFSI_REQUIRE(MeshError, m.tet_faces(t, k) >= 0,
+                       "build_tet_mesh: tet {} names tet {} across face {}, which does not name "
+                       "it back",
+                       t, u, k);
+        continue;
       }
+      m.tet_faces(t, k) = nf;
+      m.tet_face_signs(t, k) = 1;
+      if (u >= 0) {
+        int j = 0;
+        while (j < 4 && neighbours(u, j) != t) ++j;
+        TETFSI_REQUIRE(MeshError, j < 4,
+                       "build_tet_mesh: tet {} names tet {} across face {}, which does not name "
+                       "it back",
+                       t, u, k);
+        // The face's three vertices are u's but its vertex j (a face shared, not a guess).
+        bool shared = true;
+        for (int i = 0; i < 3; ++i) {
+          const int v = m.tets(t, kOutwardFace[k][i]);
+          shared &= v != m.tets(u, j) && (m.tets(u, 0) == v || m.tets(u, 1) == v ||
+                                          m.tets(u, 2) == v || m.tets(u, 3) == v);
+        }
+        TETFSI_REQUIRE(MeshError, shared,
+                       "build_tet_mesh: tets {} and {} are named neighbours but do not share "
+                       "face {} of tet {}",
+                       t, u, k, t);
+        m.tet_faces(u, j) = nf;
+        m.tet_face_signs(u, j) = -1;
+      }
+      ++nf;
     }
   }
-
-  // Tags and provenance: everything on the boundary is a wall until the remesher says more.
-  m.face_kind.resize(static_cast<std::size_t>(nf));
-  for (Index f = 0; f < nf; ++f) {
-    m.face_kind[static_cast<std::size_t>(f)] =
-        m.face_tets(f, 1) < 0 ? FaceKind::Wall : FaceKind::Interior;
-  }
-  m.face_patch.setConstant(nf, -1);
-  m.face_body.setConstant(nf, -1);
-  m.face_triangle.setConstant(nf, -1);
-  m.face_bary.setZero(nf, 3);
-  m.vertex_body.setConstant(nv, -1);
-  m.vertex_triangle.setConstant(nv, -1);
-  m.vertex_bary.setZero(nv, 3);
-
-  update_geometry(m);
-  logger().debug("build_tet_mesh: {} vertices, {} tets, {} faces", nv, nt, nf);
+  finish_tet_mesh(m, nf);
   return m;
 }
 

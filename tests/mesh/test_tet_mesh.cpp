@@ -383,6 +383,56 @@ TEST_SUITE("unit") {
     CHECK(total_volume(m) == 0.0);
   }
 
+  TEST_CASE("build_tet_mesh with the neighbours given is the hashed build, face numbers too") {
+    auto meshes = test_meshes();
+    // Vertices and tets shuffled, so that faces do not come in lattice order.
+    VolumeMesh j = jittered_box(Vec3(0, 0, 0), Vec3(1, 1, 1), Vec3i(5, 4, 6), 0.1, 3);
+    std::vector<Index> order(static_cast<std::size_t>(j.num_tets()));
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<Index>(i);
+    std::shuffle(order.begin(), order.end(), std::mt19937(11));
+    MatX4i shuffled(j.num_tets(), 4);
+    for (Index t = 0; t < j.num_tets(); ++t) shuffled.row(t) = j.tets.row(order[t]);
+    meshes.emplace_back("shuffled jittered box", build_tet_mesh(j.vertices, shuffled));
+    for (const auto& [name, a] : meshes) {
+      CAPTURE(name);
+      const TetMesh b = build_tet_mesh(a.vertices, a.tets, a.neighbours);
+      CHECK(b.tet_faces == a.tet_faces);
+      CHECK(b.tet_face_signs == a.tet_face_signs);
+      CHECK(b.neighbours == a.neighbours);
+      CHECK(b.faces == a.faces);
+      CHECK(b.face_tets == a.face_tets);
+      CHECK(b.face_kind == a.face_kind);
+      CHECK(b.dual_lengths == a.dual_lengths);
+      CHECK(b.face_normals == a.face_normals);
+    }
+    // Neighbours that do not describe the tets are errors naming them.
+    MatX3 x(5, 3);
+    x << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1;
+    MatX4i t(2, 4);
+    t << 0, 1, 2, 3, 0, 2, 1, 4;  // they share face (0 1 2), opposite vertex 3 and vertex 4
+    MatX4i nb = MatX4i::Constant(2, 4, -1);
+    nb(0, 3) = 1;
+    nb(1, 3) = 0;
+    CHECK_NOTHROW(build_tet_mesh(x, t, nb));
+    MatX4i one_way = nb;
+    one_way(1, 3) = -1;
+    CHECK(message_of<MeshError>([&] {
+            build_tet_mesh(x, t, one_way);
+          }).find("tet 0 names tet 1 across face 3, which does not name it back") !=
+          std::string::npos);
+    MatX4i wrong_face = MatX4i::Constant(2, 4, -1);
+    wrong_face(0, 0) = 1;
+    wrong_face(1, 0) = 0;
+    CHECK(message_of<MeshError>([&] {
+            build_tet_mesh(x, t, wrong_face);
+          }).find("do not share face 0 of tet 0") != std::string::npos);
+    MatX4i out_of_range = nb;
+    out_of_range(0, 1) = 7;
+    CHECK(message_of<MeshError>([&] {
+            build_tet_mesh(x, t, out_of_range);
+          }).find("tet 0 has neighbour 7 across face 1") != std::string::npos);
+  }
+
   TEST_CASE("build_tet_mesh: bad meshes are MeshErrors naming the culprit") {
     MatX3 x(6, 3);
     x << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0.2, 0.2, 1.5;
