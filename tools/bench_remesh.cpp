@@ -2,6 +2,7 @@
 /// `tetfsi bench remesh` (bench_remesh.hpp).
 #include "tools/bench_remesh.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <ostream>
 #include <vector>
@@ -46,7 +47,7 @@ std::vector<mesh::SolidSurface> bench_remesh_solids() {
   return out;
 }
 
-int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out) {
+int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out, int repeat) {
   mesh::FluidDomain domain;
   domain.lo = Vec3::Zero();
   domain.hi = Vec3::Ones();
@@ -59,7 +60,9 @@ int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out
   fmt::print(out,
              "tetfsi bench remesh: unit box around a tilted 0.6 x 0.6 x 0.01 m sheet and a sphere "
              "of radius 0.12 m\n"
-             "floor = CGAL Delaunay of the final mesh's vertices, same run, one thread\n\n");
+             "floor = CGAL Delaunay of the final mesh's vertices, same run, one thread; the "
+             "fastest of {} run{} of each\n\n",
+             repeat, repeat == 1 ? "" : "s");
   fmt::print(out,
              "{:>9} {:>9} {:>10} {:>8} {:>7} {:>9} | {:>6} {:>6} {:>6} {:>6} {:>6} | {:>6} {:>6} "
              "{:>6} {:>6} {:>8} {:>4} | {:>7} {:>7} {:>7} {:>8} {:>8}\n",
@@ -74,12 +77,19 @@ int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out
     sizing.far_size = 4.0 * sz.surface;
     sizing.grading = 0.5;
     mesh::RemeshReport r;
-    const double t0 = now_seconds();
-    const mesh::TetMesh m = mesh::remesh(domain, solids, sizing, &r);
-    const double remesh_s = now_seconds() - t0;
-    const double t1 = now_seconds();
-    const MatX4i floor_tets = mesh::delaunay_tets(m.vertices);
-    const double delaunay_s = now_seconds() - t1;
+    mesh::TetMesh m;
+    MatX4i floor_tets;
+    double remesh_s = HUGE_VAL, delaunay_s = HUGE_VAL;
+    for (int rep = 0; rep < repeat; ++rep) {  // the fastest of each
+      mesh::RemeshReport ri;
+      const double t0 = now_seconds();
+      mesh::TetMesh mi = mesh::remesh(domain, solids, sizing, &ri);
+      const double s = now_seconds() - t0;
+      if (s < remesh_s) remesh_s = s, r = ri, m = std::move(mi);
+      const double t1 = now_seconds();
+      floor_tets = mesh::delaunay_tets(m.vertices);
+      delaunay_s = std::min(delaunay_s, now_seconds() - t1);
+    }
     const mesh::QualitySummary q = mesh::summarize_quality(m);
     // The same remesh with the full recovery (every round re-examines every cell touching a
     // solid): the reference the local one is measured against; the mesh must be the same.

@@ -24,7 +24,10 @@ std::vector<mesh::SolidSurface> bench_remesh_solids();
 ///   "ratio", "min_dihedral_deg", "min_dihedral_away_deg", "slivers", "nonpositive_dual",
 ///   "tiny_dual", "steiner_points", "recovery_rounds", "phases": {...}}]}` (atomically)
 /// @param max_cells skip cases whose target exceeds this (for quick runs)
+/// @param repeat time each remesh and each floor this many times; the fastest of each (and
+///   that remesh's phases) are reported
 /// @return 0
-int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out);
+int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out,
+                 int repeat = 1);
 
 }  // namespace tetfsi::tools

@@ -9,7 +9,7 @@
 ///   tetfsi checkpoint FILE
 ///   tetfsi validate SCENE [--set key.path=value ...]
 ///   tetfsi bench solvers [--n N] [--json FILE] [--backends a,b]
-///   tetfsi bench remesh [--json FILE] [--max-cells N]
+///   tetfsi bench remesh [--json FILE] [--max-cells N] [--repeat N]
 ///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
 ///   tetfsi bench threads SCENE [--steps N] [--threads-list 1,2] [--json FILE] [--set k=v ...]
 ///   tetfsi bench coupled SCENE [--json FILE] [--time T] [--steps-down N] [--set k=v ...]
@@ -368,6 +368,7 @@ Command add_bench_remesh(CLI::App& bench) {
   struct Opt {
     std::string json;
     long max_cells = 1000000;
+    int repeat = 1;
   };
   auto o = std::make_shared<Opt>();
   CLI::App* cmd = bench.add_subcommand(
@@ -377,7 +378,14 @@ Command add_bench_remesh(CLI::App& bench) {
       ->type_name("N")
       ->check(at_least_one())
       ->capture_default_str();
-  return {cmd, [o] { return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout); }};
+  cmd->add_option("--repeat", o->repeat,
+                  "time each remesh and each floor this many times and keep the fastest of each")
+      ->type_name("N")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  return {cmd, [o] {
+            return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout, o->repeat);
+          }};
 }
 
 /// A scene benchmark's SCENE (described by `scene_help`), `--json FILE` and `--steps N` (≥ 2,
