@@ -27,7 +27,6 @@ std::vector<mesh::SolidSurface> bench_remesh_solids();
 /// @param repeat time each remesh and each floor this many times; the fastest of each (and
 ///   that remesh's phases) are reported
 /// @return 0
-int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out,
-                 int repeat = 1);
+int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out, int repeat = 1);
 
 }  // namespace tetfsi::tools

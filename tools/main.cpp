@@ -383,9 +383,8 @@ Command add_bench_remesh(CLI::App& bench) {
       ->type_name("N")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
-  return {cmd, [o] {
-            return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout, o->repeat);
-          }};
+  return {cmd,
+          [o] { return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout, o->repeat); }};
 }
 
 /// A scene benchmark's SCENE (described by `scene_help`), `--json FILE` and `--steps N` (≥ 2,
