@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <numeric>
+#include <unordered_set>
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -223,6 +224,25 @@ void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
   tets.resize(static_cast<Index>(keyed.size()), 4);
   for (std::size_t t = 0; t < keyed.size(); ++t)
     for (int k = 0; k < 4; ++k) tets(static_cast<Index>(t), k) = keyed[t].second->vertex(k)->info();
+}
+
+void Delaunay::cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) const {
+  const Impl& d = *m_impl;
+  std::vector<DT::Cell_handle> star;
+  std::unordered_set<const void*> seen;  // membership only: the output is in walk order
+  std::vector<int> out;
+  for (int id : ids) {
+    if (id < 0 || static_cast<std::size_t>(id) >= d.handles.size() ||
+        d.handles[id] == DT::Vertex_handle())
+      continue;
+    star.clear();
+    d.dt.finite_incident_cells(d.handles[id], std::back_inserter(star));
+    for (const DT::Cell_handle& c : star) {
+      if (!seen.insert(&*c).second) continue;
+      for (int k = 0; k < 4; ++k) out.push_back(c->vertex(k)->info());
+    }
+  }
+  tets = Eigen::Map<MatX4i>(out.data(), static_cast<Index>(out.size() / 4), 4);
 }
 
 void Delaunay::cells_touching(int min_id, MatX4i& tets) const {

@@ -51,6 +51,10 @@ class Delaunay {
   /// ids are skipped).
   void cells_around(const std::vector<int>& ids, MatX4i& tets) const;
 
+  /// As cells_around, in the order the stars are walked (deterministic, without the sort by
+  /// vertex ids): cheaper when the caller does not depend on the order.
+  void cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) const;
+
   /// The finite cells (as ids, positively oriented) with at least one vertex of id ≥ min_id,
   /// each once: every face whose three vertices have such ids is a face of one of them.
   /// Cheaper than `extract` (one pass, no neighbours) when few ids are that large.

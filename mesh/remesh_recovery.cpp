@@ -272,7 +272,7 @@ void RemeshContext::sync_surface_cells(bool full) {
     }
   }
   MatX4i cells;
-  dt.cells_around(around, cells);
+  dt.cells_around_unsorted(around, cells);  // the order does not matter here
   for (Index t = 0; t < cells.rows(); ++t) {
     const std::array<int, 4> c = {cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)};
     if (all_changed(c)) add_surface_cell(c);
