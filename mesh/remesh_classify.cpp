@@ -53,7 +53,7 @@ bool RemeshContext::is_barrier(Index t, int k) const {
   if (a < nL || b < nL || c < nL) return false;
   if (flat[t] || (nbrs(t, k) >= 0 && flat[nbrs(t, k)])) return true;
   auto it = facet_tri.find(sorted_key(a, b, c));
-  return it != facet_tri.end() && it->second != -1;
+  return it != facet_tri.end() && it->second.tri != -1;
 }
 
 bool RemeshContext::region_is_fluid(Index seed) {

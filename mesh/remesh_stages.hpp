@@ -64,6 +64,7 @@ inline TripleKey sorted_key(int a, int b, int c) {
 struct TripleHash {
   std::size_t operator()(const TripleKey& k) const { return hash_triple(k.a, k.b, k.c); }
 };
+
 /// Uniform hash grid of integer items registered by boxes.
 class HashGrid {
  public:
@@ -278,11 +279,15 @@ struct RemeshContext {
   /// surface vertices is a face of one of them. Kept up to date from the Delaunay's changes
   /// (sync_surface_cells), so a recovery round costs what changed, not a pass over every cell.
   std::vector<std::vector<std::array<int, 4>>> surface_cells;
-  /// Surface facet (sorted surface vertex ids) -> global triangle holding it, −2 if it lies
-  /// in the surface across coplanar triangles (in_surface), −1 if it is not on the surface.
-  std::unordered_map<TripleKey, int, TripleHash> facet_tri;
-  /// Per surface facet of facet_tri: the number of surface_cells holding it (1 or 2).
-  std::unordered_map<TripleKey, int, TripleHash> facet_cells;
+  /// A surface facet of the Delaunay: the global triangle holding it, −2 if it lies in the
+  /// surface across coplanar triangles (in_surface), −1 if it is not on the surface; and the
+  /// number of surface_cells holding it (1 or 2).
+  struct SurfaceFacet {
+    int tri = -1;
+    int cells = 0;
+  };
+  /// Surface facet (sorted surface vertex ids) -> its SurfaceFacet.
+  std::unordered_map<TripleKey, SurfaceFacet, TripleHash> facet_tri;
   std::vector<double> covered;     ///< per global triangle: area (m²) of the facets on it
   std::vector<char> changed_mark;  ///< per vertex id: scratch of sync_surface_cells
   /// Per global triangle: a facet on it or one of its sub-triangles changed since the last
@@ -335,7 +340,7 @@ struct RemeshContext {
   void recover_conformity();
   /// Set up the recovery: tri_area, lattice_grid, lattice_removed.
   void prepare_recovery();
-  /// Bring surface_cells, facet_tri, facet_cells and covered up to date: from every cell at
+  /// Bring surface_cells, facet_tri and covered up to date: from every cell at
   /// the first call (`full`), then from the vertices whose stars the Delaunay reports changed
   /// (Delaunay::take_changed): the cells all of whose vertices changed are dropped and the
   /// current cells around the changed surface vertices with every vertex changed added.
@@ -346,6 +351,8 @@ struct RemeshContext {
   void remove_surface_facets(const std::array<int, 4>& c);
   /// Mark the triangles the surface points of facet (a, b, c) lie on dirty.
   void mark_dirty(int a, int b, int c);
+  /// Mark global triangle g dirty (tri_dirty, dirty_tris), once.
+  void mark_triangle_dirty(int g);
   /// The surface_cells with four surface vertices (any order).
   MatX4i all_surface_cells() const;
   /// Of the dirty triangles and the last missing ones (every triangle if !local_recovery),
