@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -84,6 +85,13 @@ inline std::map<std::string, std::vector<double>> read_csv_columns(const std::fi
     for (size_t k = 0; k < f.size(); ++k) cols[names[k]].push_back(std::stod(f[k]));
   }
   return cols;
+}
+
+/// Whether a JSON value (nlohmann::json, or any type with is_number and get<double>) is a
+/// positive finite number.
+template <class Json>
+bool positive_finite(const Json& v) {
+  return v.is_number() && std::isfinite(v.template get<double>()) && v.template get<double>() > 0;
 }
 
 /// Whether `s` contains `part`.

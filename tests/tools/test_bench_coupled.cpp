@@ -16,6 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using tetfsi::test::positive_finite;
 using tetfsi::test::read_text;
 using tetfsi::test::run_tetfsi;
 using tetfsi::test::TempDir;
@@ -26,10 +27,6 @@ const fs::path k_bar = fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "bar.js
 const std::string k_coarse =
     " --set 'bodies.0.mesh.box.cells=[1,1,6]' --set fluid.mesh.surface_size=0.1"
     " --set fluid.mesh.far_size=0.2";
-
-bool positive_finite(const nlohmann::json& v) {
-  return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0;
-}
 
 }  // namespace
 

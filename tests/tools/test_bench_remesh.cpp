@@ -13,13 +13,10 @@
 
 namespace {
 
+using tetfsi::test::positive_finite;
 using tetfsi::test::read_text;
 using tetfsi::test::run_tetfsi;
 using tetfsi::test::TempDir;
-
-bool positive_finite(const nlohmann::json& v) {
-  return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0;
-}
 
 }  // namespace
 

@@ -16,6 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using tetfsi::test::positive_finite;
 using tetfsi::test::read_text;
 using tetfsi::test::run_tetfsi;
 using tetfsi::test::TempDir;
@@ -43,10 +44,6 @@ const char* const k_jet_scene = R"({
 
 void write(const fs::path& p, const std::string& text) {
   std::ofstream(p) << text;
-}
-
-bool positive_finite(const nlohmann::json& v) {
-  return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0;
 }
 
 }  // namespace
