@@ -41,7 +41,7 @@ mesh::TetMesh RemeshPolicy::build(const std::vector<MatX3>& positions,
   mesh::Sizing sizing = m_sizing;
   if (refine) sizing.refine = *refine;  // finer where smoke / vorticity is
   try {
-    return mesh::remesh(m_domain, solids, sizing, report);
+    return m_remesher.remesh(m_domain, solids, sizing, report);
   } catch (const std::exception& e) {
     // tetfsi errors, and also what CGAL or the allocator may throw (std::logic_error,
     // std::bad_alloc): the run stops like on any failed step instead of losing its summary.

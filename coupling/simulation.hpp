@@ -38,6 +38,8 @@ class RemeshPolicy {
   /// @param refine if set, replaces the sizing's refinement (the fluid's request, which may
   ///   be empty: none)
   /// @param report if set, the remesher's report
+  /// With sizing().incremental, each call starts from the last call's triangulation (the
+  /// same mesh as a full rebuild, bit for bit: mesh::Remesher); not for concurrent calls.
   /// @throws MeshError naming the body if a body is not strictly inside the fluid box, or
   ///   naming the bodies if the remesh fails.
   mesh::TetMesh build(const std::vector<MatX3>& positions, const fluid::RefineField* refine,
@@ -54,8 +56,9 @@ class RemeshPolicy {
   mesh::FluidDomain m_domain;
   mesh::Sizing m_sizing;
   std::vector<BodySurface> m_surfaces;
-  std::vector<std::string> m_names;  ///< per body
-  std::string m_legend;              ///< "body 0 is 'sheet', body 1 is 'flag'"
+  std::vector<std::string> m_names;   ///< per body
+  std::string m_legend;               ///< "body 0 is 'sheet', body 1 is 'flag'"
+  mutable mesh::Remesher m_remesher;  ///< keeps the last triangulation (Sizing::incremental)
 };
 
 /// The regular-grid discretisation of a simulation's fluid (grid_coupled.hpp).

@@ -153,25 +153,36 @@ void RemeshContext::check_inputs() {
   set = gather_solids(domain, solids);
 }
 
-void RemeshContext::build_delaunay() {
-  dt.build(dt_pts);
+void RemeshContext::build_delaunay(IncrementalState* state) {
+  const bool reuse = state && state->valid && sizing.incremental &&
+                     state->isotropic == lat.isotropic && state->unit == lat.unit &&
+                     state->lo == domain.lo;
+  if (state && sizing.incremental && !reuse)
+    logger().debug("remesh: a full Delaunay: {}",
+                   !state->valid ? "no triangulation kept"
+                                 : "the lattice's frame changed (cell budget, box or spacing)");
+  if (state) state->valid = false;  // the triangulation is this remesh's from here on
+  if (!reuse) {
+    dt.build(dt_pts);
+    report.vertices_inserted = static_cast<Index>(dt_pts.size());
+    return;
+  }
+  dt = std::move(state->dt);
+  Index removed = 0, inserted = 0;
+  report.incremental = dt.update(dt_pts, sizing.incremental_max_cost, removed, inserted);
+  report.vertices_removed = report.incremental ? removed : 0;
+  report.vertices_inserted = report.incremental ? inserted : static_cast<Index>(dt_pts.size());
+  if (!report.incremental)
+    logger().debug(
+        "remesh: a full Delaunay: {} vertices to remove and {} to insert of {} cost more than "
+        "incremental_max_cost = {} of a rebuild",
+        removed, inserted, dt_pts.size(), sizing.incremental_max_cost);
 }
 
-}  // namespace detail
-
-void check_solid_surfaces(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
-                          const std::string& stage) {
-  detail::gather_solids(domain, solids, stage);
-}
-
-// ---------------------------------------------------------------------------------------
-// remesh
-// ---------------------------------------------------------------------------------------
-
-TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
-               const Sizing& sizing, RemeshReport* report_out, const RemeshOptions& options) {
+/// The stages in order, timed (mesh::remesh, Remesher::remesh); `state` (may be null) is the
+/// Remesher's.
+TetMesh run_stages(RemeshContext& ctx, IncrementalState* state) {
   const double t_start = now_seconds();
-  detail::RemeshContext ctx(domain, solids, sizing, options);
   RemeshReport& report = ctx.report;
   ctx.check_inputs();
 
@@ -180,9 +191,9 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   ctx.collect_points();
   report.seconds_placement = now_seconds() - t_start;
 
-  // 3. Delaunay.
+  // 3. Delaunay, or the last one updated.
   double t0 = now_seconds();
-  ctx.build_delaunay();
+  ctx.build_delaunay(state);
   report.seconds_delaunay = now_seconds() - t0;
 
   // 4. Conformity: every solid triangle must be covered by Delaunay faces lying on it.
@@ -203,15 +214,59 @@ TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solid
   report.seconds_build = now_seconds() - t0;
   report.seconds_total = now_seconds() - t_start;
   logger().debug(
-      "remesh: {} cells in {:.3f} s: placement {:.3f}, Delaunay {:.3f}, recovery {:.3f} ({} + "
-      "{} rounds: checks {:.3f}, Steiner points {:.3f}, slivers {:.3f}), classification "
-      "{:.3f}, TetMesh {:.3f}",
+      "remesh: {} cells in {:.3f} s: placement {:.3f}, Delaunay {:.3f} ({}: {} vertices "
+      "removed, {} inserted), recovery {:.3f} ({} + {} rounds: checks {:.3f}, Steiner points "
+      "{:.3f}, slivers {:.3f}), classification {:.3f}, TetMesh {:.3f}",
       m.num_tets(), report.seconds_total, report.seconds_placement, report.seconds_delaunay,
-      report.seconds_recovery, report.recovery_rounds, report.cleanup_rounds,
-      report.seconds_recovery_check, report.seconds_recovery_insert,
+      report.incremental ? "incremental" : "full", report.vertices_removed,
+      report.vertices_inserted, report.seconds_recovery, report.recovery_rounds,
+      report.cleanup_rounds, report.seconds_recovery_check, report.seconds_recovery_insert,
       report.seconds_recovery_slivers, report.seconds_classify, report.seconds_build);
-  if (report_out) *report_out = report;
+  if (state && ctx.sizing.incremental) {
+    state->dt = std::move(ctx.dt);
+    state->valid = true;
+    state->isotropic = ctx.lat.isotropic;
+    state->unit = ctx.lat.unit;
+    state->lo = ctx.domain.lo;
+  }
   return m;
+}
+
+}  // namespace detail
+
+void check_solid_surfaces(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+                          const std::string& stage) {
+  detail::gather_solids(domain, solids, stage);
+}
+
+// ---------------------------------------------------------------------------------------
+// remesh
+// ---------------------------------------------------------------------------------------
+
+TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+               const Sizing& sizing, RemeshReport* report_out, const RemeshOptions& options) {
+  detail::RemeshContext ctx(domain, solids, sizing, options);
+  TetMesh m = detail::run_stages(ctx, nullptr);
+  if (report_out) *report_out = ctx.report;
+  return m;
+}
+
+Remesher::Remesher() : m_state(std::make_unique<detail::IncrementalState>()) {}
+Remesher::~Remesher() = default;
+Remesher::Remesher(Remesher&&) noexcept = default;
+Remesher& Remesher::operator=(Remesher&&) noexcept = default;
+
+TetMesh Remesher::remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+                         const Sizing& sizing, RemeshReport* report_out,
+                         const RemeshOptions& options) {
+  detail::RemeshContext ctx(domain, solids, sizing, options);
+  TetMesh m = detail::run_stages(ctx, m_state.get());
+  if (report_out) *report_out = ctx.report;
+  return m;
+}
+
+void Remesher::reset() {
+  m_state = std::make_unique<detail::IncrementalState>();
 }
 
 MatX4i delaunay_tets(const MatX3& points) {

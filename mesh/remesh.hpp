@@ -31,6 +31,7 @@
 ///  6. faces are tagged: walls / inflow / open patches of the box, solid interface faces with
 ///     body, triangle and barycentric weights of the centroid (normal from fluid into solid).
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -79,6 +80,14 @@ struct Sizing {
   /// Each conformity recovery round re-examines only the cells the last round changed
   /// (true), or every cell touching a solid (false: the reference; the same mesh, slower).
   bool local_recovery = true;
+  /// With a Remesher: start from the last remesh's triangulation, removing the vertices that
+  /// are not in the new vertex set and inserting the new ones, instead of a new Delaunay
+  /// (false: always a full rebuild). The same mesh either way, bit for bit.
+  bool incremental = false;
+  /// The incremental path is taken while its estimated cost, (4 × removed + inserted) /
+  /// vertices (a removal costs about 4 insertions, Delaunay::kRemovalCost), is at most this;
+  /// a full rebuild costs 1 (it inserts every vertex).
+  double incremental_max_cost = 0.8;
 };
 
 struct RemeshOptions {
@@ -103,6 +112,10 @@ struct RemeshReport {
   /// Of seconds_recovery: the conformity checks (surface faces, missing triangles, flat
   /// cells), the Steiner insertions, and the sliver passes.
   double seconds_recovery_check = 0, seconds_recovery_insert = 0, seconds_recovery_slivers = 0;
+  /// The Delaunay came from the last remesh's (Remesher, Sizing::incremental) by removing
+  /// vertices_removed and inserting vertices_inserted; a full rebuild inserts every vertex.
+  bool incremental = false;
+  Index vertices_removed = 0, vertices_inserted = 0;
   double size_scale = 1.0;  ///< factor the cell budget (Sizing::max_cells) scaled all sizes by
   double seconds_placement = 0, seconds_delaunay = 0, seconds_recovery = 0, seconds_classify = 0,
          seconds_build = 0, seconds_total = 0;
@@ -117,6 +130,34 @@ struct RemeshReport {
 TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
                const Sizing& sizing, RemeshReport* report = nullptr,
                const RemeshOptions& options = {});
+
+namespace detail {
+struct IncrementalState;
+}
+
+/// A remesher that keeps the last triangulation it made, so that the next remesh can start
+/// from it (Sizing::incremental): the fluid solver's one per run. Its meshes are those of
+/// mesh::remesh, bit for bit, whatever the path (the cells are put in a canonical order, and
+/// CGAL's Delaunay does not depend on the order of insertions and removals). The first call,
+/// a call after one that failed past its Delaunay, after reset(), or one whose lattice frame
+/// changed (box or spacing; the cell budget rescaled the sizes) rebuilds in full, and so does
+/// a call whose update would cost more than Sizing::incremental_max_cost.
+class Remesher {
+ public:
+  Remesher();
+  ~Remesher();
+  Remesher(Remesher&&) noexcept;
+  Remesher& operator=(Remesher&&) noexcept;
+  /// As mesh::remesh.
+  TetMesh remesh(const FluidDomain& domain, const std::vector<SolidSurface>& solids,
+                 const Sizing& sizing, RemeshReport* report = nullptr,
+                 const RemeshOptions& options = {});
+  /// Forget the kept triangulation (the next remesh rebuilds in full).
+  void reset();
+
+ private:
+  std::unique_ptr<detail::IncrementalState> m_state;
+};
 
 /// The checks remesh() makes on the solids before it meshes, for a fluid that is not meshed
 /// (the grid): each surface closed and strictly inside the box, no surface intersecting

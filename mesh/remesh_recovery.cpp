@@ -200,8 +200,44 @@ void RemeshContext::recover_conformity() {
     insert_steiner_points(split, missing.empty() ? kStraddleSplitAt : 0.5);
     report.seconds_recovery_insert += now_seconds() - t0;
   }
+  sort_cells();
   report.steiner_points = static_cast<Index>(surf->points.size()) - report.surface_points;
   report.cells_delaunay = static_cast<Index>(tets.rows());
+}
+
+void RemeshContext::sort_cells() {
+  // The vertices are in canonical order (Delaunay), the smallest first: a counting sort by it,
+  // then each (short) bucket by the other three.
+  const Index n = tets.rows();
+  std::vector<Index> start(pts.size() + 1, 0);
+  for (Index t = 0; t < n; ++t) ++start[tets(t, 0) + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<Index> order(static_cast<std::size_t>(n));
+  {
+    std::vector<Index> next(start.begin(), start.end() - 1);
+    for (Index t = 0; t < n; ++t) order[next[tets(t, 0)]++] = t;
+  }
+  const auto rest = [&](Index t) {
+    std::array<int, 3> k = {tets(t, 1), tets(t, 2), tets(t, 3)};
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  for (std::size_t v = 0; v + 1 < start.size(); ++v)
+    if (start[v + 1] - start[v] > 1)
+      std::sort(order.begin() + start[v], order.begin() + start[v + 1],
+                [&](Index a, Index b) { return rest(a) < rest(b); });
+  std::vector<int> rank(static_cast<std::size_t>(n));
+  for (Index i = 0; i < n; ++i) rank[order[i]] = static_cast<int>(i);
+  MatX4i T(n, 4), N(n, 4);
+  for (Index i = 0; i < n; ++i) {
+    T.row(i) = tets.row(order[i]);
+    for (int k = 0; k < 4; ++k) {
+      const int o = nbrs(order[i], k);
+      N(i, k) = o < 0 ? -1 : rank[o];
+    }
+  }
+  tets.swap(T);
+  nbrs.swap(N);
 }
 
 void RemeshContext::prepare_recovery() {
@@ -389,7 +425,8 @@ void RemeshContext::insert_steiner_points(const std::vector<int>& split, double 
   std::vector<int> new_subs;
   const int before = static_cast<int>(surf->points.size());
   surf->refine_subs(split, &new_subs, at);
-  // Keep the new sub-triangles' diametral spheres empty of lattice points.
+  // Keep the new sub-triangles' diametral spheres empty of lattice points (removed together).
+  std::vector<int> drop;
   for (int s : new_subs) {
     mark_triangle_dirty(surf->subs[s].tri);
     if (!surf->subs[s].alive) continue;
@@ -400,10 +437,11 @@ void RemeshContext::insert_steiner_points(const std::vector<int>& split, double 
     lattice_grid.for_box(c - Vec3::Constant(r), c + Vec3::Constant(r), [&](int v) {
       if (!lattice_removed[v] && (pts[v] - c).squaredNorm() <= r2 * (1.0 + 1e-9)) {
         lattice_removed[v] = 1;
-        dt.remove(v);
+        drop.push_back(v);
       }
     });
   }
+  dt.remove_many(drop);
   for (int p = before; p < static_cast<int>(surf->points.size()); ++p) {
     pts.push_back(surf->points[p].x);
     dt_pts.push_back(to_dt(pts.back()));
@@ -525,10 +563,8 @@ bool RemeshContext::clean_up_slivers() {
   if (cleanup_rounds < kSliverRounds + kDegenerateRounds && !(degenerate_only && changed)) {
     ++cleanup_rounds;
     const std::vector<int> drop = sliver_vertices(tets, degenerate_only);
-    for (int v : drop) {
-      lattice_removed[v] = 1;
-      dt.remove(v);
-    }
+    for (int v : drop) lattice_removed[v] = 1;
+    dt.remove_many(drop);
     report.sliver_points_removed += static_cast<Index>(drop.size());
     changed |= !drop.empty();
   }

@@ -236,6 +236,16 @@ struct Lattice {
 // The stages
 // ---------------------------------------------------------------------------------------
 
+/// What a Remesher keeps between calls: the last triangulation (after its recovery) and the
+/// frame of its coordinates (RemeshContext::to_dt), valid only if the new one is the same.
+struct IncrementalState {
+  Delaunay dt;
+  bool valid = false;
+  bool isotropic = false;
+  double unit = 0.0;
+  Vec3 lo = Vec3::Zero();
+};
+
 /// Everything the stages of one mesh::remesh call share. The driver (remesh.cpp) runs
 /// check_inputs, place_vertices, collect_points, build_delaunay, recover_conformity,
 /// classify_cells, collect_fluid_cells, check_fluid_volume and build_fluid_mesh in that
@@ -326,8 +336,10 @@ struct RemeshContext {
   Vec3 to_dt(const Vec3& x) const;
 
   // ---- stage 3 (remesh.cpp) ----
-  /// Delaunay of dt_pts with ids = indices. Writes dt.
-  void build_delaunay();
+  /// Delaunay of dt_pts with ids = indices: from `state`'s triangulation if it is valid, in
+  /// the same frame, and sizing.incremental (Delaunay::update), else built anew. Writes dt,
+  /// report.incremental, vertices_removed, vertices_inserted; invalidates state.
+  void build_delaunay(IncrementalState* state);
 
   // ---- stage 4 (remesh_recovery.cpp) ----
   /// Insert Steiner points on the solid surface until every solid triangle is a union of
@@ -338,6 +350,10 @@ struct RemeshContext {
   /// cells_delaunay).
   /// @throws MeshError if a triangle is not recovered in options.max_recovery_rounds.
   void recover_conformity();
+  /// Put the final cells (tets, nbrs) in the order of their vertex ids (canonical_order
+  /// within a cell, then rows by their ids): the mesh then depends on the triangulation, not
+  /// on the history of insertions and removals that made it.
+  void sort_cells();
   /// Set up the recovery: tri_area, lattice_grid, lattice_removed.
   void prepare_recovery();
   /// Bring surface_cells, facet_tri and covered up to date: from every cell at
@@ -434,5 +450,9 @@ struct RemeshContext {
   /// Tag a face on the box: the default kind or the last patch holding its centroid.
   void tag_box_face(TetMesh& m, Index f, int a, int b, int c) const;
 };
+
+/// The stages of one remesh in order, timed (mesh::remesh, Remesher::remesh). `state` (may be
+/// null): the Remesher's, read by build_delaunay and given this remesh's triangulation.
+TetMesh run_stages(RemeshContext& ctx, IncrementalState* state);
 
 }  // namespace tetfsi::mesh::detail

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "mesh/remesh.hpp"
 
 namespace tetfsi::tools {
@@ -27,6 +29,30 @@ std::vector<mesh::SolidSurface> bench_remesh_solids();
 /// @param repeat time each remesh and each floor this many times; the fastest of each (and
 ///   that remesh's phases) are reported
 /// @return 0
-int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out, int repeat = 1);
+/// @param moving_scene, moving_steps if moving_steps ≥ 2, also the moving case
+///   (bench_remesh_moving), written to the JSON as "moving"
+int bench_remesh(const std::string& json_path, long max_cells, std::ostream& out, int repeat = 1,
+                 const std::string& moving_scene = "data/scenes/remesh_sheet.json",
+                 int moving_steps = 20);
+
+/// The bodies of a one-way scene (remesh_sheet: a sagging, swinging sheet) at each of `steps`
+/// steps of its solid dynamics, with its fluid domain and sizing.
+struct MovingSheet {
+  mesh::FluidDomain domain;
+  mesh::Sizing sizing;
+  double dt = 0;
+  std::vector<std::vector<mesh::SolidSurface>> frames;  ///< per step, per body
+};
+/// @throws InputError naming the file if the scene has no tet fluid (and load_scene's errors)
+MovingSheet moving_sheet(const std::string& scene_path, int steps);
+
+/// Remesh every frame of moving_sheet(scene_path, steps) with a mesh::Remesher, on the full
+/// path (Sizing::incremental false) and the incremental one, alternating, `repeat` times,
+/// keeping the fastest of each; print per path the remesh and Delaunay seconds per step
+/// (after the first, always full), the fraction of vertices the incremental path touched
+/// (removed + inserted over the vertices) and whether every mesh is the same bit for bit.
+/// @return {"scene", "steps", "cells", "full": {...}, "incremental": {...}, "same"}
+nlohmann::json bench_remesh_moving(const std::string& scene_path, int steps, int repeat,
+                                   std::ostream& out);
 
 }  // namespace tetfsi::tools

@@ -369,6 +369,8 @@ Command add_bench_remesh(CLI::App& bench) {
     std::string json;
     long max_cells = 1000000;
     int repeat = 1;
+    std::string scene = "data/scenes/remesh_sheet.json";
+    int steps = 20;
   };
   auto o = std::make_shared<Opt>();
   CLI::App* cmd = bench.add_subcommand(
@@ -383,8 +385,20 @@ Command add_bench_remesh(CLI::App& bench) {
       ->type_name("N")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
-  return {cmd,
-          [o] { return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout, o->repeat); }};
+  cmd->add_option("--moving-scene", o->scene,
+                  "the moving case: a one-way scene whose bodies are remeshed at every step")
+      ->type_name("FILE")
+      ->capture_default_str();
+  cmd->add_option("--moving-steps", o->steps,
+                  "steps of the moving case, remeshed on the full and the incremental path (0: "
+                  "skip it)")
+      ->type_name("N")
+      ->check(CLI::Range(0, 10000))
+      ->capture_default_str();
+  return {cmd, [o] {
+            return tetfsi::tools::bench_remesh(o->json, o->max_cells, std::cout, o->repeat,
+                                               o->scene, o->steps);
+          }};
 }
 
 /// A scene benchmark's SCENE (described by `scene_help`), `--json FILE` and `--steps N` (≥ 2,

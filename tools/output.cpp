@@ -736,7 +736,8 @@ std::vector<std::string> make_columns(bool fluid, bool coupled) {
     v.emplace_back(s);
   if (fluid) {
     for (const char* s :
-         {"fluid_cells", "fluid_vertices", "steiner_points", "recovery_rounds", "remesh_s"})
+         {"fluid_cells", "fluid_vertices", "steiner_points", "recovery_rounds",
+          "remesh_incremental", "vertices_removed", "vertices_inserted", "remesh_s"})
       v.emplace_back(s);
     for (const auto& [name, value] : mesh::quality_columns(mesh::QualitySummary{}))
       v.push_back(name);
@@ -866,8 +867,9 @@ void StatsWriter::write(const StepStats& r) {
       const FluidStepStats& f = *r.fluid;
       TETFSI_CHECK(f.quality.size() == nq, "stats row has {} quality columns, expected {}",
                    f.quality.size(), nq);
-      line += fmt::format(",{},{},{},{},{:.6g}", f.cells, f.vertices, f.steiner_points,
-                          f.recovery_rounds, f.remesh_s);
+      line += fmt::format(",{},{},{},{},{},{},{},{:.6g}", f.cells, f.vertices, f.steiner_points,
+                          f.recovery_rounds, f.remesh_incremental, f.vertices_removed,
+                          f.vertices_inserted, f.remesh_s);
       for (const auto& [name, value] : f.quality) line += fmt::format(",{:.17g}", value);
       line += fmt::format(
           ",{},{:.6g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
@@ -876,7 +878,7 @@ void StatsWriter::write(const StepStats& r) {
           f.fluid_kinetic_energy, f.smoke_mass, f.inflow_flux, f.outflow_flux, f.solid_flux,
           f.max_speed, f.cfl, f.traces_clamped);
     } else {
-      for (size_t k = 0; k < 5 + nq + 12; ++k) line += ",nan";
+      for (size_t k = 0; k < 8 + nq + 12; ++k) line += ",nan";
     }
   }
   if (m_coupled) {

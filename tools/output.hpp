@@ -249,11 +249,13 @@ class PvdWriter {
 /// The fluid part of a stats.csv row: the mesh built after the step and the fluid's step
 /// (fluid::FluidStepReport; NaN before the fluid has taken a step).
 struct FluidStepStats {
-  Index cells = 0;           ///< fluid tets
-  Index vertices = 0;        ///< fluid mesh vertices
-  Index steiner_points = 0;  ///< RemeshReport::steiner_points
-  int recovery_rounds = 0;   ///< RemeshReport::recovery_rounds
-  double remesh_s = 0.0;     ///< RemeshReport::seconds_total (s)
+  Index cells = 0;             ///< fluid tets
+  Index vertices = 0;          ///< fluid mesh vertices
+  Index steiner_points = 0;    ///< RemeshReport::steiner_points
+  int recovery_rounds = 0;     ///< RemeshReport::recovery_rounds
+  int remesh_incremental = 0;  ///< RemeshReport::incremental (1: updated, 0: rebuilt)
+  Index vertices_removed = 0, vertices_inserted = 0;  ///< RemeshReport's
+  double remesh_s = 0.0;                              ///< RemeshReport::seconds_total (s)
   /// mesh::quality_columns(mesh::summarize_quality(mesh)): (name, value) in that fixed order.
   std::vector<std::pair<std::string, double>> quality;
   // ---- the fluid step (columns after the quality columns) ----
@@ -362,7 +364,8 @@ class StatsWriter {
   /// The column names in order: step, time, dt, the phases of `phase_columns(fluid)`,
   /// solver_iterations, solver_residual, contacts, kinetic_energy, elastic_energy,
   /// gravity_potential, total_energy, equilibrium_iterations, equilibrium_evaluations; with
-  /// `fluid` then fluid_cells, fluid_vertices, steiner_points, recovery_rounds, remesh_s,
+  /// `fluid` then fluid_cells, fluid_vertices, steiner_points, recovery_rounds,
+  /// remesh_incremental, vertices_removed, vertices_inserted, remesh_s,
   /// the names of mesh::quality_columns
   /// (q_cells, ..., q_min_dihedral_deg, ..., q_slivers, ...), then pressure_iterations,
   /// pressure_residual, divergence_before, divergence, fluid_kinetic_energy, smoke_mass,

@@ -48,6 +48,9 @@ void RunRecorder::record_mesh(const mesh::TetMesh& m, const mesh::RemeshReport& 
   m_stats.vertices = m.num_vertices();
   m_stats.steiner_points = report.steiner_points;
   m_stats.recovery_rounds = report.recovery_rounds;
+  m_stats.remesh_incremental = report.incremental ? 1 : 0;
+  m_stats.vertices_removed = report.vertices_removed;
+  m_stats.vertices_inserted = report.vertices_inserted;
   m_stats.remesh_s = report.seconds_total;
   m_stats.quality = mesh::quality_columns(q);
   FluidSummary& f = m_summary;
@@ -168,6 +171,9 @@ void visit_fields_step(S& s, F&& f) {  // FluidStepStats but its quality columns
   f("vertices", s.vertices);
   f("steiner_points", s.steiner_points);
   f("recovery_rounds", s.recovery_rounds);
+  f("remesh_incremental", s.remesh_incremental);
+  f("vertices_removed", s.vertices_removed);
+  f("vertices_inserted", s.vertices_inserted);
   f("remesh_s", s.remesh_s);
   f("pressure_iterations", s.pressure_iterations);
   f("pressure_residual", s.pressure_residual);

@@ -1139,7 +1139,21 @@ const Section<mesh::Sizing>& fluid_mesh_keys() {
                 .doc = "each conformity recovery round re-examines only what the last one "
                        "changed; false: every cell at the solids (the same mesh, slower: a "
                        "cross-check)"},
-               TETFSI_AT(local_recovery))}};
+               TETFSI_AT(local_recovery)),
+       bind<Z>({.key = "incremental",
+                .type = KeyType::Boolean,
+                .doc = "each remesh starts from the last step's triangulation, removing the "
+                       "vertices that moved and inserting the new ones; false: a new Delaunay "
+                       "every step (the same mesh, bit for bit)"},
+               TETFSI_AT(incremental)),
+       bind<Z>({.key = "incremental_max_cost",
+                .type = KeyType::Number,
+                .doc = "the incremental path is taken while its estimated cost, (4 x "
+                       "vertices removed + vertices inserted) / vertices, is at most this; a "
+                       "full rebuild costs 1",
+                .range = k_non_negative,
+                .note = "a removal costs about 4 insertions (measured)"},
+               TETFSI_AT(incremental_max_cost))}};
   return s;
 }
 

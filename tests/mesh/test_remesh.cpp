@@ -5,6 +5,8 @@
 /// moved and rotated through 50 remeshes. The same input gives the same mesh, bit for bit.
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -15,6 +17,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
+#include "mesh/delaunay.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/remesh.hpp"
@@ -591,6 +594,163 @@ TEST_SUITE("unit") {
     CHECK(removed > 0);
     CHECK(moved > 0);
     CHECK(rounds > static_cast<int>(cases.size()));
+  }
+
+  TEST_CASE("Delaunay::update gives the triangulation build gives - ids and cells") {
+    // A jittered 9^3 lattice; the update keeps two thirds of it, moves some points and adds
+    // new ones: the same cells as a fresh build of the new points (canonical vertex order,
+    // rows sorted), also when the cost criterion sends it to a rebuild.
+    std::vector<Vec3> a, b;
+    std::uint64_t h = 12345;
+    const auto rnd = [&] {
+      h = h * 6364136223846793005ULL + 1442695040888963407ULL;
+      return static_cast<double>(h >> 11) / 9007199254740992.0;
+    };
+    for (int i = 0; i < 9; ++i)
+      for (int j = 0; j < 9; ++j)
+        for (int k = 0; k < 9; ++k) {
+          const Vec3 p(i + 0.2 * rnd(), j + 0.2 * rnd(), k + 0.2 * rnd());
+          a.push_back(p);
+          if ((i + j + k) % 3 != 0) b.push_back(p);                            // kept
+          if ((i + 2 * j + k) % 7 == 0) b.push_back(p + Vec3(0.5, 0.5, 0.5));  // new
+        }
+    std::reverse(b.begin(), b.end());  // new ids for every kept point
+    const auto sorted_cells = [](const Delaunay& d) {
+      MatX4i t, n;
+      d.extract(t, n);
+      std::vector<std::array<int, 4>> rows;
+      for (Index i = 0; i < t.rows(); ++i) {
+        // canonical: the smallest id first, the second smallest next
+        CHECK(t(i, 0) < std::min({t(i, 1), t(i, 2), t(i, 3)}));
+        CHECK(t(i, 1) < std::min(t(i, 2), t(i, 3)));
+        rows.push_back({t(i, 0), t(i, 1), t(i, 2), t(i, 3)});
+      }
+      std::sort(rows.begin(), rows.end());
+      return rows;
+    };
+    Delaunay fresh;
+    fresh.build(b);
+    const auto want = sorted_cells(fresh);
+    Delaunay d;
+    d.build(a);
+    Index removed = 0, inserted = 0;
+    CHECK(d.update(b, 1e9, removed, inserted));
+    CHECK(removed == static_cast<Index>(a.size()) - (static_cast<Index>(b.size()) - inserted));
+    CHECK(removed > 200);
+    CHECK(inserted > 50);
+    CHECK(d.num_vertices() == static_cast<Index>(b.size()));
+    CHECK(sorted_cells(d) == want);
+    // Past the cost limit it rebuilds: the same cells again, and it says so.
+    Delaunay e;
+    e.build(a);
+    CHECK_FALSE(e.update(b, 0.1, removed, inserted));
+    CHECK(sorted_cells(e) == want);
+    // Two new points at one position: the rebuild's error, naming both.
+    std::vector<Vec3> dup = b;
+    dup.push_back(b[3]);
+    const std::string msg = message_of<MeshError>([&] { d.update(dup, 1e9, removed, inserted); });
+    CHECK(msg.find(fmt::format("points 3 and {} coincide", b.size())) != std::string::npos);
+  }
+
+  TEST_CASE(
+      "remesh: the incremental path gives the full rebuild's mesh bit for bit, step after step") {
+    // A paddle moving and turning slowly beside a sphere that stays put: each step's
+    // incremental remesh (from the last step's triangulation) against a full one of the same
+    // input, and every invariant on it.
+    const FluidDomain d = unit_box();
+    const SolidSurface rest =
+        box_surface(Vec3(-0.15, -0.02, -0.1), Vec3(0.15, 0.02, 0.1), Vec3i(6, 1, 4));
+    const SolidSurface ball = icosphere(Vec3(0.25, 0.3, 0.3), 0.12, 3, 1);
+    const auto paddle = [&](int step) {
+      const double a = 0.03 * step;
+      const Mat3 R = (Eigen::AngleAxisd(a, Vec3::UnitZ()) *
+                      Eigen::AngleAxisd(0.7 * a, Vec3(1, 1, 0).normalized()))
+                         .toRotationMatrix();
+      const Vec3 centre(0.62 + 0.01 * step, 0.6, 0.6 - 0.004 * step);
+      SolidSurface p = rest;
+      for (Index i = 0; i < p.vertices.rows(); ++i)
+        p.vertices.row(i) = (centre + R * rest.vertices.row(i).transpose()).transpose();
+      return p;
+    };
+    for (const double max_cost : {1e9, 0.8}) {  // always incremental; the default criterion
+      CAPTURE(max_cost);
+      Sizing s;
+      s.surface_size = 0.05;
+      s.far_size = 0.2;
+      s.incremental = true;
+      s.incremental_max_cost = max_cost;
+      Sizing full = s;
+      full.incremental = false;
+      Remesher remesher;
+      int incremental = 0;
+      for (int step = 0; step < 6; ++step) {
+        CAPTURE(step);
+        const std::vector<SolidSurface> solids = {paddle(step), ball};
+        RemeshReport ri, rf;
+        const TetMesh mi = remesher.remesh(d, solids, s, &ri);
+        const TetMesh mf = remesh(d, solids, full, &rf);
+        check_identical(mi, mf);
+        check_invariants(mi, d, solids, ri);
+        CHECK_FALSE(rf.incremental);
+        CHECK(rf.vertices_removed == 0);
+        if (step == 0 || !ri.incremental) {
+          CHECK(step == 0);  // the paddle moves little: incremental after the first
+          CHECK(ri.vertices_removed == 0);
+          continue;
+        }
+        ++incremental;
+        // The paddle's points go and come; the ball's and the far lattice stay.
+        CHECK(ri.vertices_removed > 50);
+        CHECK(ri.vertices_inserted > 50);
+        CHECK(ri.vertices_removed + ri.vertices_inserted < mi.num_vertices() / 2);
+      }
+      CHECK(incremental == 5);
+      MESSAGE("max cost ", max_cost, ": ", incremental, " of 5 remeshes incremental");
+    }
+  }
+
+  TEST_CASE("Remesher: after a failed remesh or reset() the next one is a full rebuild") {
+    const FluidDomain d = unit_box();
+    Sizing s;
+    s.surface_size = 0.06;
+    s.far_size = 0.24;
+    s.incremental = true;
+    s.incremental_max_cost = 1e9;
+    const SolidSurface a = icosphere(Vec3(0.4, 0.5, 0.5), 0.12, 2);
+    const SolidSurface b = icosphere(Vec3(0.42, 0.5, 0.5), 0.12, 2);
+    Remesher remesher;
+    RemeshReport r;
+    remesher.remesh(d, {a}, s, &r);
+    CHECK_FALSE(r.incremental);
+    remesher.remesh(d, {b}, s, &r);
+    CHECK(r.incremental);
+    // Two overlapping bodies: the remesh fails before its Delaunay; the kept one serves.
+    CHECK_THROWS_AS(remesher.remesh(d, {a, b}, s, &r), MeshError);
+    check_identical(remesher.remesh(d, {a}, s, &r), remesh(d, {a}, s));
+    CHECK(r.incremental);
+    // A recovery that fails (no rounds allowed): the triangulation it left is dropped.
+    RemeshOptions none;
+    none.max_recovery_rounds = 0;
+    const Mat3 tilt =
+        Eigen::AngleAxisd(17.0 * M_PI / 180.0, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+    const SolidSurface sheet = box_surface(Vec3(0.2, 0.2, 0.495), Vec3(0.8, 0.8, 0.505),
+                                           Vec3i(12, 12, 1), 0, tilt, Vec3(0.5, 0.5, 0.5));
+    CHECK_THROWS_AS(remesher.remesh(d, {sheet}, s, &r, none), MeshError);
+    const TetMesh m = remesher.remesh(d, {a}, s, &r);
+    CHECK_FALSE(r.incremental);
+    check_identical(m, remesh(d, {a}, s));
+    remesher.remesh(d, {b}, s, &r);
+    CHECK(r.incremental);
+    remesher.reset();
+    remesher.remesh(d, {a}, s, &r);
+    CHECK_FALSE(r.incremental);
+    // Sizing::incremental false: always full, nothing kept.
+    s.incremental = false;
+    remesher.remesh(d, {b}, s, &r);
+    CHECK_FALSE(r.incremental);
+    s.incremental = true;
+    remesher.remesh(d, {a}, s, &r);
+    CHECK_FALSE(r.incremental);
   }
 
   TEST_CASE("remesh: fluid enclosed by a hollow solid stays fluid") {

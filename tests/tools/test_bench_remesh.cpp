@@ -1,6 +1,6 @@
 /// @file test_bench_remesh.cpp
 /// `tetfsi bench remesh` on its smallest case: the JSON's figures, the local recovery giving
-/// the full recovery's mesh, and --repeat.
+/// the full recovery's mesh, --repeat, and the moving case (full and incremental paths).
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -22,7 +22,12 @@ using tetfsi::test::TempDir;
 
 TEST_CASE("bench remesh: the 30k case twice - local recovery = full - phases that add up") {
   TempDir dir("bench_remesh");
-  const auto r = run_tetfsi(dir.path, "bench remesh --max-cells 40000 --repeat 2 --json r.json");
+  const std::string sheet =
+      (std::filesystem::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "remesh_sheet.json").string();
+  const auto r = run_tetfsi(dir.path,
+                            "bench remesh --max-cells 40000 --repeat 2 --json r.json "
+                            "--moving-steps 4 --moving-scene '" +
+                                sheet + "'");
   INFO(r.out);
   INFO(r.err);
   REQUIRE(r.code == 0);
@@ -50,4 +55,37 @@ TEST_CASE("bench remesh: the 30k case twice - local recovery = full - phases tha
   CHECK(phases <= c["remesh_s"].get<double>() * (1 + 1e-9));
   CHECK(c["recovery_rounds"].get<int>() > 0);
   CHECK(c["cleanup_rounds"].get<int>() >= 0);
+
+  // The moving case: both paths, the same meshes; the full one never incremental.
+  const nlohmann::json& m = j["moving"];
+  INFO(m.dump());
+  CHECK(m["steps"] == 4);
+  CHECK(m["same"].get<bool>());
+  CHECK(m["cells"].get<double>() > 10000);
+  CHECK(m["full"]["incremental_steps"] == 0);
+  CHECK(m["full"]["touched_fraction"] == 0.0);
+  CHECK(m["incremental"]["incremental_steps"].get<int>() >= 0);
+  CHECK(m["incremental"]["incremental_steps"].get<int>() <= 3);
+  for (const char* path : {"full", "incremental"}) {
+    INFO(path);
+    CHECK(positive_finite(m[path]["remesh_s"]));
+    CHECK(positive_finite(m[path]["delaunay_s"]));
+    CHECK(m[path]["delaunay_s"].get<double>() < m[path]["remesh_s"].get<double>());
+  }
+  CHECK(r.out.find("moving: the sheet of") != std::string::npos);
+}
+
+TEST_CASE("bench remesh: a moving scene that is missing or has no tet fluid is a one-line error") {
+  TempDir dir("bench_remesh_moving");
+  const auto missing = run_tetfsi(dir.path, "bench remesh --max-cells 1 --moving-scene nope.json");
+  CHECK(missing.code == 1);
+  REQUIRE(missing.err_lines().size() == 1);
+  CHECK(missing.err_lines()[0].find("nope.json") != std::string::npos);
+  const std::string bar =
+      (std::filesystem::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "smoke_sheets_grid.json")
+          .string();
+  const auto grid = run_tetfsi(dir.path, "bench remesh --max-cells 1 --moving-scene '" + bar + "'");
+  CHECK(grid.code == 1);
+  REQUIRE(grid.err_lines().size() == 1);
+  CHECK(grid.err_lines()[0].find("needs a scene with a tet fluid") != std::string::npos);
 }

@@ -134,9 +134,12 @@ TEST_CASE("shipped paddle: a coarse variant is pushed over by the jet and bounce
   // it drops onto its edge and bounces, the jet's moment about the bottom edge beats its
   // weight's long before the jet could slide it (the scene's description), the floor lets the
   // far side go: it tips, slaps onto the floor (z = 0.1) and rebounds. All by the paddle's
-  // own elasticity (restitution 0). Measured on this variant: a hop of 1.04 mm, 90 degrees,
-  // the centroid 6.1 mm up after the slap (whether the whole paddle then leaves the floor
-  // depends on round-off: reported only).
+  // own elasticity (restitution 0). Measured on this variant: a hop of 1.03-1.05 mm, 90
+  // degrees. The tipping starts from an unstable balance, so when it slaps, how hard, and
+  // the rebound depend on round-off: the centroid rose 0.15, 0.39 and 15 mm after the slap in
+  // three runs whose dt differed by 1e-13 s (6.1 and 6.9 mm before the remesher's cells were
+  // put in a canonical order), and whether the whole paddle leaves the floor again varies
+  // too: both reported only. The hop is the check that the floor lets go.
   TempDir dir("coupled_scene_paddle_bounce");
   const fs::path file = fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / "paddle.json";
   RunOptions opt;
@@ -172,5 +175,4 @@ TEST_CASE("shipped paddle: a coarse variant is pushed over by the jet and bounce
           << rise << " m");
   CHECK(hop >= 5e-4);  // the whole paddle off the floor after its first landing
   CHECK(*std::max_element(rot.begin(), rot.end()) >= 45.0);
-  CHECK(rise >= 2e-3);  // the slap's rebound (a glued floor: 0)
 }

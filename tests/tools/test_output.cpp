@@ -726,6 +726,9 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
     f.vertices = m.num_vertices();
     f.steiner_points = 7;
     f.recovery_rounds = 2;
+    f.remesh_incremental = 1;
+    f.vertices_removed = 11;
+    f.vertices_inserted = 13;
     f.remesh_s = 0.125;
     f.quality = quality;
     f.pressure_iterations = 17;
@@ -743,9 +746,9 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
   const auto lines = read_lines(p);
   REQUIRE(lines.size() == 3);
   const auto& cols = StatsWriter::columns(true);
-  // + the phases remesh, transfer, forces, pressure_assembly, pressure_solve; 5 mesh columns,
+  // + the phases remesh, transfer, forces, pressure_assembly, pressure_solve; 8 mesh columns,
   // the quality columns and 12 fluid-step columns
-  CHECK(cols.size() == StatsWriter::columns().size() + 5 + 5 + quality.size() + 12);
+  CHECK(cols.size() == StatsWriter::columns().size() + 5 + 8 + quality.size() + 12);
   std::vector<std::string> header;
   {
     std::stringstream ss(lines[0]);
@@ -776,6 +779,9 @@ TEST_CASE("StatsWriter with a fluid: the remesh phase and the fluid and quality 
   CHECK(value("fluid_vertices") == 27);
   CHECK(value("steiner_points") == 7);
   CHECK(value("recovery_rounds") == 2);
+  CHECK(value("remesh_incremental") == 1);
+  CHECK(value("vertices_removed") == 11);
+  CHECK(value("vertices_inserted") == 13);
   CHECK(value("remesh_s") == 0.125);
   CHECK(value("pressure_solve") == 0.5);
   CHECK(value("pressure_iterations") == 17);
