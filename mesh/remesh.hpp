@@ -83,7 +83,7 @@ struct Sizing {
   /// With a Remesher: start from the last remesh's triangulation, removing the vertices that
   /// are not in the new vertex set and inserting the new ones, instead of a new Delaunay
   /// (false: always a full rebuild). The same mesh either way, bit for bit.
-  bool incremental = false;
+  bool incremental = true;
   /// The incremental path is taken while its estimated cost, (4 × removed + inserted) /
   /// vertices (a removal costs about 4 insertions, Delaunay::kRemovalCost), is at most this;
   /// a full rebuild costs 1 (it inserts every vertex).

@@ -351,11 +351,12 @@ std::vector<char> exclude_near_surface(const Lattice& lat, const RefinedSurface&
   const double protect = kProtection * 4.0 * size.surface();  // bound on kProtection × spacing
   HashGrid grid(2.0 * size.surface());
   std::vector<Vec3> cs(surf.subs.size());
-  std::vector<double> r2s(surf.subs.size());
+  std::vector<double> r2s(surf.subs.size()), rs(surf.subs.size());
   for (std::size_t s = 0; s < surf.subs.size(); ++s) {
     const SubTri& st = surf.subs[s];
     if (!st.alive) continue;
     surf.diametral(st, cs[s], r2s[s]);
+    rs[s] = std::sqrt(r2s[s]);
     const Vec3 lo = surf.x(st.v[0]).cwiseMin(surf.x(st.v[1])).cwiseMin(surf.x(st.v[2]));
     const Vec3 hi = surf.x(st.v[0]).cwiseMax(surf.x(st.v[1])).cwiseMax(surf.x(st.v[2]));
     const double r = std::sqrt(r2s[s]);
@@ -370,10 +371,15 @@ std::vector<char> exclude_near_surface(const Lattice& lat, const RefinedSurface&
     if (!items) return;
     const double prot = std::min(protect, kProtection * lat.size[p]);
     for (int s : *items) {
-      if ((x - cs[s]).squaredNorm() <= r2s[s] * (1.0 + 1e-9)) {
+      const double d2 = (x - cs[s]).squaredNorm();
+      if (d2 <= r2s[s] * (1.0 + 1e-9)) {
         keep[p] = 0;
         return;
       }
+      // The triangle lies in its diametral ball: farther than r + prot from the centre, it is
+      // farther than prot from x (with a margin for round-off, so the flag is the same).
+      const double far = (rs[s] + prot) * (1.0 + 1e-6);
+      if (d2 > far * far) continue;
       const SubTri& st = surf.subs[s];
       if ((closest_on_triangle(x, surf.x(st.v[0]), surf.x(st.v[1]), surf.x(st.v[2])) - x)
               .squaredNorm() < prot * prot) {
