@@ -77,8 +77,7 @@ class Delaunay {
   void cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) const;
 
   /// The finite cells (as ids, positively oriented) with at least one vertex of id ≥ min_id,
-  /// each once, in the order of their ids: every face whose three vertices have such ids is a
-  /// face of one of them.
+  /// each once: every face whose three vertices have such ids is a face of one of them.
   /// Cheaper than `extract` (one pass, no neighbours) when few ids are that large.
   void cells_touching(int min_id, MatX4i& tets) const;
 
@@ -90,7 +89,22 @@ class Delaunay {
 /// The vertex order of a positively oriented cell that depends on its ids only: the smallest
 /// id first, then the next smallest, and the last two in the order that keeps the orientation
 /// (an even permutation of the cell's). Returns the permutation p (new k = old p[k]).
-std::array<int, 4> canonical_order(const int ids[4]);
+inline std::array<int, 4> canonical_order(const int ids[4]) {
+  // A sorting network of five compare-exchanges, without branches (the ids' order is random:
+  // an insertion sort's branches cost a remesh 1 %); each exchange is a transposition, so
+  // their parity is the permutation's.
+  int k[4] = {ids[0], ids[1], ids[2], ids[3]}, p[4] = {0, 1, 2, 3};
+  int parity = 0;
+  const auto cx = [&](int i, int j) {
+    const bool s = k[j] < k[i];
+    const int ki = s ? k[j] : k[i], kj = s ? k[i] : k[j];
+    const int pi = s ? p[j] : p[i], pj = s ? p[i] : p[j];
+    k[i] = ki, k[j] = kj, p[i] = pi, p[j] = pj;
+    parity ^= static_cast<int>(s);
+  };
+  cx(0, 1), cx(2, 3), cx(0, 2), cx(1, 3), cx(1, 2);
+  return {p[0], p[1], parity ? p[3] : p[2], parity ? p[2] : p[3]};
+}
 
 /// Plain Delaunay tets of a point set with ids = row indices (the benchmark floor).
 MatX4i delaunay_of(const std::vector<Vec3>& points);

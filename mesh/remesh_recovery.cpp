@@ -563,8 +563,10 @@ bool RemeshContext::clean_up_slivers() {
   if (cleanup_rounds < kSliverRounds + kDegenerateRounds && !(degenerate_only && changed)) {
     ++cleanup_rounds;
     const std::vector<int> drop = sliver_vertices(tets, degenerate_only);
-    for (int v : drop) lattice_removed[v] = 1;
-    dt.remove_many(drop);
+    for (int v : drop) {  // one by one: scattered vertices (remove_many measured slower)
+      lattice_removed[v] = 1;
+      dt.remove(v);
+    }
     report.sliver_points_removed += static_cast<Index>(drop.size());
     changed |= !drop.empty();
   }
