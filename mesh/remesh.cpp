@@ -154,13 +154,18 @@ void RemeshContext::check_inputs() {
 }
 
 void RemeshContext::build_delaunay(IncrementalState* state) {
-  const bool reuse = state && state->valid && sizing.incremental &&
-                     state->isotropic == lat.isotropic && state->unit == lat.unit &&
-                     state->lo == domain.lo;
+  bool reuse = state && state->valid && sizing.incremental && state->isotropic == lat.isotropic &&
+               state->unit == lat.unit && state->lo == domain.lo;
   if (state && sizing.incremental && !reuse)
     logger().debug("remesh: a full Delaunay: {}",
                    !state->valid ? "no triangulation kept"
                                  : "the lattice's frame changed (cell budget, box or spacing)");
+  if (reuse && state->skip > 0) {
+    --state->skip;
+    reuse = false;
+    logger().debug("remesh: a full Delaunay: the last update cost too much ({} more to skip)",
+                   state->skip);
+  }
   if (state) state->valid = false;  // the triangulation is this remesh's from here on
   if (!reuse) {
     dt.build(dt_pts);
@@ -172,11 +177,13 @@ void RemeshContext::build_delaunay(IncrementalState* state) {
   report.incremental = dt.update(dt_pts, sizing.incremental_max_cost, removed, inserted);
   report.vertices_removed = report.incremental ? removed : 0;
   report.vertices_inserted = report.incremental ? inserted : static_cast<Index>(dt_pts.size());
+  state->backoff = report.incremental ? 0 : std::min(8, std::max(1, 2 * state->backoff));
+  state->skip = state->backoff;
   if (!report.incremental)
     logger().debug(
         "remesh: a full Delaunay: {} vertices to remove and {} to insert of {} cost more than "
-        "incremental_max_cost = {} of a rebuild",
-        removed, inserted, dt_pts.size(), sizing.incremental_max_cost);
+        "incremental_max_cost = {} of a rebuild (the next {} rebuild without trying)",
+        removed, inserted, dt_pts.size(), sizing.incremental_max_cost, state->skip);
 }
 
 /// The stages in order, timed (mesh::remesh, Remesher::remesh); `state` (may be null) is the

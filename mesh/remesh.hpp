@@ -141,7 +141,8 @@ struct IncrementalState;
 /// CGAL's Delaunay does not depend on the order of insertions and removals). The first call,
 /// a call after one that failed past its Delaunay, after reset(), or one whose lattice frame
 /// changed (box or spacing; the cell budget rescaled the sizes) rebuilds in full, and so does
-/// a call whose update would cost more than Sizing::incremental_max_cost.
+/// a call whose update would cost more than Sizing::incremental_max_cost; after such a call
+/// the next 1, 2, 4, then 8 calls rebuild without trying (the try hashes every point).
 class Remesher {
  public:
   Remesher();

@@ -241,6 +241,10 @@ struct Lattice {
 struct IncrementalState {
   Delaunay dt;
   bool valid = false;
+  /// After an update that cost too much (a rebuild), the next `skip` remeshes rebuild without
+  /// trying (the try costs a hash of every point); `backoff` doubles at each such rebuild, up
+  /// to 8, and is 0 after an update. Only the path depends on them, never the mesh.
+  int skip = 0, backoff = 0;
   bool isotropic = false;
   double unit = 0.0;
   Vec3 lo = Vec3::Zero();
@@ -337,7 +341,8 @@ struct RemeshContext {
 
   // ---- stage 3 (remesh.cpp) ----
   /// Delaunay of dt_pts with ids = indices: from `state`'s triangulation if it is valid, in
-  /// the same frame, and sizing.incremental (Delaunay::update), else built anew. Writes dt,
+  /// the same frame, sizing.incremental and not in a backoff (Delaunay::update), else built
+  /// anew. Writes dt,
   /// report.incremental, vertices_removed, vertices_inserted; invalidates state.
   void build_delaunay(IncrementalState* state);
 

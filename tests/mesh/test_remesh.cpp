@@ -744,6 +744,15 @@ TEST_SUITE("unit") {
     remesher.reset();
     remesher.remesh(d, {a}, s, &r);
     CHECK_FALSE(r.incremental);
+    // An update that costs too much rebuilds, and the next call rebuilds without trying;
+    // the meshes are the full ones all the same.
+    Sizing dear = s;
+    dear.incremental_max_cost = 0.0;
+    remesher.remesh(d, {b}, dear, &r);
+    for (const SolidSurface& x : {a, b, a}) {
+      check_identical(remesher.remesh(d, {x}, dear, &r), remesh(d, {x}, s));
+      CHECK_FALSE(r.incremental);
+    }
     // Sizing::incremental false: always full, nothing kept.
     s.incremental = false;
     remesher.remesh(d, {b}, s, &r);
