@@ -649,14 +649,13 @@ double RemeshContext::worst_around(const std::vector<int>& ring, MatX3& P) const
   MatX4i around;
   dt.cells_around(ring, around);
   for (const int v : ring) P.row(v) = pts[v].transpose();
-  const TetQuality q = tet_quality(P, around);
-  double worst = kInf;  // over the cells with no solid vertex
-  for (Index t = 0; t < around.rows(); ++t) {
-    bool surface = false;
-    for (int k = 0; k < 4; ++k) surface |= around(t, k) >= nL;
-    if (!surface) worst = std::min(worst, q.min_dihedral_deg(t));
-  }
-  return worst;
+  MatX4i away(around.rows(), 4);  // the cells with no solid vertex
+  Index n = 0;
+  for (Index t = 0; t < around.rows(); ++t)
+    if (around.row(t).maxCoeff() < nL) away.row(n++) = around.row(t);
+  away.conservativeResize(n, 4);
+  const TetQuality q = tet_quality(P, away);
+  return n > 0 ? q.min_dihedral_deg.minCoeff() : kInf;
 }
 
 bool RemeshContext::perturb_vertex(int v, MatX3& P) {
@@ -668,7 +667,9 @@ bool RemeshContext::perturb_vertex(int v, MatX3& P) {
   const double before = worst_around(ring, P);
   const Vec3 old_x = pts[v], old_y = dt_pts[v];
   std::uint64_t h = static_cast<std::uint64_t>(v) * 0x9E3779B97F4A7C15ULL + 1;
-  bool ok = false;
+  // A failed move is not undone before the next one: the triangulation of the same points is
+  // the same whatever the path (CGAL's is unique), and this halves the removals and insertions.
+  bool ok = false, displaced = false;
   for (int attempt = 0; attempt < 12 && !ok; ++attempt) {
     Vec3 dir;
     for (int a = 0; a < 3; ++a) {
@@ -684,13 +685,14 @@ bool RemeshContext::perturb_vertex(int v, MatX3& P) {
     pts[v] = x;
     dt_pts[v] = to_dt(x);
     dt.insert(dt_pts[v], v);
+    displaced = true;
     ok = worst_around(ring, P) > before;
-    if (!ok) {
-      dt.remove(v);
-      pts[v] = old_x;
-      dt_pts[v] = old_y;
-      dt.insert(old_y, v);
-    }
+  }
+  if (displaced && !ok) {
+    dt.remove(v);
+    pts[v] = old_x;
+    dt_pts[v] = old_y;
+    dt.insert(old_y, v);
   }
   return ok;
 }
