@@ -143,6 +143,27 @@ struct Delaunay::Impl {
     dt.finite_adjacent_vertices(v, boost::iterators::make_function_output_iterator(
                                        [&](DT::Vertex_handle w) { changed.push_back(w->info()); }));
   }
+  /// The vertex with this id, null if absent.
+  DT::Vertex_handle handle(int id) const {
+    return id >= 0 && static_cast<std::size_t>(id) < handles.size() ? handles[id]
+                                                                    : DT::Vertex_handle();
+  }
+  /// Insert the points whose `skip` flag is 0 (every point if null), ids = indices, by range
+  /// insertion (spatial sort + hinted insertion); the triangulation must then hold exactly
+  /// `points`. Re-indexes the handles.
+  /// @throws MeshError naming both ids if two points coincide.
+  void insert_points(const std::vector<Vec3>& points, const std::vector<char>* skip) {
+    std::vector<std::pair<Point, int>> in;
+    in.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+      if (!skip || !(*skip)[i]) in.emplace_back(to_point(points[i]), static_cast<int>(i));
+    dt.insert(in.begin(), in.end());
+    if (dt.number_of_vertices() != points.size()) throw_duplicate(points);
+    handles.assign(points.size(), DT::Vertex_handle());
+    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
+      handles[v->info()] = v;
+    hint = DT::Cell_handle();
+  }
 };
 
 Delaunay::Delaunay() : m_impl(std::make_unique<Impl>()) {
@@ -157,17 +178,8 @@ void Delaunay::build(const std::vector<Vec3>& points) {
   d.dt.clear();
   d.tracking = false;
   d.changed.clear();
-  std::vector<std::pair<Point, int>> in;
-  in.reserve(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-    in.emplace_back(to_point(points[i]), static_cast<int>(i));
   d.dt.infinite_vertex()->info() = -1;  // clear() made a new one
-  d.dt.insert(in.begin(), in.end());    // spatial sort + hinted insertion
-  if (d.dt.number_of_vertices() != points.size()) throw_duplicate(points);
-  d.handles.assign(points.size(), DT::Vertex_handle());
-  for (auto v = d.dt.finite_vertices_begin(); v != d.dt.finite_vertices_end(); ++v)
-    d.handles[v->info()] = v;
-  d.hint = DT::Cell_handle();
+  d.insert_points(points, nullptr);
 }
 
 bool Delaunay::update(const std::vector<Vec3>& points, double max_cost, Index& removed,
@@ -210,16 +222,7 @@ bool Delaunay::update(const std::vector<Vec3>& points, double max_cost, Index& r
   // addresses, so the cells' order in the container varies from run to run; the remesher
   // depends only on the triangulation (canonical orders everywhere).
   d.dt.remove_cluster(gone.begin(), gone.end());
-  std::vector<std::pair<Point, int>> in;
-  in.reserve(static_cast<std::size_t>(inserted));
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (!present[i]) in.emplace_back(to_point(points[i]), static_cast<int>(i));
-  d.dt.insert(in.begin(), in.end());  // spatial sort + hinted insertion, as in build
-  if (d.dt.number_of_vertices() != points.size()) throw_duplicate(points);
-  d.handles.assign(points.size(), DT::Vertex_handle());
-  for (auto v = d.dt.finite_vertices_begin(); v != d.dt.finite_vertices_end(); ++v)
-    d.handles[v->info()] = v;
-  d.hint = DT::Cell_handle();
+  d.insert_points(points, &present);
   return true;
 }
 
@@ -241,10 +244,10 @@ void Delaunay::insert(const Vec3& p, int id) {
 
 void Delaunay::remove(int id) {
   Impl& d = *m_impl;
-  if (id < 0 || static_cast<std::size_t>(id) >= d.handles.size() || d.handles[id] == nullptr)
-    return;
-  if (d.tracking) d.record(d.handles[id]);
-  d.dt.remove(d.handles[id]);
+  const DT::Vertex_handle v = d.handle(id);
+  if (v == DT::Vertex_handle()) return;
+  if (d.tracking) d.record(v);
+  d.dt.remove(v);
   d.handles[id] = DT::Vertex_handle();
   d.hint = DT::Cell_handle();
 }
@@ -253,8 +256,7 @@ void Delaunay::remove_many(const std::vector<int>& ids) {
   Impl& d = *m_impl;
   std::vector<DT::Vertex_handle> gone;
   for (int id : ids) {
-    if (id < 0 || static_cast<std::size_t>(id) >= d.handles.size() || d.handles[id] == nullptr)
-      continue;
+    if (d.handle(id) == DT::Vertex_handle()) continue;
     gone.push_back(d.handles[id]);
     d.handles[id] = DT::Vertex_handle();
   }
@@ -310,9 +312,8 @@ void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
   const Impl& d = *m_impl;
   std::vector<DT::Cell_handle> cells;
   for (int id : ids)
-    if (id >= 0 && static_cast<std::size_t>(id) < d.handles.size() &&
-        d.handles[id] != DT::Vertex_handle())
-      d.dt.finite_incident_cells(d.handles[id], std::back_inserter(cells));
+    if (const DT::Vertex_handle v = d.handle(id); v != DT::Vertex_handle())
+      d.dt.finite_incident_cells(v, std::back_inserter(cells));
   // Order by the cells' sorted vertex ids, not by handle (an address): the remesher acts on
   // these cells in this order, and the same input must give the same mesh in every run.
   std::vector<std::pair<std::array<int, 4>, std::array<int, 4>>> keyed;  // sorted, canonical
@@ -339,11 +340,10 @@ void Delaunay::cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) 
   std::unordered_set<const void*> seen;  // membership only: the output is in walk order
   std::vector<int> out;
   for (int id : ids) {
-    if (id < 0 || static_cast<std::size_t>(id) >= d.handles.size() ||
-        d.handles[id] == DT::Vertex_handle())
-      continue;
+    const DT::Vertex_handle v = d.handle(id);
+    if (v == DT::Vertex_handle()) continue;
     star.clear();
-    d.dt.finite_incident_cells(d.handles[id], std::back_inserter(star));
+    d.dt.finite_incident_cells(v, std::back_inserter(star));
     for (const DT::Cell_handle& c : star) {
       if (!seen.insert(&*c).second) continue;
       const std::array<int, 4> ids = canonical_ids(c);
@@ -356,19 +356,19 @@ void Delaunay::cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) 
 void Delaunay::cells_touching(int min_id, MatX4i& tets) const {
   // One pass over the cells (walking the incident cells of each surface vertex and sorting
   // the handles measured slower).
-  const DT& dt = m_impl->dt;
-  std::vector<std::array<int, 4>> rows;
-  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
-    const int a = c->vertex(0)->info(), b = c->vertex(1)->info(), e = c->vertex(2)->info(),
-              f = c->vertex(3)->info();
-    if (std::max(std::max(a, b), std::max(e, f)) >= min_id) rows.push_back(canonical_ids(c));
-  }
   // In the container's order, which depends on the history of insertions and removals: the
   // caller's sums of facet areas may differ in the last bit, far below its 1e-9 tolerance
   // (sorting cost 3 % of a remesh).
-  tets.resize(static_cast<Index>(rows.size()), 4);
-  for (std::size_t t = 0; t < rows.size(); ++t)
-    for (int k = 0; k < 4; ++k) tets(static_cast<Index>(t), k) = rows[t][k];
+  const DT& dt = m_impl->dt;
+  std::vector<int> ids;
+  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
+    const int a = c->vertex(0)->info(), b = c->vertex(1)->info(), e = c->vertex(2)->info(),
+              f = c->vertex(3)->info();
+    if (std::max(std::max(a, b), std::max(e, f)) < min_id) continue;
+    const std::array<int, 4> k = canonical_ids(c);
+    ids.insert(ids.end(), k.begin(), k.end());
+  }
+  tets = Eigen::Map<MatX4i>(ids.data(), static_cast<Index>(ids.size() / 4), 4);
 }
 
 MatX4i delaunay_of(const std::vector<Vec3>& points) {

@@ -18,7 +18,7 @@ namespace tetfsi::mesh {
 /// Delaunay) with an integer id per vertex. Deterministic: the cells and their order in
 /// `extract` depend only on the points, ids and sequence of calls, never on memory addresses
 /// (vertex removal is keyed by ids, delaunay.cpp). Every cell handed out lists its vertices in
-/// the canonical order (canonical_cell): the same whatever the history that made the cell.
+/// the canonical order (canonical_order): the same whatever the history that made the cell.
 class Delaunay {
  public:
   Delaunay();

@@ -359,8 +359,7 @@ std::vector<char> exclude_near_surface(const Lattice& lat, const RefinedSurface&
     rs[s] = std::sqrt(r2s[s]);
     const Vec3 lo = surf.x(st.v[0]).cwiseMin(surf.x(st.v[1])).cwiseMin(surf.x(st.v[2]));
     const Vec3 hi = surf.x(st.v[0]).cwiseMax(surf.x(st.v[1])).cwiseMax(surf.x(st.v[2]));
-    const double r = std::sqrt(r2s[s]);
-    const Vec3 rr = Vec3::Constant(r * (1.0 + 1e-9));
+    const Vec3 rr = Vec3::Constant(rs[s] * (1.0 + 1e-9));
     const Vec3 pp = Vec3::Constant(protect);
     grid.add_box(lo.cwiseMin(cs[s] - rr) - pp, hi.cwiseMax(cs[s] + rr) + pp, static_cast<int>(s));
   }
