@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <ostream>
+#include <string>
 #include <vector>
 
 #include <fmt/format.h>
@@ -59,21 +60,18 @@ MovingSheet moving_sheet(const std::string& scene_path, int steps) {
   m.sizing = scene.fluid->sizing;
   m.dt = scene.time.dt;
   solid::SolidWorld world = build_world(scene);
+  std::vector<coupling::BodySurface> surfaces;
+  std::vector<std::string> names;
+  for (const solid::SolidBody& b : world.bodies) {
+    surfaces.push_back(coupling::body_surface(b));
+    names.push_back(b.name());
+  }
   PhaseTimes phases;
   for (int k = 0; k < steps; ++k) {
     world.step(m.dt, phases);  // the bodies alone: the scene is one-way (coupling none)
-    std::vector<mesh::SolidSurface> frame;
-    for (std::size_t b = 0; b < world.bodies.size(); ++b) {
-      const coupling::BodySurface s = coupling::body_surface(world.bodies[b]);
-      mesh::SolidSurface f;
-      f.body = static_cast<int>(b);
-      f.triangles = s.triangles;
-      f.vertices.resize(s.nodes.size(), 3);
-      for (Index i = 0; i < s.nodes.size(); ++i)
-        f.vertices.row(i) = world.bodies[b].positions().row(s.nodes[i]);
-      frame.push_back(std::move(f));
-    }
-    m.frames.push_back(std::move(frame));
+    std::vector<MatX3> positions;
+    for (const solid::SolidBody& b : world.bodies) positions.push_back(b.positions());
+    m.frames.push_back(coupling::place_surfaces(m.domain, surfaces, names, positions));
   }
   return m;
 }

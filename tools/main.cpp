@@ -390,8 +390,8 @@ Command add_bench_remesh(CLI::App& bench) {
       ->type_name("FILE")
       ->capture_default_str();
   cmd->add_option("--moving-steps", o->steps,
-                  "steps of the moving case, remeshed on the full and the incremental path (0: "
-                  "skip it)")
+                  "steps of the moving case, remeshed on the full and the incremental path (0 "
+                  "or 1: skip it)")
       ->type_name("N")
       ->check(CLI::Range(0, 10000))
       ->capture_default_str();
