@@ -16,4 +16,8 @@ const char* to_string(TransferScheme s) {
   return k_transfer_scheme_names.name(s);
 }
 
+const char* to_string(ScalarInterpolation s) {
+  return k_scalar_interpolation_names.name(s);
+}
+
 }  // namespace tetfsi::fluid

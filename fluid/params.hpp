@@ -84,6 +84,20 @@ inline constexpr EnumNames<TransferScheme, 3> k_transfer_scheme_names{
       {TransferScheme::Bfecc, "bfecc"}}}};
 const char* to_string(TransferScheme s);
 
+/// How the transfer reads a cell scalar (smoke, temperature) at a traced point (transfer.hpp).
+enum class ScalarInterpolation {
+  VertexFit,  ///< linear between vertex values fitted to the cells around each vertex
+              ///< (reconstruct.hpp cell_to_vertex_linear): continuous
+  Quadratic,  ///< vertex values and gradients of quadratic fits, interpolated exactly
+              ///< for quadratic fields (reconstruct.hpp vertex_quadratic_fit): continuous
+};
+
+inline constexpr EnumNames<ScalarInterpolation, 2> k_scalar_interpolation_names{
+    "scalar interpolation",
+    {{{ScalarInterpolation::VertexFit, "vertex_fit"},
+      {ScalarInterpolation::Quadratic, "quadratic"}}}};
+const char* to_string(ScalarInterpolation s);
+
 /// A region the liquid fills at the start (grid_liquid.hpp): the intersection of whichever of
 /// a box [lo, hi] (when lo < hi), a sphere (when radius > 0) and the inside of a closed
 /// surface (when `surface` is set) it has, at least one.
@@ -165,6 +179,11 @@ struct FluidParams {
   /// lose more on the coarse Taylor–Green and gain energy in the fine rotation).
   TransferScheme scalar_transfer = TransferScheme::Bfecc;
   TransferScheme velocity_transfer = TransferScheme::SemiLagrangian;
+  /// How the scalars' transfer reads the old (and, for the second-order schemes, the
+  /// intermediate) cell values at a traced point. Quadratic by default: measured (the
+  /// README's transfer table) with BFECC it keeps 91 % of a rotating blob's peak at 119k
+  /// cells (51 % with the linear reading), a fifth of the L1 error and more of the mass.
+  ScalarInterpolation scalar_interpolation = ScalarInterpolation::Quadratic;
   /// The transfer takes the old pressure's acceleration at the midpoint of each back-trace
   /// rather than at its end (transfer.hpp): second order in time along curved paths.
   bool pressure_along_path = false;

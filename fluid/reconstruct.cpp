@@ -123,6 +123,114 @@ VecX cell_to_vertex_linear(const TetMesh& m, const VecX& c) {
   return vertex_linear_fit(m, c, nullptr, nullptr);
 }
 
+namespace {
+
+/// The weighted least-squares quadratic about x_v of the values c at the points xc[st] (see
+/// vertex_quadratic_fit): the value and the gradient; the linear fit on the same points where
+/// the quadratic is not determined, and their mean where neither is.
+std::pair<double, Vec3> fit_jet(const Vec3& xv, const std::vector<Index>& st, const MatX3& xc,
+                                const VecX& volumes, const VecX& c) {
+  using Vec10 = Eigen::Matrix<double, 10, 1>;
+  using Mat10 = Eigen::Matrix<double, 10, 10>;
+  double len2 = 0, wsum = 0;
+  for (Index t : st) {
+    len2 += volumes[t] * (xc.row(t).transpose() - xv).squaredNorm();
+    wsum += volumes[t];
+  }
+  const double L = std::sqrt(len2 / wsum);  // the basis in units of the cells' distance
+  Mat10 N = Mat10::Zero();                  // its lower triangle
+  Vec10 r = Vec10::Zero();
+  for (Index t : st) {
+    const Vec3 d = (xc.row(t).transpose() - xv) / L;
+    Vec10 phi;
+    phi << 1.0, d.x(), d.y(), d.z(), 0.5 * d.x() * d.x(), 0.5 * d.y() * d.y(), 0.5 * d.z() * d.z(),
+        d.x() * d.y(), d.x() * d.z(), d.y() * d.z();
+    const double w = volumes[t] / (0.25 + d.squaredNorm());  // the nearer cells first
+    for (int i = 0; i < 10; ++i) {
+      const double wp = w * phi[i];
+      for (int k = 0; k <= i; ++k) N(i, k) += wp * phi[k];
+      r[i] += wp * c[t];
+    }
+  }
+  if (st.size() >= 10) {
+    const Eigen::LDLT<Mat10, Eigen::Lower> ldlt(N);
+    if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 1e-8 * N(0, 0)) {
+      const Vec10 x = ldlt.solve(r);
+      return {x[0], x.segment<3>(1) / L};
+    }
+  }
+  const Eigen::Matrix4d N4 = N.topLeftCorner<4, 4>();
+  const Eigen::LDLT<Eigen::Matrix4d, Eigen::Lower> ldlt(N4);
+  if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 1e-8 * N(0, 0)) {
+    const Vec4 x = ldlt.solve(r.head<4>());
+    return {x[0], x.tail<3>() / L};
+  }
+  return {r[0] / N(0, 0), Vec3::Zero()};
+}
+
+}  // namespace
+
+VertexJets vertex_quadratic_fit(const TetMesh& m, const VecX& c) {
+  const Index nv = m.num_vertices(), nt = m.num_tets();
+  TETFSI_CHECK(c.size() == nt, "{} cell values for {} tets", c.size(), nt);
+  VertexJets j;
+  j.value = VecX::Zero(nv);
+  j.grad = MatX3::Zero(nv, 3);
+  j.lo = VecX::Constant(nv, std::numeric_limits<double>::infinity());
+  j.hi = -j.lo;
+  // the cells around each vertex, by vertex (a CSR of the tet-vertex incidence)
+  std::vector<Index> start(static_cast<size_t>(nv) + 1, 0), cells(static_cast<size_t>(4 * nt));
+  for (Index t = 0; t < nt; ++t)
+    for (int i = 0; i < 4; ++i) {
+      const Index v = m.tets(t, i);
+      ++start[v + 1];
+      j.lo[v] = std::min(j.lo[v], c[t]);
+      j.hi[v] = std::max(j.hi[v], c[t]);
+    }
+  for (Index v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<Index> fill(start.begin(), start.end() - 1);
+  for (Index t = 0; t < nt; ++t)
+    for (int i = 0; i < 4; ++i) cells[fill[m.tets(t, i)]++] = t;
+  MatX3 xc(nt, 3);
+  for (Index t = 0; t < nt; ++t) xc.row(t) = mesh::tet_centroid(m, t).transpose();
+  parallel_for_each(nv, kGrain, [&](Index v) {
+    if (start[v + 1] == start[v]) return;
+    if (!(j.hi[v] > j.lo[v])) {  // uniform around v
+      j.value[v] = j.lo[v];
+      return;
+    }
+    // the cells around v and their face neighbours: the cells around v alone can lie on a
+    // sphere about it (a regular lattice), which leaves the value and the Laplacian apart
+    thread_local std::vector<Index> st, seen;
+    if (seen.size() != static_cast<size_t>(nt)) seen.assign(static_cast<size_t>(nt), -1);
+    st.clear();
+    auto add = [&](Index t) {
+      if (t < 0 || seen[t] == v) return;
+      seen[t] = v;
+      st.push_back(t);
+    };
+    for (Index k = start[v]; k < start[v + 1]; ++k) add(cells[k]);
+    for (Index k = start[v]; k < start[v + 1]; ++k)
+      for (int f = 0; f < 4; ++f) add(m.neighbours(cells[k], f));
+    const auto [value, grad] = fit_jet(m.vertices.row(v).transpose(), st, xc, m.volumes, c);
+    j.value[v] = std::clamp(value, j.lo[v], j.hi[v]);
+    j.grad.row(v) = grad.transpose();
+  });
+  return j;
+}
+
+double sample_jets(const TetMesh& m, const VertexJets& j, Index t, const Vec4& bary) {
+  Vec3 x = Vec3::Zero();
+  for (int i = 0; i < 4; ++i) x += bary[i] * m.vertices.row(m.tets(t, i)).transpose();
+  double s = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    const Index v = m.tets(t, i);
+    const double a = j.value[v] + 0.5 * j.grad.row(v).dot(x - m.vertices.row(v).transpose());
+    s += bary[i] * std::clamp(a, j.lo[v], j.hi[v]);
+  }
+  return s;
+}
+
 MatX3 vertex_gradients(const TetMesh& m, const VecX& c, const MatX3& points) {
   MatX3 g;
   vertex_linear_fit(m, c, &points, &g);

@@ -77,6 +77,26 @@ VecX cell_to_vertex(const mesh::TetMesh& m, const VecX& cell_values);
 /// left cell-to-cell speckle in the smoke.)
 VecX cell_to_vertex_linear(const mesh::TetMesh& m, const VecX& cell_values);
 
+/// A cell field read at any point through vertex values and gradients fitted to the cells
+/// around each vertex (see vertex_quadratic_fit).
+struct VertexJets {
+  VecX value;   ///< #V: the fit's value at the vertex, clamped to lo..hi
+  MatX3 grad;   ///< #V × 3: the fit's gradient there (units per m)
+  VecX lo, hi;  ///< #V: the range of the cells around the vertex
+};
+
+/// At each vertex v the least-squares quadratic c ≈ a + g·d + ½ dᵀ H d (d = x̄_t − x_v) over
+/// the cells around v (weights V_t); where that is not determined (fewer than ten cells, or
+/// centroids on a quadric) the linear fit of cell_to_vertex_linear. Exact for quadratic
+/// fields where the fit is determined.
+VertexJets vertex_quadratic_fit(const mesh::TetMesh& m, const VecX& cell_values);
+
+/// The value at barycentrics λ of tet t: Σ_i λ_i clamp(a_i + ½ g_i · (x − x_i), lo_i, hi_i).
+/// Exact for quadratic fields: with g_i = g(x) − H (x − x_i) the terms sum to
+/// f(x) − ½ g(x) · Σ λ_i (x − x_i) = f(x). Continuous across faces (a face's value depends on
+/// its own vertices only), and within the range of the cells around the tet's vertices.
+double sample_jets(const mesh::TetMesh& m, const VertexJets& j, Index t, const Vec4& bary);
+
 /// The gradient of cell_to_vertex_linear's fit at every vertex (#V × 3, units of the values
 /// per m), with the cell values sitting at `points` (#T × 3: e.g. the circumcentres of
 /// pressures): exact for linear fields; zero where the fit is not determined or the values

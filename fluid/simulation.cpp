@@ -197,6 +197,7 @@ FluidPrediction FluidSimulation::predict(TetMesh nm, double h,
     in.reconstruction = P.reconstruction;
     in.scalar_scheme = P.scalar_transfer;
     in.velocity_scheme = P.velocity_transfer;
+    in.scalar_interpolation = P.scalar_interpolation;
     VecX old_rho;
     if (P.pressure_along_path && I.state.p.size() == I.mesh.num_tets()) {
       old_rho = cell_fluid_density(I.mesh, P);

@@ -152,6 +152,27 @@ double sample_vertices(const TetMesh& m, const VecX& vv, const TracePoint& p) {
   return s;
 }
 
+/// A cell scalar made readable at any point of its mesh, by ScalarInterpolation.
+class ScalarSampler {
+ public:
+  ScalarSampler() = default;
+  ScalarSampler(const TetMesh& m, const VecX& c, ScalarInterpolation how) : m_mesh(&m) {
+    if (how == ScalarInterpolation::Quadratic)
+      m_jets = vertex_quadratic_fit(m, c);
+    else
+      m_vertex = cell_to_vertex_linear(m, c);
+  }
+  double operator()(const TracePoint& p) const {
+    if (m_vertex.size()) return sample_vertices(*m_mesh, m_vertex, p);
+    return sample_jets(*m_mesh, m_jets, p.tet, p.bary);
+  }
+
+ private:
+  const TetMesh* m_mesh = nullptr;
+  VecX m_vertex;
+  VertexJets m_jets;
+};
+
 /// Walks and traces in one mesh through the old velocity field.
 class Tracer {
  public:
@@ -297,8 +318,9 @@ ErrorEstimate reverse_pass(const TransferInput& in, const Tracer& old_tr, const 
   const bool scalars = in.scalar_scheme != TransferScheme::SemiLagrangian;
   const bool velocity = in.velocity_scheme != TransferScheme::SemiLagrangian;
   const bool has_d = scalars && in.old_density, has_T = scalars && in.old_temperature;
-  const VecX dv = has_d ? cell_to_vertex_linear(nm, hat.density) : VecX();
-  const VecX tv = has_T ? cell_to_vertex_linear(nm, hat.temperature) : VecX();
+  const auto how = in.scalar_interpolation;
+  const ScalarSampler dv = has_d ? ScalarSampler(nm, hat.density, how) : ScalarSampler();
+  const ScalarSampler tv = has_T ? ScalarSampler(nm, hat.temperature, how) : ScalarSampler();
   std::optional<VelocityField> hat_field;
   if (velocity) hat_field.emplace(nm, hat.u, in.reconstruction);
   // y in the new fluid, walking from `from` there (or from the locator); tet −1 if y is not
@@ -345,8 +367,8 @@ ErrorEstimate reverse_pass(const TransferInput& in, const Tracer& old_tr, const 
       return;
     const TracePoint q = carry(TracePoint{t, Vec4::Constant(0.25), false}, cell_q[t]);
     if (q.tet < 0) return;
-    if (has_d) e.density[t] = 0.5 * ((*in.old_density)[t] - sample_vertices(nm, dv, q));
-    if (has_T) e.temperature[t] = 0.5 * ((*in.old_temperature)[t] - sample_vertices(nm, tv, q));
+    if (has_d) e.density[t] = 0.5 * ((*in.old_density)[t] - dv(q));
+    if (has_T) e.temperature[t] = 0.5 * ((*in.old_temperature)[t] - tv(q));
   });
   parallel_for_each(velocity ? om.num_faces() : 0, kGrain, [&](Index g) {
     if (om.is_boundary(g)) return;  // boundary values are set by the conditions
@@ -391,8 +413,10 @@ void correct(const TransferInput& in, const VelocityField& field, const TetMesh&
     parallel_for_each(nm.num_tets(), kGrain, [&](Index t) {
       const TracePoint* p = point(cells[t], in.scalar_scheme);
       if (!p) return;
+      // the old values around the end, and the first-order value itself: a reading sharper
+      // than the cells' range near a peak (the quadratic jets) keeps it
       const auto [lo, hi] = cell_range(om, old_c, cells[t].end.tet);
-      c[t] = std::clamp(c[t] + sample_vertices(om, ev, *p), lo, hi);
+      c[t] = std::clamp(c[t] + sample_vertices(om, ev, *p), std::min(lo, c[t]), std::max(hi, c[t]));
     });
   };
   if (e.density.size()) correct_scalar(*in.old_density, e.density, out.density);
@@ -437,16 +461,17 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   out.u.resize(nf);
   out.density = VecX::Zero(nt);
   out.temperature = VecX::Zero(nt);
-  const VecX dv = has_d ? cell_to_vertex_linear(om, *in.old_density) : VecX();
-  const VecX tv = has_T ? cell_to_vertex_linear(om, *in.old_temperature) : VecX();
+  const auto how = in.scalar_interpolation;
+  const ScalarSampler dv = has_d ? ScalarSampler(om, *in.old_density, how) : ScalarSampler();
+  const ScalarSampler tv = has_T ? ScalarSampler(om, *in.old_temperature, how) : ScalarSampler();
   for (const Sample& s : cells)
     if (s.clamped && (has_d || has_T)) ++out.clamped;
   for (const Sample& s : faces)
     if (s.clamped) ++out.clamped;
   parallel_for_each(has_d || has_T ? nt : 0, kGrain, [&](Index t) {
     const Sample& s = cells[t];
-    if (has_d) out.density[t] = sample_vertices(om, dv, s.end);
-    if (has_T) out.temperature[t] = sample_vertices(om, tv, s.end);
+    if (has_d) out.density[t] = dv(s.end);
+    if (has_T) out.temperature[t] = tv(s.end);
     const auto ip = static_cast<size_t>(s.inflow);
     if (s.inflow >= 0 && ip < in.inflow_density.size()) out.density[t] = in.inflow_density[ip];
     if (s.inflow >= 0 && ip < in.inflow_temperature.size())

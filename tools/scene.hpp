@@ -73,6 +73,7 @@
 ///     "decay": { "smoke": 0, "temperature": 0 },            // per second
 ///     "reconstruction": "whitney" | "vertex_ls",
 ///     "transfer": { "scalars": "bfecc", "velocity": "semi_lagrangian",  // or "maccormack"
+///                   "scalar_interpolation": "quadratic",  // or "vertex_fit"
 ///                   "pressure_along_path": false },
 ///     "min_dual_fraction": 1e-6,
 ///     "solver": { "linear": "amg", "rel_tol": 1e-8, "max_iterations": 500 },  // pressure

@@ -1243,6 +1243,10 @@ const Section<fluid::FluidParams>& transfer_keys() {
        bind_enum<F>(
            {.key = "velocity", .doc = "the face velocities: first order, or second order clamped"},
            fluid::k_transfer_scheme_names, TETFSI_AT(velocity_transfer)),
+       bind_enum<F>({.key = "scalar_interpolation",
+                     .doc = "how smoke and temperature are read at a traced point: linear "
+                            "between fitted vertex values, or quadratic vertex jets (sharper)"},
+                    fluid::k_scalar_interpolation_names, TETFSI_AT(scalar_interpolation)),
        bind<F>({.key = "pressure_along_path",
                 .type = KeyType::Boolean,
                 .doc = "the old pressure's acceleration at each back-trace's midpoint"},
