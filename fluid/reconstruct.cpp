@@ -201,8 +201,8 @@ VertexJets vertex_quadratic_fit(const TetMesh& m, const VecX& c) {
     }
     // the cells around v and their face neighbours: the cells around v alone can lie on a
     // sphere about it (a regular lattice), which leaves the value and the Laplacian apart
-    thread_local std::vector<Index> st, seen;
-    if (seen.size() != static_cast<size_t>(nt)) seen.assign(static_cast<size_t>(nt), -1);
+    thread_local std::vector<Index> st, seen;  // seen: all −1 between uses
+    if (seen.size() < static_cast<size_t>(nt)) seen.resize(static_cast<size_t>(nt), -1);
     st.clear();
     auto add = [&](Index t) {
       if (t < 0 || seen[t] == v) return;
@@ -212,6 +212,7 @@ VertexJets vertex_quadratic_fit(const TetMesh& m, const VecX& c) {
     for (Index k = start[v]; k < start[v + 1]; ++k) add(cells[k]);
     for (Index k = start[v]; k < start[v + 1]; ++k)
       for (int f = 0; f < 4; ++f) add(m.neighbours(cells[k], f));
+    for (Index t : st) seen[t] = -1;  // clean for the next vertex and the next call
     const auto [value, grad] = fit_jet(m.vertices.row(v).transpose(), st, xc, m.volumes, c);
     j.value[v] = std::clamp(value, j.lo[v], j.hi[v]);
     j.grad.row(v) = grad.transpose();
