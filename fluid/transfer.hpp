@@ -4,9 +4,10 @@
 /// semi-Lagrangian and so unconditionally stable [Stam99], [KFCO06, §4]: every face centre
 /// of the new mesh is traced back through the old mesh's reconstructed velocity (RK2) and
 /// takes the normal component of the old field there; cell scalars (smoke, temperature) are
-/// traced from the cell centroids and interpolated linearly from vertex values fitted to the
-/// old cells (reconstruct.hpp cell_to_vertex_linear: exact for linear fields, no new
-/// extrema).
+/// traced from the cell centroids and read there through vertex jets fitted quadratically to
+/// the old cells (ScalarInterpolation::Quadratic, reconstruct.hpp vertex_quadratic_fit: exact
+/// for quadratic fields) or linearly between fitted vertex values (VertexFit,
+/// cell_to_vertex_linear: exact for linear fields); both clamped, so no new extrema.
 ///
 /// A scalar back-trace stopped at an Inflow face takes the patch's emitted smoke and
 /// temperature (TransferInput::inflow_density): that is how jets emit.
@@ -92,7 +93,7 @@ struct TransferOutput {
 /// the transfer's error, and φ = φ̂ + e, with e read at the new point (MacCormack) or at its
 /// back-trace's end (BFECC, i.e. the transfer of φⁿ + e), clamped to the old values around
 /// the back-trace's end (face velocities: normal_range of the old field; scalars: the cell and
-/// its face neighbours). The velocity's error field is reconstructed by vertex least squares
+/// its face neighbours, widened to include φ̂ so that a sharp first-order value is kept). The velocity's error field is reconstructed by vertex least squares
 /// (smooth) whatever the transfer's reconstruction. Samples whose trace touched the boundary or an
 /// Inflow patch stay first order.
 ///
