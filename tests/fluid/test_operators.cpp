@@ -2,7 +2,8 @@
 /// vanishes; the projection leaves every cell divergence-free and removes gradient fields
 /// entirely (with and without co-spherical cells, with Open faces); multigrid iterations stay
 /// flat under refinement; both velocity reconstructions are exact for uniform flow, and
-/// their error on a rotation and a shear is measured (it decides the default).
+/// their error on a rotation and a shear is measured (it decides the default); the scalars'
+/// quadratic vertex jets read a quadratic field exactly and stay within the cells' range.
 #include <doctest/doctest.h>
 
 #include <cstdio>
