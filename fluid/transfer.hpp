@@ -93,9 +93,9 @@ struct TransferOutput {
 /// the transfer's error, and φ = φ̂ + e, with e read at the new point (MacCormack) or at its
 /// back-trace's end (BFECC, i.e. the transfer of φⁿ + e), clamped to the old values around
 /// the back-trace's end (face velocities: normal_range of the old field; scalars: the cell and
-/// its face neighbours, widened to include φ̂ so that a sharp first-order value is kept). The velocity's error field is reconstructed by vertex least squares
-/// (smooth) whatever the transfer's reconstruction. Samples whose trace touched the boundary or an
-/// Inflow patch stay first order.
+/// its face neighbours, widened to include φ̂ so that a sharp first-order value is kept). The
+/// velocity's error field is reconstructed by vertex least squares (smooth) whatever the transfer's
+/// reconstruction. Samples whose trace touched the boundary or an Inflow patch stay first order.
 ///
 /// The pressure along the path (old_pressure given): the projection applies the pressure
 /// acceleration −∇p/ρ at the end of the path only, where the flow felt it all along: a vector
