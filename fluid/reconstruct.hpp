@@ -85,10 +85,12 @@ struct VertexJets {
   VecX lo, hi;  ///< #V: the range of the cells around the vertex
 };
 
-/// At each vertex v the least-squares quadratic c ≈ a + g·d + ½ dᵀ H d (d = x̄_t − x_v) over
-/// the cells around v (weights V_t); where that is not determined (fewer than ten cells, or
-/// centroids on a quadric) the linear fit of cell_to_vertex_linear. Exact for quadratic
-/// fields where the fit is determined.
+/// At each vertex v the weighted least-squares quadratic c ≈ a + g·d + ½ dᵀ H d
+/// (d = x̄_t − x_v, weights V_t / (¼ + |d|²/L²), L the cells' rms distance) over the cells
+/// around v and their face neighbours (the cells around v alone can lie on a sphere about it,
+/// as in the regular lattice, which leaves a and tr H apart); where that is not determined,
+/// the linear fit on the same cells, and where neither is, their mean. Exact for quadratic
+/// fields where the fit is determined. Vertices whose cells hold one value take it (g = 0).
 VertexJets vertex_quadratic_fit(const mesh::TetMesh& m, const VecX& cell_values);
 
 /// The value at barycentrics λ of tet t: Σ_i λ_i clamp(a_i + ½ g_i · (x − x_i), lo_i, hi_i).
