@@ -63,8 +63,8 @@ struct TransferInput {
   /// `transfer`), for the cell scalars and for the face velocities.
   TransferScheme scalar_scheme = TransferScheme::SemiLagrangian;
   TransferScheme velocity_scheme = TransferScheme::SemiLagrangian;
-  /// How a scalar is read at a traced point: linear between fitted vertex values, or the
-  /// cell's own limited linear reconstruction (params.hpp ScalarInterpolation).
+  /// How a scalar is read at a traced point: linear between fitted vertex values, or through
+  /// quadratic vertex jets (params.hpp ScalarInterpolation; FluidParams defaults to the jets).
   ScalarInterpolation scalar_interpolation = ScalarInterpolation::VertexFit;
   /// The old pressure (#T_old, Pa) and fluid density per old cell (#T_old, kg/m³). When both
   /// are given, the velocity transfer takes the old pressure's acceleration along the path by
