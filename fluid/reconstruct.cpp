@@ -170,29 +170,41 @@ std::pair<double, Vec3> fit_jet(const Vec3& xv, const std::vector<Index>& st, co
 
 }  // namespace
 
-VertexJets vertex_quadratic_fit(const TetMesh& m, const VecX& c) {
+VertexStencils vertex_stencils(const TetMesh& m) {
+  const Index nv = m.num_vertices(), nt = m.num_tets();
+  VertexStencils s;
+  s.start.assign(static_cast<size_t>(nv) + 1, 0);
+  s.cells.resize(static_cast<size_t>(4 * nt));
+  for (Index t = 0; t < nt; ++t)
+    for (int i = 0; i < 4; ++i) ++s.start[m.tets(t, i) + 1];
+  for (Index v = 0; v < nv; ++v) s.start[v + 1] += s.start[v];
+  std::vector<Index> fill(s.start.begin(), s.start.end() - 1);
+  for (Index t = 0; t < nt; ++t)
+    for (int i = 0; i < 4; ++i) s.cells[fill[m.tets(t, i)]++] = t;
+  s.centroids.resize(nt, 3);
+  for (Index t = 0; t < nt; ++t) s.centroids.row(t) = mesh::tet_centroid(m, t).transpose();
+  return s;
+}
+
+VertexJets vertex_quadratic_fit(const TetMesh& m, const VertexStencils& stencils, const VecX& c) {
   const Index nv = m.num_vertices(), nt = m.num_tets();
   TETFSI_CHECK(c.size() == nt, "{} cell values for {} tets", c.size(), nt);
+  TETFSI_CHECK(stencils.centroids.rows() == nt && stencils.start.size() == size_t(nv) + 1,
+               "vertex stencils of another mesh");
+  const std::vector<Index>& start = stencils.start;
+  const std::vector<Index>& cells = stencils.cells;
+  const MatX3& xc = stencils.centroids;
   VertexJets j;
   j.value = VecX::Zero(nv);
   j.grad = MatX3::Zero(nv, 3);
   j.lo = VecX::Constant(nv, std::numeric_limits<double>::infinity());
   j.hi = -j.lo;
-  // the cells around each vertex, by vertex (a CSR of the tet-vertex incidence)
-  std::vector<Index> start(static_cast<size_t>(nv) + 1, 0), cells(static_cast<size_t>(4 * nt));
   for (Index t = 0; t < nt; ++t)
     for (int i = 0; i < 4; ++i) {
       const Index v = m.tets(t, i);
-      ++start[v + 1];
       j.lo[v] = std::min(j.lo[v], c[t]);
       j.hi[v] = std::max(j.hi[v], c[t]);
     }
-  for (Index v = 0; v < nv; ++v) start[v + 1] += start[v];
-  std::vector<Index> fill(start.begin(), start.end() - 1);
-  for (Index t = 0; t < nt; ++t)
-    for (int i = 0; i < 4; ++i) cells[fill[m.tets(t, i)]++] = t;
-  MatX3 xc(nt, 3);
-  for (Index t = 0; t < nt; ++t) xc.row(t) = mesh::tet_centroid(m, t).transpose();
   parallel_for_each(nv, kGrain, [&](Index v) {
     if (start[v + 1] == start[v]) return;
     if (!(j.hi[v] > j.lo[v])) {  // uniform around v

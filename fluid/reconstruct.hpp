@@ -13,6 +13,7 @@
 ///    least-squares values instead (also exact for uniform flow).
 /// Which one the fluid uses is FluidParams::reconstruction; the tests measure both.
 #include <utility>
+#include <vector>
 
 #include "core/types.hpp"
 #include "fluid/params.hpp"
@@ -85,13 +86,23 @@ struct VertexJets {
   VecX lo, hi;  ///< #V: the range of the cells around the vertex
 };
 
+/// What vertex_quadratic_fit needs of a mesh whatever the field: the cells around each
+/// vertex (cells[start[v]] .. cells[start[v + 1] − 1]) and every cell's centroid. Build it
+/// once per mesh for several fields.
+struct VertexStencils {
+  std::vector<Index> start, cells;
+  MatX3 centroids;  ///< #T × 3
+};
+VertexStencils vertex_stencils(const mesh::TetMesh& m);
+
 /// At each vertex v the weighted least-squares quadratic c ≈ a + g·d + ½ dᵀ H d
 /// (d = x̄_t − x_v, weights V_t / (¼ + |d|²/L²), L the cells' rms distance) over the cells
 /// around v and their face neighbours (the cells around v alone can lie on a sphere about it,
 /// as in the regular lattice, which leaves a and tr H apart); where that is not determined,
 /// the linear fit on the same cells, and where neither is, their mean. Exact for quadratic
 /// fields where the fit is determined. Vertices whose cells hold one value take it (g = 0).
-VertexJets vertex_quadratic_fit(const mesh::TetMesh& m, const VecX& cell_values);
+VertexJets vertex_quadratic_fit(const mesh::TetMesh& m, const VertexStencils& stencils,
+                                const VecX& cell_values);
 
 /// The value at barycentrics λ of tet t: Σ_i λ_i clamp(a_i + ½ g_i · (x − x_i), lo_i, hi_i).
 /// Exact for quadratic fields: with g_i = g(x) − H (x − x_i) the terms sum to

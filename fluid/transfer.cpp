@@ -152,13 +152,16 @@ double sample_vertices(const TetMesh& m, const VecX& vv, const TracePoint& p) {
   return s;
 }
 
-/// A cell scalar made readable at any point of its mesh, by ScalarInterpolation.
+/// A cell scalar made readable at any point of its mesh, by ScalarInterpolation (the
+/// quadratic jets take the mesh's vertex_stencils, shared by the fields of one mesh).
 class ScalarSampler {
  public:
   ScalarSampler() = default;
-  ScalarSampler(const TetMesh& m, const VecX& c, ScalarInterpolation how) : m_mesh(&m) {
+  ScalarSampler(const TetMesh& m, const VecX& c, ScalarInterpolation how,
+                const std::optional<VertexStencils>& stencils)
+      : m_mesh(&m) {
     if (how == ScalarInterpolation::Quadratic)
-      m_jets = vertex_quadratic_fit(m, c);
+      m_jets = vertex_quadratic_fit(m, *stencils, c);
     else
       m_vertex = cell_to_vertex_linear(m, c);
   }
@@ -172,6 +175,13 @@ class ScalarSampler {
   VecX m_vertex;
   VertexJets m_jets;
 };
+
+/// The mesh's vertex stencils when scalars are read through the quadratic jets.
+std::optional<VertexStencils> stencils_for(const TetMesh& m, ScalarInterpolation how,
+                                           bool scalars) {
+  if (!scalars || how != ScalarInterpolation::Quadratic) return std::nullopt;
+  return vertex_stencils(m);
+}
 
 /// Walks and traces in one mesh through the old velocity field.
 class Tracer {
@@ -319,8 +329,9 @@ ErrorEstimate reverse_pass(const TransferInput& in, const Tracer& old_tr, const 
   const bool velocity = in.velocity_scheme != TransferScheme::SemiLagrangian;
   const bool has_d = scalars && in.old_density, has_T = scalars && in.old_temperature;
   const auto how = in.scalar_interpolation;
-  const ScalarSampler dv = has_d ? ScalarSampler(nm, hat.density, how) : ScalarSampler();
-  const ScalarSampler tv = has_T ? ScalarSampler(nm, hat.temperature, how) : ScalarSampler();
+  const auto st = stencils_for(nm, how, has_d || has_T);
+  const ScalarSampler dv = has_d ? ScalarSampler(nm, hat.density, how, st) : ScalarSampler();
+  const ScalarSampler tv = has_T ? ScalarSampler(nm, hat.temperature, how, st) : ScalarSampler();
   std::optional<VelocityField> hat_field;
   if (velocity) hat_field.emplace(nm, hat.u, in.reconstruction);
   // y in the new fluid, walking from `from` there (or from the locator); tet −1 if y is not
@@ -462,8 +473,10 @@ TransferOutput transfer(const TransferInput& in, const TetMesh& nm, double h) {
   out.density = VecX::Zero(nt);
   out.temperature = VecX::Zero(nt);
   const auto how = in.scalar_interpolation;
-  const ScalarSampler dv = has_d ? ScalarSampler(om, *in.old_density, how) : ScalarSampler();
-  const ScalarSampler tv = has_T ? ScalarSampler(om, *in.old_temperature, how) : ScalarSampler();
+  const auto st = stencils_for(om, how, has_d || has_T);
+  const ScalarSampler dv = has_d ? ScalarSampler(om, *in.old_density, how, st) : ScalarSampler();
+  const ScalarSampler tv =
+      has_T ? ScalarSampler(om, *in.old_temperature, how, st) : ScalarSampler();
   for (const Sample& s : cells)
     if (s.clamped && (has_d || has_T)) ++out.clamped;
   for (const Sample& s : faces)

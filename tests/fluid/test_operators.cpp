@@ -262,7 +262,7 @@ TEST_CASE("vertex_quadratic_fit: quadratic fields read exactly, within the cells
   };
   VecX c(m.num_tets());
   for (Index t = 0; t < m.num_tets(); ++t) c[t] = f(mesh::tet_centroid(m, t));
-  const VertexJets j = vertex_quadratic_fit(m, c);
+  const VertexJets j = vertex_quadratic_fit(m, vertex_stencils(m), c);
   const VecX lin = cell_to_vertex_linear(m, c);
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> U(0.0, 1.0);
