@@ -59,12 +59,16 @@ enum class Reconstruction {
                        ///< barycentric interpolation (continuous; exact for uniform flow)
   Whitney,             ///< lowest-order Raviart–Thomas / Whitney face elements per tet
                        ///< (exact for uniform flow, discontinuous between tets)
+  VertexJets,          ///< least-squares value and gradient at each vertex, read as jets
+                       ///< (continuous; exact for linear flow, e.g. a rigid rotation)
 };
 
-inline constexpr EnumNames<Reconstruction, 2> k_reconstruction_names{
+inline constexpr EnumNames<Reconstruction, 3> k_reconstruction_names{
     "velocity reconstruction",
-    {{{Reconstruction::VertexLeastSquares, "vertex_ls"}, {Reconstruction::Whitney, "whitney"}}}};
-/// "vertex_ls" | "whitney". @throws InputError naming the value.
+    {{{Reconstruction::VertexLeastSquares, "vertex_ls"},
+      {Reconstruction::Whitney, "whitney"},
+      {Reconstruction::VertexJets, "vertex_jets"}}}};
+/// "vertex_ls" | "whitney" | "vertex_jets". @throws InputError naming the value.
 Reconstruction parse_reconstruction(const std::string& name);
 const char* to_string(Reconstruction r);
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "core/error.hpp"
 #include "core/parallel.hpp"
@@ -232,6 +233,90 @@ VertexJets vertex_quadratic_fit(const TetMesh& m, const VertexStencils& stencils
   return j;
 }
 
+namespace {
+
+/// The smallest pivot of the jets' 12 × 12 normal equations (basis scaled to the faces'
+/// distance), relative to their trace, below which a vertex takes the least-squares value:
+/// nearly singular fits amplify the noise of a projected field. Measured on the rigid
+/// rotation at 18k cells: 1e-5 let the pure jets blow up, 1e-4 and 1e-3 gave the same run.
+constexpr double kJetConditioning = 1e-3;
+
+/// vertex_velocity_jets' fit at x_v over the faces `st`: U and G, or nothing where the 12 × 12
+/// system is not determined.
+std::optional<std::pair<Vec3, Mat3>> fit_velocity_jet(const TetMesh& m, const Vec3& xv,
+                                                      const std::vector<Index>& st, const VecX& u) {
+  using Vec12 = Eigen::Matrix<double, 12, 1>;
+  using Mat12 = Eigen::Matrix<double, 12, 12>;
+  if (st.size() < 12) return std::nullopt;
+  double len2 = 0, wsum = 0;
+  for (Index f : st) {
+    len2 += m.face_areas[f] * (m.face_centroids.row(f).transpose() - xv).squaredNorm();
+    wsum += m.face_areas[f];
+  }
+  const double L = std::sqrt(len2 / wsum);  // the basis in units of the faces' distance
+  Mat12 N = Mat12::Zero();                  // its lower triangle
+  Vec12 r = Vec12::Zero();
+  for (Index f : st) {
+    const Vec3 n = m.face_normals.row(f).transpose();
+    const Vec3 d = (m.face_centroids.row(f).transpose() - xv) / L;
+    Vec12 phi;  // n · (U + G d) = phi · [U; G row by row]
+    phi << n, n.x() * d, n.y() * d, n.z() * d;
+    const double w = m.face_areas[f] / (0.25 + d.squaredNorm());  // the nearer faces first
+    for (int i = 0; i < 12; ++i) {
+      const double wp = w * phi[i];
+      for (int k = 0; k <= i; ++k) N(i, k) += wp * phi[k];
+      r[i] += wp * u[f];
+    }
+  }
+  const Eigen::LDLT<Mat12, Eigen::Lower> ldlt(N);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > kJetConditioning * N.trace()))
+    return std::nullopt;
+  const Vec12 x = ldlt.solve(r);
+  Mat3 G;
+  for (int i = 0; i < 3; ++i) G.row(i) = x.segment<3>(3 + 3 * i).transpose() / L;
+  return std::make_pair(Vec3(x.head<3>()), G);
+}
+
+}  // namespace
+
+void vertex_velocity_jets(const TetMesh& m, const VecX& u, MatX3& U, std::vector<Mat3>& G) {
+  const Index nv = m.num_vertices(), nf = m.num_faces();
+  TETFSI_CHECK(u.size() == nf, "u has {} entries for {} faces", u.size(), nf);
+  U = vertex_least_squares(m, u);  // where the fit is not determined
+  G.assign(static_cast<size_t>(nv), Mat3::Zero());
+  const VertexStencils around = vertex_stencils(m);
+  parallel_for_each(nv, kGrain, [&](Index v) {
+    if (around.start[v + 1] == around.start[v]) return;
+    thread_local std::vector<Index> st, seen;  // seen: all −1 between uses
+    if (seen.size() < static_cast<size_t>(nf)) seen.resize(static_cast<size_t>(nf), -1);
+    st.clear();
+    auto add_faces = [&](Index t) {
+      for (int i = 0; i < 4; ++i) {
+        const Index f = m.tet_faces(t, i);
+        if (seen[f] == v) continue;
+        seen[f] = v;
+        st.push_back(f);
+      }
+    };
+    const Index* first = around.cells.data() + around.start[v];
+    const Index* last = around.cells.data() + around.start[v + 1];
+    for (const Index* c = first; c != last; ++c) add_faces(*c);
+    const Vec3 xv = m.vertices.row(v).transpose();
+    auto jet = fit_velocity_jet(m, xv, st, u);
+    if (!jet) {  // a vertex on a wall or a solid: the faces of the next ring of cells too
+      for (const Index* c = first; c != last; ++c)
+        for (int k = 0; k < 4; ++k)
+          if (m.neighbours(*c, k) >= 0) add_faces(m.neighbours(*c, k));
+      jet = fit_velocity_jet(m, xv, st, u);
+    }
+    for (Index f : st) seen[f] = -1;  // clean for the next vertex and the next call
+    if (jet) {
+      U.row(v) = jet->first.transpose();
+      G[v] = jet->second;
+    }
+  });
+}
+
 double sample_jets(const TetMesh& m, const VertexJets& j, Index t, const Vec4& bary) {
   Vec3 x = Vec3::Zero();
   for (int i = 0; i < 4; ++i) x += bary[i] * m.vertices.row(m.tets(t, i)).transpose();
@@ -285,17 +370,16 @@ constexpr double kFlatCellFraction = 0.02;
 constexpr double kClampMargin = 1.0;
 }  // namespace
 
-VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kind)
-    : m_mesh(&m), m_kind(kind) {
-  TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(), m.num_faces());
-  if (kind == Reconstruction::VertexLeastSquares) {
-    m_values = vertex_least_squares(m, u);
-    return;
-  }
+namespace {
+
+/// [Bossavit88] Whitney / RT0 per tet: the field's value at each corner, row 4t + i (#4T × 3),
+/// from the face normal values u: u(x) = Σ_k Φ_k (x − x_k) / (3 V), Φ_k = s_tk A_k u_k the
+/// outward flux through the face opposite vertex k. A flat cell (volume below 2 % of the
+/// regular tet's on its longest edge) would amplify the round-off of its fluxes by 1/V: it
+/// takes the rows of `flat` at its vertices instead (zero if `flat` is null).
+MatX3 whitney_corners(const TetMesh& m, const VecX& u, const MatX3* flat) {
   const Index nt = m.num_tets();
-  m_values.resize(4 * static_cast<Index>(nt), 3);
-  m_vertex_ls = vertex_least_squares(m, u);
-  const MatX3& ls = m_vertex_ls;  // for the flat cells and the clamp
+  MatX3 c(4 * nt, 3);
   parallel_for_each(nt, kGrain, [&](Index t) {
     Vec3 x[4];
     double emax2 = 0;
@@ -303,10 +387,9 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
       for (int j = i + 1; j < 4; ++j)
         emax2 = std::max(
             emax2, (m.vertices.row(m.tets(t, i)) - m.vertices.row(m.tets(t, j))).squaredNorm());
-    // A flat cell (volume below 2 % of the regular tet's on its longest edge) amplifies the
-    // round-off of its face fluxes by 1/V: it takes the vertex least-squares values instead.
     if (m.volumes[t] < kFlatCellFraction * emax2 * std::sqrt(emax2) / (6.0 * std::sqrt(2.0))) {
-      for (int i = 0; i < 4; ++i) m_values.row(4 * t + i) = ls.row(m.tets(t, i));
+      for (int i = 0; i < 4; ++i)
+        c.row(4 * t + i) = flat ? Vec3(flat->row(m.tets(t, i)).transpose()) : Vec3::Zero();
       return;
     }
     double phi[4];
@@ -315,16 +398,58 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
       const Index f = m.tet_faces(t, k);
       phi[k] = m.tet_face_signs(t, k) * m.face_areas[f] * u[f];
     }
-    // [Bossavit88] Whitney / RT0: u(x) = Σ_k Φ_k (x − x_k) / (3 V), face k opposite vertex k, at x
-    // = x_i.
     const double s = 1.0 / (3.0 * m.volumes[t]);
     for (int i = 0; i < 4; ++i) {
       Vec3 v = Vec3::Zero();
       for (int k = 0; k < 4; ++k)
         if (k != i) v += phi[k] * (x[i] - x[k]);
-      m_values.row(4 * t + i) = (s * v).transpose();
+      c.row(4 * t + i) = (s * v).transpose();
     }
   });
+  return c;
+}
+
+/// The face means of n_f · J for the jets J = Σ_i λ_i (U_i + ½ G_i (x − x_i)) (#F): on a face
+/// J depends on the face's vertices only, and is quadratic there; the edge midpoints' rule is
+/// exact for quadratics.
+VecX jets_face_means(const TetMesh& m, const MatX3& U, const std::vector<Mat3>& G) {
+  VecX r(m.num_faces());
+  parallel_for_each(m.num_faces(), kGrain, [&](Index f) {
+    Vec3 x[3];
+    for (int k = 0; k < 3; ++k) x[k] = m.vertices.row(m.faces(f, k)).transpose();
+    Vec3 sum = Vec3::Zero();
+    for (int e = 0; e < 3; ++e) {  // the midpoint of the edge (e, e + 1)
+      const int a = e, b = (e + 1) % 3;
+      const Vec3 y = 0.5 * (x[a] + x[b]);
+      for (const int k : {a, b}) {
+        const Index v = m.faces(f, k);
+        sum += 0.5 * (U.row(v).transpose() + 0.5 * G[v] * (y - x[k]));
+      }
+    }
+    r[f] = m.face_normals.row(f).dot(sum.transpose()) / 3.0;
+  });
+  return r;
+}
+
+}  // namespace
+
+VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kind)
+    : m_mesh(&m), m_kind(kind) {
+  TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(), m.num_faces());
+  if (kind == Reconstruction::VertexLeastSquares) {
+    m_values = vertex_least_squares(m, u);
+    return;
+  }
+  if (kind == Reconstruction::VertexJets) {
+    vertex_velocity_jets(m, u, m_values, m_grad);
+    // the Whitney field of what the jets miss of each face's value: u then keeps every face's
+    // flux, as Whitney does, and stays exact for linear fields (the residual is zero there)
+    m_corners = whitney_corners(m, u - jets_face_means(m, m_values, m_grad), nullptr);
+    return;
+  }
+  m_vertex_ls = vertex_least_squares(m, u);
+  // [Bossavit88] Whitney / RT0; flat cells take the vertex least-squares values
+  m_values = whitney_corners(m, u, &m_vertex_ls);
 }
 
 Vec3 VelocityField::at(Index t, const Vec4& bary) const {
@@ -334,13 +459,26 @@ Vec3 VelocityField::at(Index t, const Vec4& bary) const {
     for (int i = 0; i < 4; ++i) v += bary[i] * m_values.row(m.tets(t, i)).transpose();
     return v;
   }
+  if (m_kind == Reconstruction::VertexJets) {
+    const TetMesh& m = *m_mesh;
+    Vec3 x = Vec3::Zero();
+    for (int i = 0; i < 4; ++i) x += bary[i] * m.vertices.row(m.tets(t, i)).transpose();
+    Vec3 v = Vec3::Zero();
+    for (int i = 0; i < 4; ++i) {
+      const Index k = m.tets(t, i);
+      v += bary[i] *
+           (m_values.row(k).transpose() + 0.5 * m_grad[k] * (x - m.vertices.row(k).transpose()));
+    }
+    if (m_corners.size()) v += m_corners.block<4, 3>(4 * t, 0).transpose() * bary;
+    return v;
+  }
   return (m_values.block<4, 3>(4 * t, 0).transpose() * bary).eval();
 }
 
 double VelocityField::normal_at(Index t, const Vec4& bary, const Vec3& n) const {
   const double v = n.dot(at(t, bary));
   if (m_kind == Reconstruction::VertexLeastSquares) return v;
-  const auto [lo, hi] = normal_range(t, n);
+  const auto [lo, hi] = normal_range(t, n);  // Whitney's corners, the jets' gradient terms
   return std::clamp(v, lo, hi);
 }
 
@@ -357,7 +495,7 @@ std::pair<double, double> VelocityField::normal_range(Index t, const Vec3& n) co
 }
 
 MatX3 VelocityField::vertex_velocities() const {
-  if (m_kind == Reconstruction::VertexLeastSquares) return m_values;
+  if (m_kind != Reconstruction::Whitney) return m_values;
   const TetMesh& m = *m_mesh;
   const Index nv = m.num_vertices();
   MatX3 U = MatX3::Zero(nv, 3);

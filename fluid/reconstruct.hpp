@@ -11,7 +11,13 @@
 ///    2 % of the regular tet on its longest edge — the slivers a remesh can leave against a
 ///    solid) would amplify round-off in its fluxes by 1/V; it takes the vertex
 ///    least-squares values instead (also exact for uniform flow).
-/// Which one the fluid uses is FluidParams::reconstruction; the tests measure both.
+///  - VertexJets: at each vertex v the weighted least-squares linear field U_v + G_v (x − x_v)
+///    fitted to the normal components of the faces of the cells around v (vertex_velocity_jets),
+///    read in tet t as u(x) = Σ_i λ_i (U_i + ½ G_i (x − x_i)), the scalars' jets of
+///    sample_jets: continuous, exact for linear fields (a rigid rotation, a shear) and for
+///    quadratic ones where the fit is. The two first-order readings above are exact for
+///    uniform flow only.
+/// Which one the fluid uses is FluidParams::reconstruction; the tests measure all three.
 #include <utility>
 #include <vector>
 
@@ -44,10 +50,11 @@ class VelocityField {
   /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
   /// volume-weighted mean of the adjacent tets' RT0 vertex values (Whitney).
   MatX3 vertex_velocities() const;
-  /// The vertex least-squares velocities (#V × 3), whatever the kind (Whitney keeps them for
-  /// its flat cells and its clamp).
+  /// The vertex velocities the clamp and the vorticity use (#V × 3): the vertex
+  /// least-squares velocities (VertexLeastSquares, and Whitney, which keeps them for its flat
+  /// cells and its clamp), or the jets' vertex values U_v (VertexJets).
   const MatX3& least_squares_vertices() const {
-    return m_kind == Reconstruction::VertexLeastSquares ? m_values : m_vertex_ls;
+    return m_kind == Reconstruction::Whitney ? m_vertex_ls : m_values;
   }
   /// |curl u| per tet (#T, 1/s) of the linear interpolation of least_squares_vertices().
   VecX vorticity_magnitude() const;
@@ -60,7 +67,17 @@ class VelocityField {
   /// its corner i in row 4t + i (the field is affine in each tet, so u = Σ λ_i u_ti).
   MatX3 m_values;
   MatX3 m_vertex_ls;  ///< Whitney: the vertex least-squares velocities, for normal_at's clamp
+  std::vector<Mat3> m_grad;  ///< VertexJets: G_v per vertex (1/s)
+  MatX3 m_corners;           ///< VertexJets: the Whitney field of the faces' residuals, as m_values
 };
+
+/// The jets of VertexJets: at each vertex v, U_v and G_v minimising
+/// Σ_f w_f (n_f · (U_v + G_v (x_f − x_v)) − u_f)² over the faces f of the cells around v
+/// (boundary faces with their prescribed values; x_f the face centroid, w_f = A_f / (¼ +
+/// |x_f − x_v|²/L²), L the faces' rms distance). Exact for linear fields where the 12 × 12
+/// system is determined; elsewhere vertex_least_squares's U_v with G_v = 0. Sets U (#V × 3)
+/// and G (#V).
+void vertex_velocity_jets(const mesh::TetMesh& m, const VecX& u, MatX3& U, std::vector<Mat3>& G);
 
 /// Per-vertex least-squares velocities (#V × 3), see the file comment.
 MatX3 vertex_least_squares(const mesh::TetMesh& m, const VecX& u);

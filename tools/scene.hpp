@@ -71,7 +71,7 @@
 ///     "buoyancy": { "alpha": 0, "beta": 0, "ambient_temperature": 0 },
 ///     "vorticity_confinement": 0,
 ///     "decay": { "smoke": 0, "temperature": 0 },            // per second
-///     "reconstruction": "whitney" | "vertex_ls",
+///     "reconstruction": "whitney" | "vertex_ls" | "vertex_jets",
 ///     "transfer": { "scalars": "bfecc", "velocity": "semi_lagrangian",  // or "maccormack"
 ///                   "scalar_interpolation": "quadratic",  // or "vertex_fit"
 ///                   "pressure_along_path": false },

@@ -431,6 +431,19 @@ TEST_CASE("velocity transfer: the old pressure along the path keeps a rigid rota
   CHECK(std::abs(mc) < 0.5 * std::abs(path));
 }
 
+TEST_CASE("rigid rotation: the vertex jets with BFECC and the path keep the angular momentum") {
+  // The jets read a linear field exactly (test_operators.cpp) and keep every face's flux,
+  // so what is left of the transfer's error on a rigid rotation is the trace's and the
+  // clamp's. Measured at 18k cells / 50 steps: +1.1 % per revolution (Whitney: a few %, the
+  // README's table; +0.6 % at 98k cells / 100 steps, the long test).
+  Index cells = 0;
+  const double d =
+      rotation_drift(0.08, 50, Reconstruction::VertexJets, &cells, TransferScheme::Bfecc, true);
+  std::printf("rigid rotation vertex_jets + bfecc + path: %.4f per revolution (%d cells)\n", d,
+              cells);
+  CHECK(std::abs(d) <= 0.03);
+}
+
 TEST_CASE("transfer table: blob and rotation and Taylor-Green at two resolutions" *
           doctest::test_suite("long")) {
   // The README's table (fixed CFL: 50 steps per revolution at 18k cells, 100 at 98k).
@@ -460,32 +473,43 @@ TEST_CASE("transfer table: blob and rotation and Taylor-Green at two resolutions
     bool path;
   };
   double sl[4] = {0, 0, 0, 0};  // the first-order figures: d0, d1, r0, r1
-  for (Option o :
-       {Option{TransferScheme::SemiLagrangian, false}, Option{TransferScheme::SemiLagrangian, true},
-        Option{TransferScheme::MacCormack, true}, Option{TransferScheme::Bfecc, true}}) {
-    Index c0 = 0, c1 = 0, t0 = 0, t1 = 0;
-    const double r0 = taylor_green_rate(0.2, Reconstruction::Whitney, 5, 0.1, &t0, o.k, o.path);
-    const double r1 = taylor_green_rate(0.1, Reconstruction::Whitney, 10, 0.05, &t1, o.k, o.path);
-    const double d0 = rotation_drift(0.08, 50, Reconstruction::Whitney, &c0, o.k, o.path);
-    const double d1 = rotation_drift(0.04, 100, Reconstruction::Whitney, &c1, o.k, o.path);
-    std::printf(
-        "velocity %s, pressure along path %d: Taylor-Green %.4f /s (%d cells), %.4f /s "
-        "(%d cells); rotation %.4f (%d cells, 50 steps), %.4f (%d cells, 100 steps)\n",
-        to_string(o.k), o.path, r0, t0, r1, t1, d0, c0, d1, c1);
-    std::fflush(stdout);
-    CHECK(r1 < r0);  // Taylor-Green's loss falls under refinement with every option
-    if (o.k == TransferScheme::SemiLagrangian && !o.path) {
-      sl[0] = d0, sl[1] = d1, sl[2] = r0, sl[3] = r1;
-      CHECK(std::abs(d1) < std::abs(d0));
-      continue;
+  for (Reconstruction rk : {Reconstruction::Whitney, Reconstruction::VertexJets})
+    for (Option o :
+         {Option{TransferScheme::SemiLagrangian, false},
+          Option{TransferScheme::SemiLagrangian, true}, Option{TransferScheme::MacCormack, true},
+          Option{TransferScheme::Bfecc, true}}) {
+      Index c0 = 0, c1 = 0, t0 = 0, t1 = 0;
+      const double r0 = taylor_green_rate(0.2, rk, 5, 0.1, &t0, o.k, o.path);
+      const double r1 = taylor_green_rate(0.1, rk, 10, 0.05, &t1, o.k, o.path);
+      const double d0 = rotation_drift(0.08, 50, rk, &c0, o.k, o.path);
+      const double d1 = rotation_drift(0.04, 100, rk, &c1, o.k, o.path);
+      std::printf(
+          "velocity %s %s, pressure along path %d: Taylor-Green %.4f /s (%d cells), %.4f /s "
+          "(%d cells); rotation %.4f (%d cells, 50 steps), %.4f (%d cells, 100 steps)\n",
+          to_string(rk), to_string(o.k), o.path, r0, t0, r1, t1, d0, c0, d1, c1);
+      std::fflush(stdout);
+      if (rk == Reconstruction::VertexJets) {
+        // the issue's goals, met by the jets with a second-order velocity transfer and the
+        // path (measured: rotation +1.2 % / +0.6 %, Taylor-Green 0.0026 /s at 61k cells)
+        if (o.k != TransferScheme::SemiLagrangian) {
+          CHECK(std::abs(d1) <= 0.03);
+          CHECK(r1 <= 0.004);
+        }
+        continue;
+      }
+      CHECK(r1 < r0);  // Taylor-Green's loss falls under refinement with every option
+      if (o.k == TransferScheme::SemiLagrangian && !o.path) {
+        sl[0] = d0, sl[1] = d1, sl[2] = r0, sl[3] = r1;
+        CHECK(std::abs(d1) < std::abs(d0));
+        continue;
+      }
+      // every option loses less than the first-order transfer on both meshes (MacCormack's
+      // rotation overshoots to a gain on the fine one: +3.9 % against a loss on the coarse)
+      CHECK(std::abs(d0) < std::abs(sl[0]));
+      CHECK(std::abs(d1) < std::abs(sl[1]));
+      CHECK(r0 < sl[2]);
+      CHECK(r1 < sl[3]);
     }
-    // every option loses less than the first-order transfer on both meshes (MacCormack's
-    // rotation overshoots to a gain on the fine one: +4.2 % against +3.1 % loss on the coarse)
-    CHECK(std::abs(d0) < std::abs(sl[0]));
-    CHECK(std::abs(d1) < std::abs(sl[1]));
-    CHECK(r0 < sl[2]);
-    CHECK(r1 < sl[3]);
-  }
 }
 
 TEST_CASE("jet: inflow flux = outflow flux every step - no smoke in a sealed cavity") {
