@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <optional>
 
@@ -285,8 +286,25 @@ void vertex_velocity_jets(const TetMesh& m, const VecX& u, MatX3& U, std::vector
   U = vertex_least_squares(m, u);  // where the fit is not determined
   G.assign(static_cast<size_t>(nv), Mat3::Zero());
   const VertexStencils around = vertex_stencils(m);
+  // Vertices where boundary faces of different kinds or patches meet (the rim of an inflow
+  // patch against the wall, a solid against a wall): the prescribed values jump there, and
+  // a linear fit across the jump overshoots (smoke_sheets: 14.7 m/s next to a 4 m/s jet's
+  // rim, 8.9 with Whitney). They keep the least-squares value.
+  std::vector<std::uint8_t> rim(static_cast<size_t>(nv), 0);
+  {
+    std::vector<int> first(static_cast<size_t>(nv), -1);
+    for (Index f = 0; f < nf; ++f) {
+      if (!m.is_boundary(f)) continue;
+      const int key = 8 * (m.face_patch[f] + 1) + static_cast<int>(m.face_kind[f]);
+      for (int k = 0; k < 3; ++k) {
+        const Index v = m.faces(f, k);
+        if (first[v] < 0) first[v] = key;
+        if (first[v] != key) rim[v] = 1;
+      }
+    }
+  }
   parallel_for_each(nv, kGrain, [&](Index v) {
-    if (around.start[v + 1] == around.start[v]) return;
+    if (around.start[v + 1] == around.start[v] || rim[v]) return;
     thread_local std::vector<Index> st, seen;  // seen: all −1 between uses
     if (seen.size() < static_cast<size_t>(nf)) seen.resize(static_cast<size_t>(nf), -1);
     st.clear();

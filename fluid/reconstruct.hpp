@@ -74,9 +74,11 @@ class VelocityField {
 /// The jets of VertexJets: at each vertex v, U_v and G_v minimising
 /// Σ_f w_f (n_f · (U_v + G_v (x_f − x_v)) − u_f)² over the faces f of the cells around v
 /// (boundary faces with their prescribed values; x_f the face centroid, w_f = A_f / (¼ +
-/// |x_f − x_v|²/L²), L the faces' rms distance). Exact for linear fields where the 12 × 12
-/// system is determined; elsewhere vertex_least_squares's U_v with G_v = 0. Sets U (#V × 3)
-/// and G (#V).
+/// |x_f − x_v|²/L²), L the faces' rms distance; a vertex on a wall or a solid adds the faces
+/// of the next ring of cells). Exact for linear fields where the 12 × 12 system is well
+/// determined; elsewhere, and at vertices where boundary faces of different kinds or
+/// patches meet (the prescribed values jump there), vertex_least_squares's U_v with G_v = 0.
+/// Sets U (#V × 3) and G (#V).
 void vertex_velocity_jets(const mesh::TetMesh& m, const VecX& u, MatX3& U, std::vector<Mat3>& G);
 
 /// Per-vertex least-squares velocities (#V × 3), see the file comment.
