@@ -172,17 +172,28 @@ std::pair<double, Vec3> fit_jet(const Vec3& xv, const std::vector<Index>& st, co
 
 }  // namespace
 
-VertexStencils vertex_stencils(const TetMesh& m) {
+namespace {
+
+/// The cells around each vertex, by vertex (a CSR of the tet–vertex incidence): cells[start[v]]
+/// .. cells[start[v + 1] − 1].
+void cells_around_vertices(const TetMesh& m, std::vector<Index>& start, std::vector<Index>& cells) {
   const Index nv = m.num_vertices(), nt = m.num_tets();
+  start.assign(static_cast<size_t>(nv) + 1, 0);
+  cells.resize(static_cast<size_t>(4 * nt));
+  for (Index t = 0; t < nt; ++t)
+    for (int i = 0; i < 4; ++i) ++start[m.tets(t, i) + 1];
+  for (Index v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<Index> fill(start.begin(), start.end() - 1);
+  for (Index t = 0; t < nt; ++t)
+    for (int i = 0; i < 4; ++i) cells[fill[m.tets(t, i)]++] = t;
+}
+
+}  // namespace
+
+VertexStencils vertex_stencils(const TetMesh& m) {
+  const Index nt = m.num_tets();
   VertexStencils s;
-  s.start.assign(static_cast<size_t>(nv) + 1, 0);
-  s.cells.resize(static_cast<size_t>(4 * nt));
-  for (Index t = 0; t < nt; ++t)
-    for (int i = 0; i < 4; ++i) ++s.start[m.tets(t, i) + 1];
-  for (Index v = 0; v < nv; ++v) s.start[v + 1] += s.start[v];
-  std::vector<Index> fill(s.start.begin(), s.start.end() - 1);
-  for (Index t = 0; t < nt; ++t)
-    for (int i = 0; i < 4; ++i) s.cells[fill[m.tets(t, i)]++] = t;
+  cells_around_vertices(m, s.start, s.cells);
   s.centroids.resize(nt, 3);
   for (Index t = 0; t < nt; ++t) s.centroids.row(t) = mesh::tet_centroid(m, t).transpose();
   return s;
@@ -285,7 +296,8 @@ void vertex_velocity_jets(const TetMesh& m, const VecX& u, MatX3& U, std::vector
   TETFSI_CHECK(u.size() == nf, "u has {} entries for {} faces", u.size(), nf);
   U = vertex_least_squares(m, u);  // where the fit is not determined
   G.assign(static_cast<size_t>(nv), Mat3::Zero());
-  const VertexStencils around = vertex_stencils(m);
+  std::vector<Index> start, cells;  // the cells around each vertex
+  cells_around_vertices(m, start, cells);
   // Vertices where boundary faces of different kinds or patches meet (the rim of an inflow
   // patch against the wall, a solid against a wall): the prescribed values jump there, and
   // a linear fit across the jump overshoots (smoke_sheets: 14.7 m/s next to a 4 m/s jet's
@@ -304,7 +316,7 @@ void vertex_velocity_jets(const TetMesh& m, const VecX& u, MatX3& U, std::vector
     }
   }
   parallel_for_each(nv, kGrain, [&](Index v) {
-    if (around.start[v + 1] == around.start[v] || rim[v]) return;
+    if (start[v + 1] == start[v] || rim[v]) return;
     thread_local std::vector<Index> st, seen;  // seen: all −1 between uses
     if (seen.size() < static_cast<size_t>(nf)) seen.resize(static_cast<size_t>(nf), -1);
     st.clear();
@@ -316,8 +328,8 @@ void vertex_velocity_jets(const TetMesh& m, const VecX& u, MatX3& U, std::vector
         st.push_back(f);
       }
     };
-    const Index* first = around.cells.data() + around.start[v];
-    const Index* last = around.cells.data() + around.start[v + 1];
+    const Index* first = cells.data() + start[v];
+    const Index* last = cells.data() + start[v + 1];
     for (const Index* c = first; c != last; ++c) add_faces(*c);
     const Vec3 xv = m.vertices.row(v).transpose();
     auto jet = fit_velocity_jet(m, xv, st, u);
@@ -466,7 +478,7 @@ VelocityField::VelocityField(const TetMesh& m, const VecX& u, Reconstruction kin
     return;
   }
   m_vertex_ls = vertex_least_squares(m, u);
-  // [Bossavit88] Whitney / RT0; flat cells take the vertex least-squares values
+  // Whitney / RT0 (whitney_corners); flat cells take the vertex least-squares values
   m_values = whitney_corners(m, u, &m_vertex_ls);
 }
 
@@ -487,7 +499,7 @@ Vec3 VelocityField::at(Index t, const Vec4& bary) const {
       v += bary[i] *
            (m_values.row(k).transpose() + 0.5 * m_grad[k] * (x - m.vertices.row(k).transpose()));
     }
-    if (m_corners.size()) v += m_corners.block<4, 3>(4 * t, 0).transpose() * bary;
+    v += m_corners.block<4, 3>(4 * t, 0).transpose() * bary;
     return v;
   }
   return (m_values.block<4, 3>(4 * t, 0).transpose() * bary).eval();

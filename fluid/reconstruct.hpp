@@ -13,10 +13,11 @@
 ///    least-squares values instead (also exact for uniform flow).
 ///  - VertexJets: at each vertex v the weighted least-squares linear field U_v + G_v (x − x_v)
 ///    fitted to the normal components of the faces of the cells around v (vertex_velocity_jets),
-///    read in tet t as u(x) = Σ_i λ_i (U_i + ½ G_i (x − x_i)), the scalars' jets of
-///    sample_jets: continuous, exact for linear fields (a rigid rotation, a shear) and for
-///    quadratic ones where the fit is. The two first-order readings above are exact for
-///    uniform flow only.
+///    read in tet t as u(x) = Σ_i λ_i (U_i + ½ G_i (x − x_i)) (the scalars' jets of
+///    sample_jets) plus the Whitney field of the faces' residuals u_f − (face mean of n_f ·
+///    the jets), so that every face's flux is kept as with Whitney. Exact for linear fields
+///    (a rigid rotation, a shear), second order for smooth ones; the two first-order
+///    readings above are exact for uniform flow only.
 /// Which one the fluid uses is FluidParams::reconstruction; the tests measure all three.
 #include <utility>
 #include <vector>
@@ -47,8 +48,9 @@ class VelocityField {
   std::pair<double, double> normal_range(Index t, const Vec3& n) const;
   /// Velocity at the centroid of every tet (#T × 3).
   MatX3 cell_velocities() const;
-  /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), or the
-  /// volume-weighted mean of the adjacent tets' RT0 vertex values (Whitney).
+  /// Vertex velocities (#V × 3): the least-squares U_v (VertexLeastSquares), the jets'
+  /// U_v (VertexJets), or the volume-weighted mean of the adjacent tets' RT0 vertex values
+  /// (Whitney).
   MatX3 vertex_velocities() const;
   /// The vertex velocities the clamp and the vorticity use (#V × 3): the vertex
   /// least-squares velocities (VertexLeastSquares, and Whitney, which keeps them for its flat
@@ -63,8 +65,8 @@ class VelocityField {
  private:
   const mesh::TetMesh* m_mesh;
   Reconstruction m_kind;
-  /// VertexLeastSquares: #V × 3 vertex values; Whitney: 4#T × 3, the RT0 field of tet t at
-  /// its corner i in row 4t + i (the field is affine in each tet, so u = Σ λ_i u_ti).
+  /// VertexLeastSquares and VertexJets: #V × 3 vertex values; Whitney: 4#T × 3, the RT0 field of
+  /// tet t at its corner i in row 4t + i (the field is affine in each tet, so u = Σ λ_i u_ti).
   MatX3 m_values;
   MatX3 m_vertex_ls;  ///< Whitney: the vertex least-squares velocities, for normal_at's clamp
   std::vector<Mat3> m_grad;  ///< VertexJets: G_v per vertex (1/s)
