@@ -54,6 +54,19 @@ inline constexpr EnumNames<IterationMethod, 3> k_iteration_method_names{
     {{{IterationMethod::Newton, "newton"},
       {IterationMethod::ModifiedNewton, "modified_newton"},
       {IterationMethod::Bfgs, "bfgs"}}}};
+/// The coupled iterations' starting matrix (modified Newton and BFGS;
+/// coupling/scheme_iterated.cpp).
+enum class StartingMatrix {
+  Bodies,     ///< [BatheSonnad80, Eq. (15)]: the bodies' own K̂, no fluid
+  AddedMass,  ///< plus a lumped (3×3 per node) estimate of the fluid's added mass
+  Coupled,    ///< plus the fluid itself: the coupled system on the increment (the whole added mass)
+};
+inline constexpr EnumNames<StartingMatrix, 3> k_starting_matrix_names{
+    "starting matrix",
+    {{{StartingMatrix::Bodies, "bodies"},
+      {StartingMatrix::AddedMass, "added_mass"},
+      {StartingMatrix::Coupled, "coupled"}}}};
+
 /// "newton" | "modified_newton" | "bfgs". @throws InputError naming the value.
 IterationMethod parse_iteration_method(const std::string& name);
 const char* to_string(IterationMethod m);
@@ -101,10 +114,11 @@ struct EquilibriumOptions {
   /// learnt, e.g. the fluid's added mass left out of Eq. (15)) until `max_updates`, when the
   /// matrix is re-formed at the current point and the updates dropped.
   bool keep_matrix = false;
-  /// Coupled iterations (modified Newton, BFGS): add to Eq. (15)'s bodies-only matrix a
-  /// lumped estimate of the fluid's added mass (coupling/scheme_iterated.cpp), the incompressible
-  /// analogue of the seed keeping the fluid's lumped mass in M.
-  bool added_mass_start = false;
+  /// Coupled iterations (modified Newton, BFGS): Eq. (15)'s bodies-only matrix, or with the
+  /// fluid's added mass in it — lumped, or whole through the coupled system
+  /// (coupling/scheme_iterated.cpp): the incompressible analogues of the seed keeping the
+  /// fluid's mass in M. `Coupled` is formed on one step's fluid mesh: not with keep_matrix.
+  StartingMatrix starting_matrix = StartingMatrix::Bodies;
 };
 
 /// cond₂(I + v wᵀ), exactly: its singular values are 1 (n − 2 times) and the two roots of

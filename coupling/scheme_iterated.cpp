@@ -8,13 +8,14 @@
 /// pressure forces. bfgs and modified_newton start from the seed's Eq. (15): the bodies' own
 /// (h/4) K̂ = M/h + C/2 + (h/4) K', no fluid in it — the fluid's added mass is learnt by the
 /// BFGS updates (modified Newton never learns it: with more added mass than body mass it
-/// cannot converge). newton re-forms the bodies' tangent every iteration and solves for the
-/// increment with the fluid in the matrix (the coupled system on the increment), so it is the
-/// simultaneous scheme iterated on the solid's nonlinearity. The fluid-only solution is affine
-/// in the face velocities: a point in the affine span of solved points (every line-search
-/// trial) is combined from them instead of solved, so BFGS costs one fluid solve per
-/// iteration. Fluid regions sealed by a deformable body (no Open face) are rejected: a
-/// fluid-only projection cannot give them a volume.
+/// cannot converge); solid.starting_matrix adds it, lumped per node or whole (newton's
+/// increment system formed at the step's first iterate and kept). newton re-forms the bodies'
+/// tangent every iteration and solves for the increment with the fluid in the matrix (the coupled
+/// system on the increment), so it is the simultaneous scheme iterated on the solid's nonlinearity.
+/// The fluid-only solution is affine in the face velocities: a point in the affine span of solved
+/// points (every line-search trial) is combined from them instead of solved, so BFGS costs one
+/// fluid solve per iteration. Fluid regions sealed by a deformable body (no Open face) are
+/// rejected: a fluid-only projection cannot give them a volume.
 #include <algorithm>
 #include <memory>
 
@@ -96,11 +97,21 @@ class IteratedStep {
   VecX solve(EquilibriumHistory& history) {
     EquilibriumProblem problem;
     problem.residual = [this](const VecX& x) { return residual(x); };
-    if (m_params.scheme == Scheme::Newton)
-      problem.factor = [this](const VecX& x) { return newton_inverse(x); };
-    else
-      problem.factor = [this](const VecX& x) { return body_inverse(x); };
     EquilibriumOptions opt = m_ctx.world.equilibrium;
+    if (m_params.scheme == Scheme::Newton) {
+      problem.factor = [this](const VecX& x) { return newton_inverse(x, nullptr); };
+    } else if (opt.starting_matrix == StartingMatrix::Coupled) {
+      TETFSI_REQUIRE(InputError, !opt.keep_matrix,
+                     "solid.starting_matrix 'coupled' is formed on each step's fluid mesh: set "
+                     "solid.reform to 'step'");
+      // the matrix is fixed until BFGS re-forms it: its solves share one AMG set-up
+      problem.factor = [this](const VecX& x) {
+        m_coupled_amg = SolveCache{};
+        return newton_inverse(x, &m_coupled_amg);
+      };
+    } else {
+      problem.factor = [this](const VecX& x) { return body_inverse(x); };
+    }
     opt.method = m_params.scheme == Scheme::Newton           ? IterationMethod::Newton
                  : m_params.scheme == Scheme::ModifiedNewton ? IterationMethod::ModifiedNewton
                                                              : IterationMethod::Bfgs;
@@ -203,7 +214,9 @@ class IteratedStep {
 
   /// newton: the increment with the fluid in the matrix — the coupled system on homogeneous
   /// fluid data (v* = 0, no open pressure, no gravity), A the bodies' tangents, b the residual.
-  InverseOperator newton_inverse(const VecX& x) {
+  /// Also solid.starting_matrix "coupled" (bfgs, modified_newton), the matrix formed at the
+  /// step's first iterate and kept; its solves then share the AMG set-up in `reuse`.
+  InverseOperator newton_inverse(const VecX& x, SolveCache* reuse) {
     auto bodies = std::make_shared<std::vector<CoupledBody>>(m_nb);
     {
       ScopedTimer timer(m_ctx.phases, "solid");
@@ -218,7 +231,7 @@ class IteratedStep {
         cb.u = flat(body.velocity);
       }
     }
-    return [this, bodies](const VecX& r) -> VecX {
+    return [this, bodies, reuse](const VecX& r) -> VecX {
       for (Index b = 0; b < m_nb; ++b)
         if (m_eq[b]) (*bodies)[b].b = part(r, b);
       SolveVariant variant;
@@ -228,6 +241,7 @@ class IteratedStep {
       // An increment only has to be a good direction: at 1e-10 the CG stalled just above
       // the tolerance on the small right-hand sides of late iterations (measured 1-4e-10).
       o.rel_tol = std::max(o.rel_tol, 1e-8);
+      o.reuse = reuse;
       const CoupledSolution s = m_pred.solve(*bodies, o, variant);
       add_phases(s);
       VecX dx(m_off[m_nb]);
@@ -282,7 +296,8 @@ class IteratedStep {
     // the bodies' own tangents, no fluid: [BatheSonnad80, Eq. (15)]; with
     // solid.starting_matrix "added_mass" plus the fluid's lumped added mass / h
     std::vector<SparseMatrix> added;
-    if (m_ctx.world.equilibrium.added_mass_start) added = lumped_added_mass(x);
+    if (m_ctx.world.equilibrium.starting_matrix == StartingMatrix::AddedMass)
+      added = lumped_added_mass(x);
     std::vector<std::shared_ptr<const SparseMatrix>> blocks(m_nb);
     for (Index b = 0; b < m_nb; ++b) {
       if (!m_eq[b]) continue;
@@ -305,6 +320,7 @@ class IteratedStep {
   CoupledSolution m_last;
   AffineFluidCache m_cache;
   SolveCache m_amg;
+  SolveCache m_coupled_amg;  ///< solid.starting_matrix "coupled": the kept matrix's AMG
 };
 
 class IteratedScheme final : public CouplingScheme {

@@ -36,6 +36,10 @@ const std::vector<std::string>& methods() {
 
 constexpr double k_goal_percent = 1.0;     ///< agreement goal
 constexpr int k_goal_bfgs_iterations = 5;  ///< Table I: BFGS at the larger step
+/// Issue 21's goals with the fluid's added mass in the starting matrix: BFGS at the larger
+/// step at most 4 iterations and 3 on average; modified Newton converging at the smaller one.
+constexpr int k_goal_bfgs_max = 4;
+constexpr double k_goal_bfgs_avg = 3.0;
 
 struct Probe {
   Index node = 0;
@@ -208,6 +212,48 @@ const char* met(bool b) {
 }
 
 }  // namespace
+
+/// The iteration goals at the two steps, printed under "goals:".
+struct IterationGoals {
+  bool bfgs_5 = false;           ///< the seed's Table I: BFGS at most 5 iterations at R dt
+  bool bfgs_4_3 = false;         ///< at most 4, and 3 on average, at R dt
+  bool modified_newton = false;  ///< modified Newton converges at dt
+};
+
+IterationGoals iteration_goals(const std::vector<Run>& runs, double dt, double big,
+                               std::ostream& out) {
+  IterationGoals g;
+  const auto bfgs_it = std::find_if(runs.begin(), runs.end(), [&](const Run& r) {
+    return r.method == "bfgs" && r.h == big && r.converged();
+  });
+  const Run* bfgs_big = bfgs_it == runs.end() ? nullptr : &*bfgs_it;
+  g.bfgs_5 = bfgs_big && bfgs_big->max_iterations() <= k_goal_bfgs_iterations;
+  fmt::print(out, "\ngoals:\n  BFGS at most {} iterations per step at dt = {:.4g} s: {} -> {}\n",
+             k_goal_bfgs_iterations, big,
+             bfgs_big ? fmt::format("at most {}", bfgs_big->max_iterations())
+                      : std::string("did not converge"),
+             met(g.bfgs_5));
+  g.bfgs_4_3 = bfgs_big && bfgs_big->converged() && bfgs_big->max_iterations() <= k_goal_bfgs_max &&
+               bfgs_big->avg_iterations() <= k_goal_bfgs_avg;
+  fmt::print(
+      out,
+      "  BFGS at most {} and on average at most {:.3g} iterations at dt = {:.4g} s: {} -> {}\n",
+      k_goal_bfgs_max, k_goal_bfgs_avg, big,
+      bfgs_big ? fmt::format("at most {}, {:.3g} on average", bfgs_big->max_iterations(),
+                             bfgs_big->avg_iterations())
+               : std::string("did not converge"),
+      met(g.bfgs_4_3));
+  const auto mn_small = std::find_if(runs.begin(), runs.end(), [&](const Run& r) {
+    return r.method == "modified_newton" && r.h == dt;
+  });
+  g.modified_newton = mn_small != runs.end() && mn_small->converged();
+  fmt::print(out, "  modified Newton converges at dt = {:.4g} s: {} -> {}\n", dt,
+             mn_small == runs.end() ? std::string("not run")
+             : g.modified_newton    ? std::string("converged")
+                                    : mn_small->failure,
+             met(g.modified_newton));
+  return g;
+}
 
 int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& opt,
                std::ostream& out) {
@@ -385,13 +431,7 @@ int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& 
   }
   across_met = across_met && any_across;
 
-  const Run* bfgs_big = find_run("bfgs", big);
-  const bool goal_bfgs = bfgs_big && bfgs_big->max_iterations() <= k_goal_bfgs_iterations;
-  fmt::print(out, "\ngoals:\n  BFGS at most {} iterations per step at dt = {:.4g} s: {} -> {}\n",
-             k_goal_bfgs_iterations, big,
-             bfgs_big ? fmt::format("at most {}", bfgs_big->max_iterations())
-                      : std::string("did not converge"),
-             met(goal_bfgs));
+  const IterationGoals goals = iteration_goals(runs, dt, big, out);
   fmt::print(out, "  agreement within {:.3g} % at each dt -> {}\n", k_goal_percent, met(same_met));
   fmt::print(out, "  agreement within {:.3g} % across the two dts -> {}\n", k_goal_percent,
              met(across_met));
@@ -426,7 +466,9 @@ int bench_bfgs(const std::filesystem::path& scene_file, const BenchBfgsOptions& 
         {"rows", rows},
         {"agreement", {{"goal_percent", k_goal_percent}, {"same_dt", same}, {"across_dt", across}}},
         {"goals",
-         {{"bfgs_at_most_5_iterations", goal_bfgs},
+         {{"bfgs_at_most_5_iterations", goals.bfgs_5},
+          {"bfgs_at_most_4_average_3", goals.bfgs_4_3},
+          {"modified_newton_converges_at_dt", goals.modified_newton},
           {"agreement_same_dt", same_met},
           {"agreement_across_dt", across_met}}}};
     write_text_file_atomic(opt.json_path, j.dump(2) + "\n");

@@ -913,6 +913,52 @@ json resolve(const Scene& s) {
   return j;
 }
 
+/// The keys of how the bodies are integrated, against the coupling scheme that steps them.
+/// @throws InputError naming the key.
+void check_integration_keys(const Parser& p, const Parser::Node& root, const Scene& s) {
+  // A two-way coupled step integrates the bodies itself, as its scheme says.
+  if (s.two_way() && s.solid.integrator != solid::Integrator::Linearized &&
+      s.coupling->scheme_name() != solid::to_string(s.solid.integrator)) {
+    const std::string i = solid::to_string(s.solid.integrator);
+    p.fail("solid.integrator",
+           fmt::format("'{}' is not used in a two-way coupled scene: its bodies step with "
+                       "coupling.scheme '{}'; set coupling.scheme to '{}' to iterate the coupled "
+                       "step to equilibrium, or remove solid.integrator",
+                       i, s.coupling->scheme_name(), i));
+  }
+
+  // The same for solid.trapezoid: the iterated coupled schemes take the full trapezoidal rule.
+  if (s.two_way() && coupling::is_iterated(s.coupling->params.scheme) &&
+      Parser::has(root, "solid") && Parser::has(Parser::child(root, "solid"), "trapezoid")) {
+    p.fail("solid.trapezoid",
+           fmt::format("applies to the linearized integrator only; coupling.scheme '{}' "
+                       "iterates the full trapezoidal rule: remove solid.trapezoid",
+                       s.coupling->scheme_name()));
+  }
+
+  // The starting matrix is that of the coupled iterations bfgs and modified_newton.
+  if (s.solid.equilibrium.starting_matrix != StartingMatrix::Bodies) {
+    const char* name = k_starting_matrix_names.name(s.solid.equilibrium.starting_matrix);
+    const bool iterated_start =
+        s.two_way() && (s.coupling->params.scheme == coupling::Scheme::Bfgs ||
+                        s.coupling->params.scheme == coupling::Scheme::ModifiedNewton);
+    if (!iterated_start)
+      p.fail(
+          "solid.starting_matrix",
+          fmt::format("'{}' adds the fluid to the starting matrix of coupling.scheme 'bfgs' "
+                      "or 'modified_newton' in a two-way scene; this scene has {}: remove it",
+                      name,
+                      s.two_way() ? fmt::format("coupling.scheme '{}'", s.coupling->scheme_name())
+                                  : std::string("no two-way coupling")));
+    if (s.solid.equilibrium.starting_matrix == StartingMatrix::Coupled &&
+        s.solid.equilibrium.keep_matrix)
+      p.fail("solid.reform",
+             "'run' keeps the starting matrix from step to step, but "
+             "solid.starting_matrix 'coupled' is formed on each step's fluid "
+             "mesh: set solid.reform to 'step'");
+  }
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -1012,25 +1058,7 @@ Scene parse_scene(const json& j, const fs::path& file) {
                                     solid::to_string(s.solid.integrator)));
   }
 
-  // A two-way coupled step integrates the bodies itself, as its scheme says.
-  if (s.two_way() && s.solid.integrator != solid::Integrator::Linearized &&
-      s.coupling->scheme_name() != solid::to_string(s.solid.integrator)) {
-    const std::string i = solid::to_string(s.solid.integrator);
-    p.fail("solid.integrator",
-           fmt::format("'{}' is not used in a two-way coupled scene: its bodies step with "
-                       "coupling.scheme '{}'; set coupling.scheme to '{}' to iterate the coupled "
-                       "step to equilibrium, or remove solid.integrator",
-                       i, s.coupling->scheme_name(), i));
-  }
-
-  // The same for solid.trapezoid: the iterated coupled schemes take the full trapezoidal rule.
-  if (s.two_way() && coupling::is_iterated(s.coupling->params.scheme) &&
-      Parser::has(root, "solid") && Parser::has(Parser::child(root, "solid"), "trapezoid")) {
-    p.fail("solid.trapezoid",
-           fmt::format("applies to the linearized integrator only; coupling.scheme '{}' "
-                       "iterates the full trapezoidal rule: remove solid.trapezoid",
-                       s.coupling->scheme_name()));
-  }
+  check_integration_keys(p, root, s);
 
   s.resolved = resolve(s);
   return s;

@@ -502,8 +502,9 @@ const Section<SolidSpec>& solid_keys() {
             .doc = "coupling.scheme `bfgs` or `modified_newton`: `bodies`, Eq. (15) (the "
                    "bodies' stiffness and inertia, no fluid), or `added_mass`: plus a lumped "
                    "estimate of the fluid's added mass per node (three more fluid solves when the "
-                   "matrix is formed)"},
-           k_starting_matrix_names, [eq](auto& t) -> auto& { return eq(t).added_mass_start; })}};
+                   "matrix is formed), or `coupled`: the whole added mass, the coupled system on "
+                   "the increment (each iteration one coupled solve; needs `reform` `step`)"},
+           k_starting_matrix_names, [eq](auto& t) -> auto& { return eq(t).starting_matrix; })}};
   return s;
 }
 

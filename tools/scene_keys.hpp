@@ -147,8 +147,6 @@ inline constexpr EnumNames<mesh::FaceKind, 3> k_boundary_kind_names{
       {mesh::FaceKind::Open, "open"}}}};
 inline constexpr EnumNames<int, 3> k_axis_names{"axis", {{{0, "x"}, {1, "y"}, {2, "z"}}}};
 inline constexpr EnumNames<bool, 2> k_reform_names{"reform", {{{false, "step"}, {true, "run"}}}};
-inline constexpr EnumNames<bool, 2> k_starting_matrix_names{
-    "starting matrix", {{{false, "bodies"}, {true, "added_mass"}}}};
 
 // ---- the sections (scene_keys.cpp) ----
 const Section<Scene>& top_level_keys();

@@ -101,7 +101,9 @@ TEST_CASE("bench bfgs: an axial bar, three methods at dt and 10 dt: rows, agreem
   CHECK(same[0]["scale"].get<double>() > 0.01);  // the ends move by centimetres
   REQUIRE(j["agreement"]["across_dt"].is_array());
   CHECK(j["agreement"]["across_dt"].size() == 5);  // 3 same-method + 2 against newton
-  for (const char* goal : {"bfgs_at_most_5_iterations", "agreement_same_dt", "agreement_across_dt"})
+  for (const char* goal :
+       {"bfgs_at_most_5_iterations", "bfgs_at_most_4_average_3", "modified_newton_converges_at_dt",
+        "agreement_same_dt", "agreement_across_dt"})
     CHECK(j["goals"][goal].is_boolean());
 
   // The history: step 0 and every completed step of every run, 8 fields each.
@@ -139,7 +141,9 @@ TEST_CASE("bench bfgs: a run that does not converge stops there and says so") {
   }
   CHECK(r.out.find("failed to converge in 3 iterations at step 1") != std::string::npos);
   CHECK(j["goals"]["bfgs_at_most_5_iterations"] == false);
-  CHECK(j["agreement"]["same_dt"][1]["percent"].is_null());  // no converged method at 10 dt
+  CHECK(j["goals"]["bfgs_at_most_4_average_3"] == false);
+  CHECK(j["goals"]["modified_newton_converges_at_dt"] == true);  // 2-3 iterations at dt
+  CHECK(j["agreement"]["same_dt"][1]["percent"].is_null());      // no converged method at 10 dt
   CHECK(j["goals"]["agreement_across_dt"] == false);
 }
 

@@ -1220,7 +1220,7 @@ TEST_CASE("solid: integrator and equilibrium keys, defaults, build_world, resolv
   j["solid"] = json::parse(R"({ "integrator": "bfgs", "rtol": 1e-4, "etol": 1e-6,
       "stol": 0.25, "max_iterations": 12, "max_updates": 7, "line_search": false,
       "reform": "run",
-      "starting_matrix": "added_mass", "tangent": "definite" })");
+      "starting_matrix": "bodies", "tangent": "definite" })");
   const Scene s = parse_scene(j, "scene.json");
   CHECK(s.solid.integrator == solid::Integrator::Bfgs);
   CHECK(s.resolved["solid"] == j["solid"]);
@@ -1357,6 +1357,50 @@ TEST_CASE("coupling: the iterated schemes bfgs, modified_newton, newton are two-
         j["coupling"] = {{"scheme", "bfg"}};
       },
       {"scene.json: coupling.scheme: unknown coupling scheme 'bfg' (did you mean 'bfgs'?)"});
+}
+
+TEST_CASE(
+    "solid.starting_matrix: added_mass and coupled only for a two-way bfgs or modified_newton "
+    "- coupled only with solid.reform step") {
+  for (const char* scheme : {"bfgs", "modified_newton"})
+    for (const char* start : {"bodies", "added_mass", "coupled"}) {
+      INFO(scheme << " " << start);
+      json j = fluid_json();
+      j["coupling"] = {{"scheme", scheme}};
+      j["solid"] = {{"starting_matrix", start}};
+      const Scene s = parse_scene(j, "scene.json");
+      CHECK(s.resolved["solid"]["starting_matrix"] == start);
+      CHECK(parse_scene(s.resolved, "scene.json").resolved == s.resolved);
+      CHECK(build_world(s).equilibrium.starting_matrix == k_starting_matrix_names.parse(start));
+    }
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "bfgs"}};
+        j["solid"] = {{"starting_matrix", "coupled"}, {"reform", "run"}};
+      },
+      {"scene.json: solid.reform: 'run' keeps the starting matrix from step to step, but "
+       "solid.starting_matrix 'coupled' is formed on each step's fluid mesh: set solid.reform "
+       "to 'step'"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "newton"}};
+        j["solid"] = {{"starting_matrix", "added_mass"}};
+      },
+      {"scene.json: solid.starting_matrix: 'added_mass' adds the fluid to the starting matrix "
+       "of coupling.scheme 'bfgs' or 'modified_newton' in a two-way scene; this scene has "
+       "coupling.scheme 'newton': remove it"});
+  check_edit_rejected(
+      [](json& j) {
+        j["solid"] = {{"integrator", "bfgs"}, {"starting_matrix", "coupled"}};
+      },
+      {"scene.json: solid.starting_matrix: 'coupled'", "this scene has no two-way coupling"});
+  check_fluid_rejected(
+      [](json& j) {
+        j["coupling"] = {{"scheme", "bfgs"}};
+        j["solid"] = {{"starting_matrix", "exact"}};
+      },
+      {"scene.json: solid.starting_matrix: unknown starting matrix 'exact' (valid: bodies, "
+       "added_mass, coupled)"});
 }
 
 TEST_CASE("the shipped scenes parse") {
