@@ -17,6 +17,8 @@
 #include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
 
+#include "core/ranks.hpp"
+
 #include "core/error.hpp"
 
 namespace tetfsi {
@@ -43,7 +45,8 @@ ThreadLimit& thread_limit() {
 
 int default_thread_count() {
   const unsigned n = std::thread::hardware_concurrency();
-  return n == 0 ? 1 : static_cast<int>(n);
+  const int cores = n == 0 ? 1 : static_cast<int>(n);
+  return std::max(1, cores / ranks_on_this_node());  // mpirun's ranks share the cores
 }
 
 void set_thread_count(int n) {

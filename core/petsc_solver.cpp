@@ -5,11 +5,13 @@
 #include <mutex>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 #include <petscksp.h>
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/ranks.hpp"
 #include "core/timer.hpp"
 
 static_assert(std::is_same_v<PetscInt, tetfsi::Index>,
@@ -120,11 +122,29 @@ void ensure_petsc() {
                  g_petsc_init_error);
 }
 
-/// A PETSc Vec that wraps caller memory (no copy) and is destroyed with the scope.
+/// The communicator of the solves: every rank's under mpirun (core/ranks.hpp), else this one.
+MPI_Comm solve_comm() {
+  return rank_count() > 1 ? PETSC_COMM_WORLD : PETSC_COMM_SELF;
+}
+
+/// The rows of an n-row system this rank owns (all of them with one rank).
+RowRange my_rows(Index n) {
+  return rank_rows(n, rank_index(), rank_count());
+}
+
+/// A PETSc Vec that wraps caller memory (no copy) and is destroyed with the scope. With
+/// several ranks it is the distributed vector whose local part is this rank's rows of `data`
+/// (the full vector of length n, the same on every rank).
 struct WrappedVec {
   Vec v = nullptr;
   WrappedVec(Index n, const double* data) {
-    TETFSI_PETSC(VecCreateSeqWithArray(PETSC_COMM_SELF, 1, n, data, &v));
+    if (rank_count() > 1) {
+      const RowRange rows = my_rows(n);
+      TETFSI_PETSC(
+          VecCreateMPIWithArray(PETSC_COMM_WORLD, 1, rows.size(), n, data + rows.begin, &v));
+    } else {
+      TETFSI_PETSC(VecCreateSeqWithArray(PETSC_COMM_SELF, 1, n, data, &v));
+    }
   }
   WrappedVec(const WrappedVec&) = delete;
   WrappedVec& operator=(const WrappedVec&) = delete;
@@ -151,6 +171,7 @@ void krylov_with_restarts(KSP ksp, const VecX& b, VecX& x, const SolverOptions& 
     TETFSI_PETSC(KSPSetTolerances(ksp, opts.rel_tol, 0.0, PETSC_DEFAULT, left));
     const VecX x_before = x;
     TETFSI_PETSC(KSPSolve(ksp, vb.v, vx.v));
+    allgather_rows(x.data(), n);  // every rank's rows to every rank (a no-op with one rank)
     PetscInt its = 0;
     TETFSI_PETSC(KSPGetIterationNumber(ksp, &its));
     TETFSI_PETSC(KSPGetConvergedReason(ksp, &reason));
@@ -166,6 +187,28 @@ void krylov_with_restarts(KSP ksp, const VecX& b, VecX& x, const SolverOptions& 
   if (rep.residual > opts.rel_tol)
     logger().debug("{}: not converged after {} iterations (PETSc reason {}), residual {:.3g}", name,
                    rep.iterations, KSPConvergedReasons[reason], rep.residual);
+}
+
+/// A PETSc AIJ matrix on `csr` (compressed, row-major): sequential and sharing csr's arrays
+/// with one rank; with several, the MPIAIJ matrix whose local rows are this rank's (copied).
+Mat make_aij(const Eigen::SparseMatrix<double, Eigen::RowMajor, Index>& csr) {
+  const Index n = static_cast<Index>(csr.rows());
+  Mat m = nullptr;
+  if (rank_count() == 1) {
+    TETFSI_PETSC(MatCreateSeqAIJWithArrays(
+        PETSC_COMM_SELF, n, n, const_cast<Index*>(csr.outerIndexPtr()),
+        const_cast<Index*>(csr.innerIndexPtr()), const_cast<double*>(csr.valuePtr()), &m));
+    return m;
+  }
+  const RowRange rows = my_rows(n);
+  const Index* outer = csr.outerIndexPtr();
+  const Index first = outer[rows.begin];
+  std::vector<PetscInt> starts(static_cast<size_t>(rows.size()) + 1);
+  for (Index i = 0; i <= rows.size(); ++i) starts[i] = outer[rows.begin + i] - first;
+  TETFSI_PETSC(MatCreateMPIAIJWithArrays(PETSC_COMM_WORLD, rows.size(), rows.size(), n, n,
+                                         starts.data(), csr.innerIndexPtr() + first,
+                                         csr.valuePtr() + first, &m));
+  return m;
 }
 
 // ---- the solver ------------------------------------------------------------------------------
@@ -203,15 +246,13 @@ class PetscAmgSolver final : public LinearSolver {
     // PETSc AIJ is CSR: convert once and share the arrays (PETSc does not copy them).
     m_csr = A;
     m_csr.makeCompressed();
-    const Index n = static_cast<Index>(m_csr.rows());
-    TETFSI_PETSC(MatCreateSeqAIJWithArrays(PETSC_COMM_SELF, n, n, m_csr.outerIndexPtr(),
-                                           m_csr.innerIndexPtr(), m_csr.valuePtr(), &m_mat));
+    m_mat = make_aij(m_csr);
     if (m_opts.symmetric) {
       TETFSI_PETSC(MatSetOption(m_mat, MAT_SYMMETRIC, PETSC_TRUE));
       TETFSI_PETSC(MatSetOption(m_mat, MAT_SPD, PETSC_TRUE));  // CG presumes it anyway
     }
 
-    TETFSI_PETSC(KSPCreate(PETSC_COMM_SELF, &m_ksp));
+    TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
     TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
     TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
     if (m_opts.symmetric) {
@@ -317,10 +358,9 @@ class PetscAmgPreconditioner final : public AmgPreconditioner {
       m_n = n;
       m_csr = P;
       m_csr.makeCompressed();
-      TETFSI_PETSC(MatCreateSeqAIJWithArrays(PETSC_COMM_SELF, n, n, m_csr.outerIndexPtr(),
-                                             m_csr.innerIndexPtr(), m_csr.valuePtr(), &m_mat));
+      m_mat = make_aij(m_csr);
       TETFSI_PETSC(MatSetOption(m_mat, MAT_SYMMETRIC, PETSC_TRUE));
-      TETFSI_PETSC(PCCreate(PETSC_COMM_SELF, &m_pc));
+      TETFSI_PETSC(PCCreate(solve_comm(), &m_pc));
       TETFSI_PETSC(PCSetOptionsPrefix(m_pc, "tetfsi_amg_"));
       TETFSI_PETSC(PCSetOperators(m_pc, m_mat, m_mat));
       TETFSI_PETSC(PCSetType(m_pc, PCHYPRE));
@@ -341,6 +381,7 @@ class PetscAmgPreconditioner final : public AmgPreconditioner {
     WrappedVec vr(m_n, r.data());
     WrappedVec vz(m_n, z.data());
     TETFSI_PETSC(PCApply(m_pc, vr.v, vz.v));
+    allgather_rows(z.data(), m_n);
   }
 
   double setup_seconds() const override { return m_setup_s; }
@@ -362,6 +403,15 @@ class PetscAmgPreconditioner final : public AmgPreconditioner {
 };
 
 }  // namespace
+
+std::string start_petsc() {
+  try {
+    ensure_petsc();
+  } catch (const SolverError&) {
+    return g_petsc_init_error;
+  }
+  return {};
+}
 
 std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOptions& opts) {
   TETFSI_CHECK(kind == SolverKind::Amg || kind == SolverKind::AmgGamg,

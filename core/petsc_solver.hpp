@@ -9,10 +9,14 @@
 /// `tetfsi_amg_`, `tetfsi_gamg_` and (GAMG, `symmetric = false`) `tetfsi_gamg_nonsym_`, e.g.
 /// `PETSC_OPTIONS="-tetfsi_amg_pc_hypre_boomeramg_strong_threshold 0.6"`.
 #include <memory>
+#include <string>
 
 #include "core/linear_solver.hpp"
 
 namespace tetfsi::detail {
+
+/// Initialise PETSc (and MPI) now if nobody did: "" on success, else why it failed.
+std::string start_petsc();
 
 /// @param kind SolverKind::Amg or SolverKind::AmgGamg.
 /// @throws SolverError if PETSc cannot be initialised.

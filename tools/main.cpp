@@ -47,6 +47,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/parallel.hpp"
+#include "core/ranks.hpp"
 #include "tools/bench_bfgs.hpp"
 #include "tools/bench_coupled.hpp"
 #include "tools/bench_integrators.hpp"
@@ -84,6 +85,7 @@ extern "C" void on_stop_signal(int sig) {
 
 /// Print `error: <message>` as exactly one line on stderr.
 int report_error(const std::string& what) {
+  if (!tetfsi::is_root_rank()) return 1;  // every rank fails alike under mpirun: rank 0 says it
   const std::string message = tetfsi::tools::one_line(what);
   std::fflush(stdout);
   std::fprintf(stderr, "error: %s\n", message.c_str());
@@ -221,7 +223,7 @@ Command add_run(CLI::App& app) {
             // A preview of the last frame written (a failed run's too: its last good step; not
             // after Ctrl-C). Only a completed run reports a failed preview: else the run's
             // error is the one line.
-            if (o->preview && r.frames_written > 0 && !r.interrupted) {
+            if (o->preview && r.frames_written > 0 && !r.interrupted && is_root_rank()) {
               try {
                 tools::RenderOptions ro;
                 ro.output = opt.out_dir / "preview.png";
@@ -685,6 +687,13 @@ Command add_plot(CLI::App& app) {
 int main(int argc, char** argv) {
   using namespace tetfsi;
   tools::cap_openmp_threads(argv);  // before any library starts threads
+  // Under mpirun: MPI first (core/ranks.hpp); the ranks but 0 print nothing on stdout.
+  try {
+    start_ranks();
+  } catch (const std::exception& e) {
+    return report_error(e.what());
+  }
+  if (!is_root_rank() && std::freopen("/dev/null", "w", stdout) == nullptr) return 1;
 
   CLI::App app{
       "tetfsi: incompressible fluids coupled with deformable linear-tet FEM solids "
@@ -748,10 +757,17 @@ int main(int argc, char** argv) {
   }
 
   try {
-    set_log_level(log_level);
+    set_log_level(rank_index() == 0 ? log_level : std::string("off"));
     set_thread_count(requested_thread_count(threads));
     for (const Command& c : commands) {
-      if (*c.app) return c.action();
+      if (!*c.app) continue;
+      TETFSI_REQUIRE(
+          InputError,
+          rank_count() == 1 || c.app->get_name() == "run" || c.app->get_name() == "resume",
+          "only `tetfsi run` and `tetfsi resume` use MPI ranks ({} here): start "
+          "`tetfsi {}` without mpirun",
+          rank_count(), c.app->get_name());
+      return c.action();
     }
   } catch (const std::exception& e) {
     return report_error(e.what());  // tetfsi::Error and everything else: one line

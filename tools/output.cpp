@@ -33,6 +33,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/ranks.hpp"
 #include "mesh/quality.hpp"
 #include "solid/world.hpp"
 #include "tools/scene.hpp"
@@ -989,11 +990,21 @@ std::vector<std::string> stats_body_names(const solid::SolidWorld& world) {
 OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
                            const solid::SolidWorld& world, std::optional<int> resume_step)
     : m_file_names(output_file_names(scene, world)),
-      m_out(prepare_out_dir(out_dir, resume_step.has_value())),
+      m_out(is_root_rank() ? prepare_out_dir(out_dir, resume_step.has_value()) : out_dir),
       m_compression(parse_compression(scene.output.compression)),
-      m_stats(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
-              stats_body_names(world), world.contact.enabled,
-              scene.fluid && scene.fluid->params.liquid.enabled) {
+      m_quiet(!is_root_rank()) {
+  if (m_quiet) {  // rank 0 writes: keep the collections' bookkeeping only
+    for (const std::string& name : m_file_names) m_pvd.emplace_back(m_out / (name + ".pvd"));
+    if (scene.fluid) {
+      m_fluid_pvd.emplace(m_out / "fluid.pvd");
+      m_interface_pvd.emplace(m_out / "interface.pvd");
+      if (scene.fluid->params.liquid.enabled) m_liquid_pvd.emplace(m_out / "liquid.pvd");
+    }
+    return;
+  }
+  m_stats.emplace(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
+                  stats_body_names(world), world.contact.enabled,
+                  scene.fluid && scene.fluid->params.liquid.enabled);
   write_text_file_atomic(
       m_out / "scene.resolved.json",
       (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
@@ -1044,6 +1055,7 @@ void OutputWriter::add_bodies_to_pvds(const std::vector<std::string>& rel, doubl
 
 void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double time,
                                const mesh::TetMesh* fluid, const FluidFrameFields* fluid_fields) {
+  if (m_quiet) return count_frame(step);
   // Every file first, then the collections: a frame that fails half-way is in none of them.
   const std::vector<std::string> rel = write_bodies(world, step);
   const bool with_fluid = m_fluid_pvd && fluid;
@@ -1069,6 +1081,7 @@ void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, do
   // The grid's sizes before any file, then every file, then the collections.
   check_grid_cells(grid);
   check_grid_surface(grid);
+  if (m_quiet) return count_frame(step);
   const std::vector<std::string> rel = write_bodies(world, step);
   const std::string rel_f = fmt::format("fluid/fluid_{:06d}.vti", step);
   const std::string rel_i = fmt::format("interface/interface_{:06d}.vtp", step);
@@ -1084,7 +1097,13 @@ void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, do
   m_frame_steps.push_back(step);
 }
 
+void OutputWriter::count_frame(int step) {
+  ++m_frames;
+  m_frame_steps.push_back(step);
+}
+
 void OutputWriter::write_summary(const std::string& json_text) {
+  if (m_quiet) return;
   write_text_file_atomic(m_out / "summary.json", json_text);
 }
 
@@ -1156,6 +1175,7 @@ void OutputWriter::load_state(const CheckpointReader& r) {
     r.fail(fmt::format("run/output/streams: {} collections, this scene writes {}", n, st.size()));
   m_frames = static_cast<int>(r.get_int("run/output/frames"));
   m_frame_steps = r.get_vector<int>("run/output/frame_steps");
+  if (m_quiet) return;  // rank 0 rewrites the collections and removes the later frames
   const int last = m_frame_steps.empty() ? -1 : m_frame_steps.back();
   for (size_t i = 0; i < st.size(); ++i) {
     const std::string key = fmt::format("run/output/pvd/{}/", i);

@@ -431,6 +431,7 @@ class OutputWriter {
   /// @throws InputError if the folder cannot be created or written, if two body names map
   ///   to the same file name or the same stats.csv column name (stats_body_names), or if a
   ///   body's file name is "fluid" or "interface" in a scene with a fluid.
+  /// On a rank other than 0 (mpirun) nothing is created or written (m_quiet).
   OutputWriter(const std::filesystem::path& out_dir, const Scene& scene,
                const solid::SolidWorld& world, std::optional<int> resume_step = std::nullopt);
 
@@ -462,7 +463,9 @@ class OutputWriter {
   void write_grid_frame(const solid::SolidWorld& world, int step, double time,
                         const GridFrameFields& grid);
   /// Append a row to stats.csv.
-  void write_stats(const StepStats& row) { m_stats.write(row); }
+  void write_stats(const StepStats& row) {
+    if (m_stats) m_stats->write(row);
+  }
   /// Write `summary.json` (pretty JSON text, atomically).
   void write_summary(const std::string& json_text);
 
@@ -482,10 +485,15 @@ class OutputWriter {
   std::optional<PvdWriter> m_fluid_pvd;      ///< fluid scenes: OUT/fluid.pvd
   std::optional<PvdWriter> m_interface_pvd;  ///< fluid scenes: OUT/interface.pvd
   std::optional<PvdWriter> m_liquid_pvd;     ///< a free surface: OUT/liquid.pvd
-  StatsWriter m_stats;
+  /// On every rank but rank 0 of an mpirun job (core/ranks.hpp) the writer is quiet: it
+  /// counts frames and collections as rank 0's does but creates, writes and removes nothing.
+  bool m_quiet = false;
+  std::optional<StatsWriter> m_stats;  ///< absent when quiet
   int m_frames = 0;
   std::vector<int> m_frame_steps;  ///< the step of every frame written, in order
 
+  /// A frame of `step` written (or, quiet, not written): the count and the step list.
+  void count_frame(int step);
   /// Every collection: the bodies' in body order, then fluid.pvd and interface.pvd.
   std::vector<const PvdWriter*> streams() const;
   std::vector<PvdWriter*> streams();

@@ -16,6 +16,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/parallel.hpp"
+#include "core/ranks.hpp"
 #include "core/timer.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/remesh.hpp"
@@ -346,12 +347,34 @@ fs::path write_checkpoint(const Scene& scene, const coupling::FsiSimulation& sim
 }
 
 /// A stop requested before the next step: the reason ("signal", "stop_file", "wall_time") and
-/// the one-line message, or nothing.
+/// the one-line message, or nothing. Rank 0's answer (checked by it alone: signals, the file
+/// and the clock can differ between ranks).
+std::optional<std::pair<std::string, std::string>> stop_request_here(const RunOptions& opt,
+                                                                     const fs::path& stop_file,
+                                                                     const Session& ses,
+                                                                     double longest_step,
+                                                                     double longest_checkpoint);
+
 std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions& opt,
                                                                 const fs::path& stop_file,
                                                                 const Session& ses,
                                                                 double longest_step,
                                                                 double longest_checkpoint) {
+  std::optional<std::pair<std::string, std::string>> stop;
+  if (is_root_rank())
+    stop = stop_request_here(opt, stop_file, ses, longest_step, longest_checkpoint);
+  if (rank_count() == 1) return stop;
+  const std::string reason = root_decides(stop ? stop->first : std::string());
+  const std::string message = root_decides(stop ? stop->second : std::string());
+  if (reason.empty()) return std::nullopt;
+  return std::pair{reason, message};
+}
+
+std::optional<std::pair<std::string, std::string>> stop_request_here(const RunOptions& opt,
+                                                                     const fs::path& stop_file,
+                                                                     const Session& ses,
+                                                                     double longest_step,
+                                                                     double longest_checkpoint) {
   if (opt.stop && opt.stop->load())
     return std::pair{std::string("signal"), std::string("interrupted")};
   std::error_code ec;
@@ -414,6 +437,23 @@ int record_report(const coupling::FsiStepReport& rep, RunRecorder* fluid, StepSt
   return fluid_solves;
 }
 
+/// Under mpirun every rank advances the same state (core/ranks.hpp): check, from the step's
+/// energies and fluid figures, that they still do.
+/// @throws InternalError if the ranks disagree.
+void check_ranks_agree(const StepStats& row) {
+  if (rank_count() == 1) return;
+  double sum = row.kinetic_energy + 3.0 * row.elastic_energy + 5.0 * row.gravity_potential;
+  if (row.fluid) {
+    for (const double v :
+         {row.fluid->fluid_kinetic_energy, row.fluid->smoke_mass, row.fluid->pressure_residual})
+      if (std::isfinite(v)) sum = 7.0 * sum + v;
+  }
+  TETFSI_REQUIRE(InternalError, same_on_all_ranks(sum),
+                 "the MPI ranks' states differ after this step (rank {} has {:.17g}): every "
+                 "rank must compute the same; run with one rank and report this",
+                 rank_index(), sum);
+}
+
 void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
                  OutputWriter& out, const RunOptions& opt, RunResult& r, Session& ses) {
   solid::SolidWorld& world = sim.world();
@@ -446,7 +486,9 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
     if (done == last_checkpoint) return;
     const double t0 = now_seconds();
     try {
-      r.checkpoint = write_checkpoint(scene, sim, fluid, out, r, ses, done);
+      // Rank 0 writes the checkpoint (the state is the same on every rank).
+      r.checkpoint = is_root_rank() ? write_checkpoint(scene, sim, fluid, out, r, ses, done)
+                                    : checkpoint_path(out.out_dir(), done);
       last_checkpoint = done;
     } catch (const Error& e) {
       logger().error("no checkpoint after step {}: {}", done, one_line(e.what()));
@@ -458,7 +500,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
       progress.finish();
       checkpoint(step - 1);
       write_last_good_frame(step - 1);
-      if (stop->first == "stop_file") {
+      if (stop->first == "stop_file" && is_root_rank()) {
         std::error_code ec;
         fs::remove(stop_file, ec);  // consumed: a resumed run must not stop at once
       }
@@ -494,6 +536,7 @@ void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* 
       }
       fill_energies(world, row);
       fill_poses(world, row, r);
+      check_ranks_agree(row);
     } catch (const Error& e) {
       progress.finish();
       last_good.restore(world);  // the summary reports the state after the last good step
@@ -626,6 +669,7 @@ namespace {
 
 /// A stale OUT/STOP (left from before this run) would stop it after its first step.
 void remove_stale_stop_file(const fs::path& out_dir) {
+  if (!is_root_rank()) return;  // rank 0 owns the folder (stop_request)
   const fs::path stop = out_dir / "STOP";
   std::error_code ec;
   if (!fs::exists(stop, ec)) return;
@@ -640,6 +684,7 @@ void finish_run(const solid::SolidWorld& world, const std::optional<RunRecorder>
                 OutputWriter& out, const Session& ses, RunResult& r) {
   r.wall_s = ses.wall_before + (now_seconds() - ses.start);
   r.threads = thread_count();
+  r.ranks = rank_count();
   r.frames_written = out.frames_written();
   fill_final(world, r);
   if (fluid) {
@@ -690,7 +735,7 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
 
   ses.start = now_seconds();
   OutputWriter out(opt.out_dir, scene, world);
-  remove_earlier_checkpoints(opt.out_dir);
+  if (is_root_rank()) remove_earlier_checkpoints(opt.out_dir);
   bool initial_ok = true;
   if (fluid) {
     PhaseTimes unused;  // step 0 has no stats row
@@ -871,6 +916,7 @@ std::string summary_json(const RunResult& r) {
   j["wall_seconds"] = r.wall_s;
   j["ms_per_step"] = r.ms_per_step();
   j["threads"] = r.threads;
+  j["ranks"] = r.ranks;
   j["frames_written"] = r.frames_written;
   j["solver_iterations"] = r.solver_iterations;
   j["unconverged_steps"] = r.unconverged_steps;
@@ -954,19 +1000,22 @@ std::string summary_json(const RunResult& r) {
 }
 
 void print_summary(const RunResult& r, std::ostream& out) {
+  // "2 threads", or under mpirun "2 ranks x 1 thread"
+  const std::string on = fmt::format(
+      "{}{} thread{}", r.ranks > 1 ? fmt::format("{} ranks x ", r.ranks) : std::string(), r.threads,
+      r.threads == 1 ? "" : "s");
   if (r.mode == "static") {
     out << fmt::format(
-        "scene '{}' (static): {} in {} Newton iterations, {:.3g} s wall on {} thread{}, {} "
-        "frame{}\n",
-        r.scene_name, r.completed ? "equilibrium" : "FAILED", r.solver_iterations, r.wall_s,
-        r.threads, r.threads == 1 ? "" : "s", r.frames_written, r.frames_written == 1 ? "" : "s");
+        "scene '{}' (static): {} in {} Newton iterations, {:.3g} s wall on {}, {} frame{}\n",
+        r.scene_name, r.completed ? "equilibrium" : "FAILED", r.solver_iterations, r.wall_s, on,
+        r.frames_written, r.frames_written == 1 ? "" : "s");
   } else {
     out << fmt::format(
         "scene '{}' (dynamic): {}{}/{} steps of {:.6g} s to t = {:.6g} s in {:.3g} s wall "
-        "({:.3g} ms/step) on {} thread{}, {} frame{}\n",
+        "({:.3g} ms/step) on {}, {} frame{}\n",
         r.scene_name, r.completed ? "" : (r.interrupted ? "INTERRUPTED after " : "FAILED after "),
-        r.steps_done, r.steps_planned, r.dt, r.end_time, r.wall_s, r.ms_per_step(), r.threads,
-        r.threads == 1 ? "" : "s", r.frames_written, r.frames_written == 1 ? "" : "s");
+        r.steps_done, r.steps_planned, r.dt, r.end_time, r.wall_s, r.ms_per_step(), on,
+        r.frames_written, r.frames_written == 1 ? "" : "s");
   }
   out << fmt::format("output: {}\n", r.out_dir.string());
   out << fmt::format("energy (J): kinetic {:.6g}, elastic {:.6g}, gravity {:.6g}, total {:.6g}\n",

@@ -143,6 +143,7 @@ struct RunResult {
   double wall_s = 0.0;        ///< wall-clock seconds of the whole run (build excluded)
   double build_s = 0.0;       ///< seconds to build the world
   int threads = 1;            ///< the thread count of the parallel loops (core/parallel.hpp)
+  int ranks = 1;              ///< MPI ranks (core/ranks.hpp; 1 without mpirun)
   int frames_written = 0;     ///< frames (each: one .vtu per body)
   int solver_iterations = 0;  ///< linear (dynamic) or Newton (static) iterations, summed
   int unconverged_steps = 0;  ///< steps whose linear solve reported converged = false

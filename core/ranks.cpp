@@ -1,0 +1,112 @@
+#include "core/ranks.hpp"
+
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+// The C API only (Open MPI's C++ bindings would need libmpi_cxx).
+#define OMPI_SKIP_MPICXX 1
+#define MPICH_SKIP_MPICXX 1
+#include <mpi.h>
+
+#include "core/error.hpp"
+#include "core/petsc_solver.hpp"
+
+namespace tetfsi {
+
+namespace {
+
+int g_rank = 0;
+int g_count = 1;
+
+bool env_set(const char* name) {
+  const char* v = std::getenv(name);
+  return v != nullptr && *v != '\0';
+}
+
+/// MPI is up (this process started it through PETSc, or a host program did).
+bool mpi_up() {
+  int up = 0, down = 0;
+  MPI_Initialized(&up);
+  MPI_Finalized(&down);
+  return up != 0 && down == 0 && g_count > 1;
+}
+
+}  // namespace
+
+bool started_by_mpirun() {
+  return env_set("OMPI_COMM_WORLD_SIZE") || env_set("PMI_SIZE") || env_set("PMIX_RANK");
+}
+
+void start_ranks() {
+  static bool done = false;
+  if (done || !started_by_mpirun()) return;
+  done = true;
+  const std::string error = detail::start_petsc();
+  TETFSI_REQUIRE(SolverError, error.empty(),
+                 "MPI cannot start: {}; run without mpirun, or check the Open MPI installation "
+                 "(as root it needs OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1)",
+                 error);
+  MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &g_count);
+}
+
+int rank_index() { return g_rank; }
+int rank_count() { return g_count; }
+
+int ranks_on_this_node() {
+  const char* v = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");
+  if (v == nullptr) return 1;
+  const int n = std::atoi(v);
+  return n >= 1 ? n : 1;
+}
+
+RowRange rank_rows(Index n, int rank, int count) {
+  const Index base = n / count, extra = n % count;
+  RowRange r;
+  r.begin = rank * base + std::min<Index>(rank, extra);
+  r.end = r.begin + base + (rank < extra ? 1 : 0);
+  return r;
+}
+
+void allgather_rows(double* x, Index n) {
+  if (!mpi_up()) return;
+  std::vector<int> counts(g_count), offsets(g_count);
+  for (int r = 0; r < g_count; ++r) {
+    const RowRange rows = rank_rows(n, r, g_count);
+    counts[r] = static_cast<int>(rows.size());
+    offsets[r] = static_cast<int>(rows.begin);
+  }
+  const int err = MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, x, counts.data(),
+                                 offsets.data(), MPI_DOUBLE, MPI_COMM_WORLD);
+  TETFSI_REQUIRE(SolverError, err == MPI_SUCCESS, "MPI_Allgatherv failed with error {}", err);
+}
+
+bool same_on_all_ranks(double value) {
+  if (!mpi_up()) return true;
+  long long bits = 0;
+  static_assert(sizeof bits == sizeof value);
+  std::memcpy(&bits, &value, sizeof bits);
+  long long lo = 0, hi = 0;
+  MPI_Allreduce(&bits, &lo, 1, MPI_LONG_LONG, MPI_MIN, MPI_COMM_WORLD);
+  MPI_Allreduce(&bits, &hi, 1, MPI_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
+  return lo == hi;
+}
+
+bool root_decides(bool flag) {
+  if (!mpi_up()) return flag;
+  int v = flag ? 1 : 0;
+  MPI_Bcast(&v, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  return v != 0;
+}
+
+std::string root_decides(const std::string& text) {
+  if (!mpi_up()) return text;
+  long long n = static_cast<long long>(text.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD);
+  std::string out = g_rank == 0 ? text : std::string(static_cast<size_t>(n), '\0');
+  if (n > 0) MPI_Bcast(out.data(), static_cast<int>(n), MPI_CHAR, 0, MPI_COMM_WORLD);
+  return out;
+}
+
+}  // namespace tetfsi

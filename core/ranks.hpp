@@ -1,0 +1,57 @@
+#pragma once
+/// @file ranks.hpp
+/// MPI ranks (Open MPI, started through PETSc; MPI stays out of this header).
+///
+/// tetfsi runs replicated: under `mpirun -np N tetfsi run SCENE` every rank builds the same
+/// meshes and advances the same state, and the linear solves that go through PETSc (the
+/// `amg` and `amg_gamg` solvers and the BoomerAMG preconditioner of the coupled Schur-CG) are
+/// distributed: rank r owns the rows rank_rows(n, r, N) of each matrix, PETSc solves on
+/// MPIAIJ matrices over all ranks, and the solution is gathered back to every rank
+/// (allgather_rows), so the state stays the same on every rank. Rank 0 writes the output.
+/// Without mpirun (or with -np 1) there is one rank and nothing here communicates.
+#include <string>
+
+#include "core/types.hpp"
+
+namespace tetfsi {
+
+/// Whether this process was started by an MPI launcher (Open MPI's mpirun / mpiexec sets
+/// OMPI_COMM_WORLD_SIZE; PMI_SIZE and PMIX_RANK are checked too).
+bool started_by_mpirun();
+
+/// Start MPI now (through PETSc) if this process was started by mpirun; a no-op otherwise
+/// and on every later call. Call it first thing in main, before any thread starts.
+/// @throws SolverError "MPI cannot start: ..." if MPI or PETSc cannot be initialised.
+void start_ranks();
+
+/// This process's rank (0 without MPI) and the number of ranks (1 without MPI).
+int rank_index();
+int rank_count();
+inline bool is_root_rank() { return rank_index() == 0; }
+
+/// The ranks of this job on this machine (Open MPI's OMPI_COMM_WORLD_LOCAL_SIZE; 1 without
+/// mpirun): the default thread count shares the cores among them.
+int ranks_on_this_node();
+
+/// The rows [begin, end) of an n-row system that rank `rank` of `count` owns: contiguous
+/// blocks, the first n % count of them one row longer.
+struct RowRange {
+  Index begin = 0, end = 0;
+  Index size() const { return end - begin; }
+};
+RowRange rank_rows(Index n, int rank, int count);
+
+/// x (length n on every rank) gets on every rank the rows each rank owns (rank_rows) from
+/// that rank: MPI_Allgatherv. A no-op with one rank.
+void allgather_rows(double* x, Index n);
+
+/// Whether `value` is the same on every rank (bit for bit). True with one rank.
+bool same_on_all_ranks(double value);
+
+/// Rank 0's `flag` on every rank (MPI_Bcast). `flag` itself with one rank.
+bool root_decides(bool flag);
+
+/// Rank 0's `text` on every rank (MPI_Bcast of its length and bytes). `text` with one rank.
+std::string root_decides(const std::string& text);
+
+}  // namespace tetfsi
