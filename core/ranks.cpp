@@ -51,8 +51,12 @@ void start_ranks() {
   MPI_Comm_size(MPI_COMM_WORLD, &g_count);
 }
 
-int rank_index() { return g_rank; }
-int rank_count() { return g_count; }
+int rank_index() {
+  return g_rank;
+}
+int rank_count() {
+  return g_count;
+}
 
 int ranks_on_this_node() {
   const char* v = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");

@@ -27,7 +27,9 @@ void start_ranks();
 /// This process's rank (0 without MPI) and the number of ranks (1 without MPI).
 int rank_index();
 int rank_count();
-inline bool is_root_rank() { return rank_index() == 0; }
+inline bool is_root_rank() {
+  return rank_index() == 0;
+}
 
 /// The ranks of this job on this machine (Open MPI's OMPI_COMM_WORLD_LOCAL_SIZE; 1 without
 /// mpirun): the default thread count shares the cores among them.

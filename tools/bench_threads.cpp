@@ -22,40 +22,30 @@
 
 namespace tetfsi::tools {
 
-namespace {
-
 namespace fs = std::filesystem;
 
-/// stats.csv as its header and rows of fields (text as written).
-struct Csv {
-  std::vector<std::string> header;
-  std::vector<std::vector<std::string>> rows;
-};
-
-Csv read_csv(const fs::path& path) {
+StatsCsv read_stats_csv(const fs::path& path) {
   std::ifstream in(path);
-  TETFSI_REQUIRE(InputError, in.good(), "bench threads: cannot read '{}'", path.string());
+  TETFSI_REQUIRE(InputError, in.good(), "cannot read '{}'", path.string());
   auto split = [](const std::string& line) {
     std::vector<std::string> f;
     std::stringstream ss(line);
     for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
     return f;
   };
-  Csv csv;
+  StatsCsv csv;
   std::string line;
   if (std::getline(in, line)) csv.header = split(line);
   while (std::getline(in, line)) csv.rows.push_back(split(line));
   return csv;
 }
 
-/// Whether column `name` holds seconds (a phase, or a figure ending in "_s").
-bool is_seconds(const std::string& name, const std::vector<std::string>& phases) {
+bool is_seconds_column(const std::string& name, const std::vector<std::string>& phases) {
   return std::find(phases.begin(), phases.end(), name) != phases.end() ||
          (name.size() > 2 && name.compare(name.size() - 2, 2, "_s") == 0);
 }
 
-/// Every phase column stats.csv can have (StatsWriter::phase_columns of each kind of run).
-std::vector<std::string> all_phases() {
+std::vector<std::string> all_phase_columns() {
   std::vector<std::string> all;
   for (const bool fluid : {false, true})
     for (const bool coupled : {false, true})
@@ -63,6 +53,8 @@ std::vector<std::string> all_phases() {
         if (std::find(all.begin(), all.end(), p) == all.end()) all.push_back(p);
   return all;
 }
+
+namespace {
 
 /// One run's figures: its phases in column order, the mean seconds per timed step of each,
 /// and its physics columns.
@@ -82,7 +74,7 @@ ThreadsRun run_once(const Scene& scene, const BenchThreadsOptions& opt, int thre
   const RunResult r = run_scene(scene, ro);
   TETFSI_REQUIRE(SolverError, r.completed, "bench threads: the run on {} thread(s) failed: {}",
                  threads, r.error);
-  const Csv csv = read_csv(ro.out_dir / "stats.csv");
+  const StatsCsv csv = read_stats_csv(ro.out_dir / "stats.csv");
   ThreadsRun run;
   for (std::size_t k = 0; k < csv.header.size(); ++k) {
     const std::string& name = csv.header[k];
@@ -95,7 +87,7 @@ ThreadsRun run_once(const Scene& scene, const BenchThreadsOptions& opt, int thre
   for (const auto& row : csv.rows) {
     std::vector<std::string> p;
     for (std::size_t k = 0; k < row.size() && k < csv.header.size(); ++k)
-      if (!is_seconds(csv.header[k], phases)) p.push_back(row[k]);
+      if (!is_seconds_column(csv.header[k], phases)) p.push_back(row[k]);
     run.physics.push_back(std::move(p));
   }
   std::error_code ec;
@@ -120,7 +112,7 @@ void check_options(const Scene& scene, const BenchThreadsOptions& opt) {
 int bench_threads(const fs::path& scene_file, const BenchThreadsOptions& opt, std::ostream& out) {
   const Scene scene = load_scene(scene_file, opt.overrides);
   check_options(scene, opt);
-  const std::vector<std::string> phases = all_phases();
+  const std::vector<std::string> phases = all_phase_columns();
   const fs::path dir = fs::temp_directory_path() / fmt::format("tetfsi_bench_threads_{}", getpid());
   const int restore = thread_count();
   std::vector<ThreadsRun> runs;

@@ -24,6 +24,18 @@ struct BenchThreadsOptions {
   std::vector<int> threads = {1, 2};   ///< thread counts (each ≥ 1), the first the reference
 };
 
+/// stats.csv as its header and rows of fields (the text as written).
+struct StatsCsv {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+};
+/// @throws InputError naming the file if it cannot be read.
+StatsCsv read_stats_csv(const std::filesystem::path& path);
+/// Every phase column stats.csv can have (StatsWriter::phase_columns of each kind of run).
+std::vector<std::string> all_phase_columns();
+/// Whether column `name` holds seconds: one of `phases`, or a figure ending in "_s".
+bool is_seconds_column(const std::string& name, const std::vector<std::string>& phases);
+
 /// Run the benchmark and print its table to `out`; the process's thread count is restored
 /// afterwards.
 /// @throws InputError if the scene is static or an option is out of range; what run_scene's

@@ -12,6 +12,8 @@
 ///   tetfsi bench remesh [--json FILE] [--max-cells N] [--repeat N]
 ///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
 ///   tetfsi bench threads SCENE [--steps N] [--threads-list 1,2] [--json FILE] [--set k=v ...]
+///   tetfsi bench scaling SCENE [--threads 1,2] [--ranks 1,2] [--steps N] [--json FILE]
+///                        [--set k=v ...]
 ///   tetfsi bench coupled SCENE [--json FILE] [--time T] [--steps-down N] [--set k=v ...]
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
@@ -52,6 +54,7 @@
 #include "tools/bench_coupled.hpp"
 #include "tools/bench_integrators.hpp"
 #include "tools/bench_remesh.hpp"
+#include "tools/bench_scaling.hpp"
 #include "tools/bench_solvers.hpp"
 #include "tools/bench_step.hpp"
 #include "tools/bench_threads.hpp"
@@ -464,6 +467,36 @@ Command add_bench_threads(CLI::App& bench) {
           }};
 }
 
+Command add_bench_scaling(CLI::App& bench) {
+  struct Opt {
+    std::string scene, json;
+    tetfsi::tools::BenchScalingOptions bench;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = bench.add_subcommand(
+      "scaling",
+      "the same steps of a scene at every (MPI ranks, threads) pair, each a `tetfsi run` "
+      "process (under mpirun for ranks > 1): seconds per step of every phase, speed-up, "
+      "parallel efficiency, and how far the physics is from the first run's");
+  add_scene_bench_options(cmd, o->scene, "dynamic scene file (JSON)", o->json, o->bench.steps,
+                          "run");
+  cmd->add_option("--threads", o->bench.threads,
+                  "comma-separated thread counts per rank (default 1,2)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
+      ->type_name("A,B");
+  cmd->add_option("--ranks", o->bench.ranks,
+                  "comma-separated MPI rank counts (default 1; above 1 runs under mpirun)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
+      ->type_name("A,B");
+  add_set_option(cmd, o->bench.overrides, "override a scene value (repeatable)");
+  return {cmd, [o] {
+            o->bench.json_path = o->json;
+            return tetfsi::tools::bench_scaling(o->scene, o->bench, std::cout);
+          }};
+}
+
 Command add_bench_coupled(CLI::App& bench) {
   struct Opt {
     std::string scene, json;
@@ -712,6 +745,7 @@ int main(int argc, char** argv) {
       "  tetfsi bench remesh --json remesh.json\n"
       "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
       "  tetfsi bench threads data/scenes/smoke_sheets.json --threads-list 1,2\n"
+      "  tetfsi bench scaling data/scenes/smoke_sheets.json --threads 1,2 --ranks 1,2\n"
       "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
       "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
       "  tetfsi scene --keys   # every scene key with its default and range\n"
@@ -743,7 +777,7 @@ int main(int argc, char** argv) {
   CLI::App* bench = app.add_subcommand("bench", "benchmarks");
   bench->require_subcommand(1);
   for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_threads,
-                   add_bench_coupled, add_bench_bfgs, add_bench_integrators})
+                   add_bench_scaling, add_bench_coupled, add_bench_bfgs, add_bench_integrators})
     commands.push_back(add(*bench));
   commands.push_back(add_quality(app));
   commands.push_back(add_render(app));

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -32,12 +33,15 @@ fs::path scene_file(const std::string& name) {
   return fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / name;
 }
 
-bool have_mpirun() { return std::system("command -v mpirun >/dev/null 2>&1") == 0; }
+bool have_mpirun() {
+  return std::system("command -v mpirun >/dev/null 2>&1") == 0;
+}
 
 /// The shell prefix that runs `tetfsi` under `mpirun -np N` (as root too).
 std::string mpirun_prefix(int n) {
   return fmt::format(
-      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 "
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+      "OMPI_MCA_rmaps_base_oversubscribe=1 "
       "mpirun --quiet -np {}",
       n);
 }
@@ -137,4 +141,61 @@ TEST_CASE("mpi: a subcommand other than run or resume under mpirun -np 2 is a on
   CHECK(r.code != 0);
   REQUIRE(r.err_lines().size() == 1);
   CHECK(contains(r.err, "error: only `tetfsi run` and `tetfsi resume` use MPI ranks (2 here)"));
+}
+
+TEST_CASE("mpi: tetfsi bench scaling times bar at 1 and 2 threads and ranks") {
+  TempDir dir("mpi_scaling");
+  const bool mpi = have_mpirun();
+  const Result r = tetfsi::test::run_tetfsi(
+      dir.path, fmt::format("bench scaling '{}' --steps 3 --threads 1,2 --ranks {} --json s.json",
+                            scene_file("bar.json").string(), mpi ? "1,2" : "1"));
+  REQUIRE_MESSAGE(r.code == 0, r.err);
+  const json j = json::parse(read_text(dir.path / "s.json"));
+  const size_t runs = mpi ? 4 : 2;
+  REQUIRE(j["runs"].size() == runs);
+  CHECK(j["runs"][1]["threads"] == 2);
+  CHECK(j["runs"][1]["ranks"] == 1);
+  // Threads change nothing, bit for bit; two ranks agree to solver tolerance.
+  CHECK(j["identical"][1] == true);
+  CHECK(j["max_rel_difference"][1].get<double>() == 0.0);
+  if (mpi) {
+    CHECK(j["runs"][2]["ranks"] == 2);
+    CHECK(j["max_rel_difference"][2].get<double>() < 1e-8);
+  }
+  bool step = false;
+  for (const json& p : j["phases"]) {
+    CAPTURE(p["phase"].get<std::string>());
+    REQUIRE(p["seconds"].size() == runs);
+    CHECK(p["speedup"][0].get<double>() == doctest::Approx(p["seconds"][0] > 0 ? 1.0 : 0.0));
+    for (size_t i = 0; i < runs; ++i) {
+      const double n = j["runs"][i]["ranks"].get<double>() * j["runs"][i]["threads"].get<double>();
+      CHECK(p["efficiency"][i].get<double>() == doctest::Approx(p["speedup"][i].get<double>() / n));
+    }
+    if (p["phase"] == "step") {
+      step = true;
+      for (size_t i = 0; i < runs; ++i) CHECK(p["seconds"][i].get<double>() > 0);
+    }
+  }
+  CHECK(step);
+  CHECK(contains(r.out, "parallel efficiency"));
+  CHECK(contains(r.out, "1r x 2t: identical, bit for bit"));
+}
+
+TEST_CASE("mpi: bench scaling - bad options are one-line errors") {
+  TempDir dir("mpi_scaling_bad");
+  const std::string bar = scene_file("bar.json").string();
+  std::vector<std::pair<std::string, std::string>> cases = {
+      {fmt::format("bench scaling '{}' --set time.dt=-1", bar), "time.dt"},
+      {fmt::format("bench scaling '{}' --steps 2 --set bodies.0.material.youngs_modulus=1e-300",
+                   bar),
+       "youngs_modulus"}};
+  cases.push_back({fmt::format("bench scaling '{}'", scene_file("csm1.json").string()),
+                   "bench scaling needs a dynamic scene (mode is 'static')"});
+  for (const auto& [args, expect] : cases) {
+    CAPTURE(args);
+    const Result r = tetfsi::test::run_tetfsi(dir.path, args);
+    CHECK(r.code != 0);
+    REQUIRE(r.err_lines().size() == 1);
+    CHECK(contains(r.err, expect));
+  }
 }
