@@ -162,6 +162,7 @@ nlohmann::json print_phases(const std::vector<ScalingRun>& runs, std::ostream& o
     const std::string label = p == "total" ? "step" : p;
     std::vector<double> sec, speedup, efficiency;
     for (const ScalingRun& r : runs) sec.push_back(r.seconds.count(p) ? r.seconds.at(p) : 0.0);
+    if (*std::max_element(sec.begin(), sec.end()) == 0.0) continue;  // a phase it does not have
     std::string line = fmt::format("{:<18}", label), sp = line, ef = line;
     for (size_t i = 0; i < runs.size(); ++i) {
       const double x = sec[i] > 0 ? sec[0] / sec[i] : 0.0;
