@@ -10,7 +10,7 @@ packages=(
   libsuitesparse-dev libopenblas0-pthread libopenblas-dev
   libvtk9-dev python3-vtk9 zlib1g-dev liblz4-dev
   doctest-dev libtbb-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
-  libpetsc-real-dev libhypre-dev
+  libpetsc-real-dev libhypre-dev openmpi-bin   # mpirun: MPI ranks (tetfsi run under mpirun -np N)
   xvfb python3-numpy python3-matplotlib   # tetfsi render (VTK needs X: Xvfb), tetfsi plot
   libcgal-demo                            # CGAL's data: the Stanford bunny of data/scenes/bunny.json
 )
