@@ -284,6 +284,10 @@ std::unique_ptr<AmgPreconditioner> make_amg_preconditioner() {
   return detail::make_petsc_preconditioner();
 }
 
+void start_amg_backends() {
+  (void)detail::start_petsc();
+}
+
 }  // namespace tetfsi
 
 namespace tetfsi {

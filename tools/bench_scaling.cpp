@@ -49,15 +49,15 @@ std::string run_command(const fs::path& scene, const BenchScalingOptions& opt, i
                         int threads, const fs::path& out) {
   std::string cmd;
   if (ranks > 1)
-    cmd = fmt::format("mpirun --quiet -np {}{} ", ranks,
-                      ranks > static_cast<int>(sysconf(_SC_NPROCESSORS_ONLN)) ? " --oversubscribe"
-                                                                                : "");
+    cmd = fmt::format(
+        "mpirun --quiet -np {}{} ", ranks,
+        ranks > static_cast<int>(sysconf(_SC_NPROCESSORS_ONLN)) ? " --oversubscribe" : "");
   cmd += fmt::format("{} run {} --out {} --steps {} --threads {} --progress off --log-level error",
                      quoted(fs::read_symlink("/proc/self/exe").string()), quoted(scene.string()),
                      quoted(out.string()), opt.steps, threads);
   for (const std::string& s : opt.overrides) cmd += " --set " + quoted(s);
-  return cmd + fmt::format(" >{} 2>{}", quoted((out.string() + ".out")),
-                           quoted(out.string() + ".err"));
+  return cmd +
+         fmt::format(" >{} 2>{}", quoted((out.string() + ".out")), quoted(out.string() + ".err"));
 }
 
 /// The last nonempty line of a file ("" if none).
@@ -73,13 +73,15 @@ std::string last_line(const fs::path& p) {
   return nl == std::string::npos ? all : all.substr(nl + 1);
 }
 
-ScalingRun run_once(const fs::path& scene, const BenchScalingOptions& opt, int ranks,
-                    int threads, const std::vector<std::string>& phases, const fs::path& dir) {
+ScalingRun run_once(const fs::path& scene, const BenchScalingOptions& opt, int ranks, int threads,
+                    const std::vector<std::string>& phases, const fs::path& dir) {
   const fs::path out = dir / fmt::format("r{}_t{}", ranks, threads);
   const int status = std::system(run_command(scene, opt, ranks, threads, out).c_str());
   const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  TETFSI_REQUIRE(SolverError, code == 0, "bench scaling: the run at {} rank(s) x {} thread(s) "
-                 "failed (exit code {}): {}", ranks, threads, code, last_line(out.string() + ".err"));
+  TETFSI_REQUIRE(SolverError, code == 0,
+                 "bench scaling: the run at {} rank(s) x {} thread(s) "
+                 "failed (exit code {}): {}",
+                 ranks, threads, code, last_line(out.string() + ".err"));
   const StatsCsv csv = read_stats_csv(out / "stats.csv");
   ScalingRun run{ranks, threads, {}, {}, {}};
   for (std::size_t k = 0; k < csv.header.size(); ++k) {
@@ -148,7 +150,9 @@ void check_options(const Scene& scene, const BenchScalingOptions& opt) {
 
 namespace {
 
-std::string run_label(const ScalingRun& r) { return fmt::format("{}r x {}t", r.ranks, r.threads); }
+std::string run_label(const ScalingRun& r) {
+  return fmt::format("{}r x {}t", r.ranks, r.threads);
+}
 
 /// The table: seconds per step of each phase per run, then the speed-up and the efficiency
 /// against the first run; also the JSON "phases".
@@ -175,8 +179,8 @@ nlohmann::json print_phases(const std::vector<ScalingRun>& runs, std::ostream& o
     fmt::print(out, "{}\n", line);
     speed_lines.push_back(sp);
     eff_lines.push_back(ef);
-    jphases.push_back({{"phase", label}, {"seconds", sec}, {"speedup", speedup},
-                       {"efficiency", efficiency}});
+    jphases.push_back(
+        {{"phase", label}, {"seconds", sec}, {"speedup", speedup}, {"efficiency", efficiency}});
   }
   fmt::print(out, "\nspeed-up (seconds of {} / seconds)\n", run_label(runs[0]));
   for (const std::string& l : speed_lines) fmt::print(out, "{}\n", l);
@@ -230,17 +234,15 @@ int bench_scaling(const fs::path& scene_file, const BenchScalingOptions& opt, st
   }
   fmt::print(out,
              "\nphysics against {} (stats.csv's columns but the seconds, the solver's "
-             "iterations, residuals and divergence, and the mesh quality; the largest difference relative to the "
+             "iterations, residuals and divergence, and the mesh quality; the largest difference "
+             "relative to the "
              "column's largest |value|, and its column):{}\n",
              run_label(runs[0]), agree.empty() ? " (one run)" : agree);
   if (!opt.json_path.empty()) {
-    const nlohmann::json j{{"scene", scene.name},
-                           {"steps", opt.steps},
-                           {"cores", sysconf(_SC_NPROCESSORS_ONLN)},
-                           {"runs", jruns},
-                           {"phases", jphases},
-                           {"max_rel_difference", diff},
-                           {"identical", identical}};
+    const nlohmann::json j{
+        {"scene", scene.name},   {"steps", opt.steps}, {"cores", sysconf(_SC_NPROCESSORS_ONLN)},
+        {"runs", jruns},         {"phases", jphases},  {"max_rel_difference", diff},
+        {"identical", identical}};
     write_text_file_atomic(opt.json_path, j.dump(2) + "\n");
   }
   return 0;

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "core/linear_solver.hpp"
 #include "core/log.hpp"
 #include "core/parallel.hpp"
 #include "core/ranks.hpp"
@@ -729,6 +730,7 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   r.out_dir = opt.out_dir;
 
   std::optional<RunRecorder> fluid;
+  if (scene.fluid) start_amg_backends();  // before the meshes exist (linear_solver.hpp)
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
   if (fluid) sim.set_mesh_observer(fluid->mesh_observer());
   const solid::SolidWorld& world = sim.world();
@@ -860,6 +862,7 @@ RunResult resume_run(const ResumeOptions& ro) {
   r.resumed_from = step;
   visit_result(r, RecordLoader{*ck, "run/result/"});
   std::optional<RunRecorder> fluid;
+  if (scene.fluid) start_amg_backends();  // before the meshes exist (linear_solver.hpp)
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
   const solid::SolidWorld& world = sim.world();
   load_pose_ranges(*ck, world.bodies.size(), r);
