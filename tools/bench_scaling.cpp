@@ -129,7 +129,24 @@ std::pair<double, std::string> max_rel_difference(const ScalingRun& a, const Sca
   return worst;
 }
 
+/// The first round's runs with each phase's seconds the median over the rounds (the mean of
+/// the middle two for an even count).
+std::vector<ScalingRun> median_of_rounds(const std::vector<std::vector<ScalingRun>>& rounds) {
+  std::vector<ScalingRun> runs = rounds.front();
+  for (size_t i = 0; i < runs.size(); ++i)
+    for (auto& [phase, seconds] : runs[i].seconds) {
+      std::vector<double> v;
+      for (const auto& round : rounds) v.push_back(round[i].seconds.at(phase));
+      std::sort(v.begin(), v.end());
+      const size_t m = v.size() / 2;
+      seconds = v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+    }
+  return runs;
+}
+
 void check_options(const Scene& scene, const BenchScalingOptions& opt) {
+  TETFSI_REQUIRE(InputError, opt.repeat >= 1, "bench scaling: --repeat must be at least 1, got {}",
+                 opt.repeat);
   TETFSI_REQUIRE(InputError, scene.mode == Mode::Dynamic,
                  "bench scaling needs a dynamic scene (mode is 'static')");
   TETFSI_REQUIRE(InputError, opt.steps >= 2,
@@ -203,8 +220,14 @@ int bench_scaling(const fs::path& scene_file, const BenchScalingOptions& opt, st
   std::vector<ScalingRun> runs;
   fs::create_directories(dir);
   try {
-    for (const int r : opt.ranks)
-      for (const int t : opt.threads) runs.push_back(run_once(scene_file, opt, r, t, phases, dir));
+    // --repeat: every pair once per round, rounds one after another, so that a slow spell of
+    // the machine hits every pair alike; each phase's median over the rounds.
+    std::vector<std::vector<ScalingRun>> rounds(static_cast<size_t>(opt.repeat));
+    for (auto& round : rounds)
+      for (const int r : opt.ranks)
+        for (const int t : opt.threads)
+          round.push_back(run_once(scene_file, opt, r, t, phases, dir));
+    runs = median_of_rounds(rounds);
   } catch (...) {
     std::error_code ec;
     fs::remove_all(dir, ec);
@@ -215,8 +238,10 @@ int bench_scaling(const fs::path& scene_file, const BenchScalingOptions& opt, st
 
   fmt::print(out,
              "tetfsi bench scaling: {} ('{}'), {} steps per run (the first a warm-up; seconds are "
-             "means of the others), {} core(s); NrxMt = N MPI ranks x M threads each\n\n",
-             scene_file.string(), scene.name, opt.steps, sysconf(_SC_NPROCESSORS_ONLN));
+             "means of the others{}), {} core(s); NrxMt = N MPI ranks x M threads each\n\n",
+             scene_file.string(), scene.name, opt.steps,
+             opt.repeat > 1 ? fmt::format(", medians of {} rounds", opt.repeat) : std::string(),
+             sysconf(_SC_NPROCESSORS_ONLN));
   const nlohmann::json jphases = print_phases(runs, out);
   std::vector<double> diff;
   std::vector<bool> identical;
@@ -239,10 +264,14 @@ int bench_scaling(const fs::path& scene_file, const BenchScalingOptions& opt, st
              "column's largest |value|, and its column):{}\n",
              run_label(runs[0]), agree.empty() ? " (one run)" : agree);
   if (!opt.json_path.empty()) {
-    const nlohmann::json j{
-        {"scene", scene.name},   {"steps", opt.steps}, {"cores", sysconf(_SC_NPROCESSORS_ONLN)},
-        {"runs", jruns},         {"phases", jphases},  {"max_rel_difference", diff},
-        {"identical", identical}};
+    const nlohmann::json j{{"scene", scene.name},
+                           {"steps", opt.steps},
+                           {"repeat", opt.repeat},
+                           {"cores", sysconf(_SC_NPROCESSORS_ONLN)},
+                           {"runs", jruns},
+                           {"phases", jphases},
+                           {"max_rel_difference", diff},
+                           {"identical", identical}};
     write_text_file_atomic(opt.json_path, j.dump(2) + "\n");
   }
   return 0;

@@ -12,8 +12,8 @@
 ///   tetfsi bench remesh [--json FILE] [--max-cells N] [--repeat N]
 ///   tetfsi bench step SCENE [--json FILE] [--steps N] [--sizes a,b,c]
 ///   tetfsi bench threads SCENE [--steps N] [--threads-list 1,2] [--json FILE] [--set k=v ...]
-///   tetfsi bench scaling SCENE [--threads 1,2] [--ranks 1,2] [--steps N] [--json FILE]
-///                        [--set k=v ...]
+///   tetfsi bench scaling SCENE [--threads 1,2] [--ranks 1,2] [--steps N] [--repeat K]
+///                        [--json FILE] [--set k=v ...]
 ///   tetfsi bench coupled SCENE [--json FILE] [--time T] [--steps-down N] [--set k=v ...]
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
@@ -485,6 +485,10 @@ Command add_bench_scaling(CLI::App& bench) {
       ->delimiter(',')
       ->check(CLI::PositiveNumber)
       ->type_name("A,B");
+  cmd->add_option("--repeat", o->bench.repeat,
+                  "rounds of every pair, one after another; seconds are the medians (default 1)")
+      ->check(at_least_one())
+      ->type_name("K");
   cmd->add_option("--ranks", o->bench.ranks,
                   "comma-separated MPI rank counts (default 1; above 1 runs under mpirun)")
       ->delimiter(',')
