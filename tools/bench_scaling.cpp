@@ -34,6 +34,7 @@ struct ScalingRun {
   int ranks = 1, threads = 1;
   std::vector<std::string> phases;
   std::map<std::string, double> seconds;
+  double step_lo = 0.0, step_hi = 0.0;  ///< the whole step's fastest and slowest round
   std::map<std::string, std::vector<std::string>> physics;
 };
 
@@ -140,6 +141,10 @@ std::vector<ScalingRun> median_of_rounds(const std::vector<std::vector<ScalingRu
       std::sort(v.begin(), v.end());
       const size_t m = v.size() / 2;
       seconds = v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+      if (phase == "total") {
+        runs[i].step_lo = v.front();
+        runs[i].step_hi = v.back();
+      }
     }
   return runs;
 }
@@ -199,6 +204,10 @@ nlohmann::json print_phases(const std::vector<ScalingRun>& runs, std::ostream& o
     jphases.push_back(
         {{"phase", label}, {"seconds", sec}, {"speedup", speedup}, {"efficiency", efficiency}});
   }
+  std::string spread = fmt::format("{:<18}", "step: rounds");
+  for (const ScalingRun& r : runs)
+    spread += fmt::format(" {:>9}", fmt::format("{:.2f}-{:.2f}", r.step_lo, r.step_hi));
+  fmt::print(out, "{}\n", spread);
   fmt::print(out, "\nspeed-up (seconds of {} / seconds)\n", run_label(runs[0]));
   for (const std::string& l : speed_lines) fmt::print(out, "{}\n", l);
   fmt::print(out, "\nparallel efficiency (speed-up / (ranks x threads))\n");
@@ -251,7 +260,10 @@ int bench_scaling(const fs::path& scene_file, const BenchScalingOptions& opt, st
     const auto [d, column] = max_rel_difference(runs[0], r);
     diff.push_back(d);
     identical.push_back(r.physics == runs[0].physics);
-    jruns.push_back({{"ranks", r.ranks}, {"threads", r.threads}});
+    jruns.push_back({{"ranks", r.ranks},
+                     {"threads", r.threads},
+                     {"step_s_fastest", r.step_lo},
+                     {"step_s_slowest", r.step_hi}});
     if (&r != &runs[0])
       agree += fmt::format("\n  {}: {}", run_label(r),
                            identical.back() ? std::string("identical, bit for bit")

@@ -16,9 +16,10 @@ namespace tetfsi::tools {
 
 struct BenchScalingOptions {
   /// If nonempty, also write the results here (atomically) as `{"scene", "steps", "repeat",
-  /// "cores", "runs": [{"ranks", "threads"}], "phases": [{"phase", "seconds": [per run], "speedup":
-  /// [per run], "efficiency": [per run]}], "max_rel_difference": [per run], "identical": [per
-  /// run]}`; the phase "step" is the whole step (stats.csv's total).
+  /// "cores", "runs": [{"ranks", "threads", "step_s_fastest", "step_s_slowest"}], "phases":
+  /// [{"phase", "seconds": [per run], "speedup": [per run], "efficiency": [per run]}],
+  /// "max_rel_difference": [per run], "identical": [per run]}`; the phase "step" is the whole step
+  /// (stats.csv's total), its fastest and slowest round per run in "runs".
   std::filesystem::path json_path;
   std::vector<std::string> overrides;  ///< `--set key.path=value`, passed on to each run
   int steps = 4;                       ///< steps per run (≥ 2); the first is a warm-up

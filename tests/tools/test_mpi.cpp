@@ -147,8 +147,9 @@ TEST_CASE("mpi: tetfsi bench scaling times bar at 1 and 2 threads and ranks") {
   TempDir dir("mpi_scaling");
   const bool mpi = have_mpirun();
   const Result r = tetfsi::test::run_tetfsi(
-      dir.path, fmt::format("bench scaling '{}' --steps 3 --threads 1,2 --ranks {} --repeat 2 --json s.json",
-                            scene_file("bar.json").string(), mpi ? "1,2" : "1"));
+      dir.path,
+      fmt::format("bench scaling '{}' --steps 3 --threads 1,2 --ranks {} --repeat 2 --json s.json",
+                  scene_file("bar.json").string(), mpi ? "1,2" : "1"));
   REQUIRE_MESSAGE(r.code == 0, r.err);
   const json j = json::parse(read_text(dir.path / "s.json"));
   const size_t runs = mpi ? 4 : 2;
