@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/test_util.hpp"
+#include "tests/tools/run_compare.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -109,6 +110,13 @@ TEST_CASE("mpi: bar (tet fluid - two-way) under mpirun -np 2 agrees with one ran
   // against two agree to ~1e-12 of each column's scale (measured); asserted to 1e-8.
   TempDir dir("mpi_bar");
   run_at_one_and_two_ranks(dir.path, "bar.json", "--steps 12");
+  // At a given rank count a run repeats bit for bit.
+  const Result again = tetfsi::test::run_tetfsi(
+      dir.path,
+      fmt::format("run '{}' --progress off --steps 12 --out r2b", scene_file("bar.json").string()),
+      mpirun_prefix(2));
+  REQUIRE_MESSAGE(again.code == 0, again.err);
+  tetfsi::test::check_same_runs(dir.path / "r2", dir.path / "r2b");
   check_close(dir.path / "r1", dir.path / "r2",
               {"kinetic_energy", "elastic_energy", "fluid_kinetic_energy", "max_speed",
                "solid_flux", "interface_power"},
