@@ -97,13 +97,6 @@ bool same_on_all_ranks(double value) {
   return lo == hi;
 }
 
-bool root_decides(bool flag) {
-  if (!mpi_up()) return flag;
-  int v = flag ? 1 : 0;
-  MPI_Bcast(&v, 1, MPI_INT, 0, MPI_COMM_WORLD);
-  return v != 0;
-}
-
 std::string root_decides(const std::string& text) {
   if (!mpi_up()) return text;
   long long n = static_cast<long long>(text.size());

@@ -50,9 +50,6 @@ void allgather_rows(double* x, Index n);
 /// Whether `value` is the same on every rank (bit for bit). True with one rank.
 bool same_on_all_ranks(double value);
 
-/// Rank 0's `flag` on every rank (MPI_Bcast). `flag` itself with one rank.
-bool root_decides(bool flag);
-
 /// Rank 0's `text` on every rank (MPI_Bcast of its length and bytes). `text` with one rank.
 std::string root_decides(const std::string& text);
 

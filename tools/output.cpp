@@ -993,47 +993,30 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const Scene& scene,
       m_out(is_root_rank() ? prepare_out_dir(out_dir, resume_step.has_value()) : out_dir),
       m_compression(parse_compression(scene.output.compression)),
       m_quiet(!is_root_rank()) {
-  if (m_quiet) {  // rank 0 writes: keep the collections' bookkeeping only
-    for (const std::string& name : m_file_names) m_pvd.emplace_back(m_out / (name + ".pvd"));
-    if (scene.fluid) {
-      m_fluid_pvd.emplace(m_out / "fluid.pvd");
-      m_interface_pvd.emplace(m_out / "interface.pvd");
-      if (scene.fluid->params.liquid.enabled) m_liquid_pvd.emplace(m_out / "liquid.pvd");
+  if (!m_quiet) {
+    m_stats.emplace(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
+                    stats_body_names(world), world.contact.enabled,
+                    scene.fluid && scene.fluid->params.liquid.enabled);
+    write_text_file_atomic(
+        m_out / "scene.resolved.json",
+        (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
+  }
+  // One folder and one collection per stream; quiet (a rank but 0), the collection only.
+  auto stream = [&](const std::string& name) {
+    if (!m_quiet) {
+      std::error_code ec;
+      fs::create_directories(m_out / name, ec);
+      if (ec)
+        throw InputError(fmt::format("cannot create output folder '{}': {}",
+                                     (m_out / name).string(), ec.message()));
     }
-    return;
-  }
-  m_stats.emplace(m_out / "stats.csv", scene.fluid.has_value(), scene.two_way(), resume_step,
-                  stats_body_names(world), world.contact.enabled,
-                  scene.fluid && scene.fluid->params.liquid.enabled);
-  write_text_file_atomic(
-      m_out / "scene.resolved.json",
-      (scene.resolved.is_null() ? nlohmann::json::object() : scene.resolved).dump(2) + "\n");
-  for (const std::string& name : m_file_names) {
-    std::error_code ec;
-    fs::create_directories(m_out / name, ec);
-    if (ec)
-      throw InputError(fmt::format("cannot create output folder '{}': {}", (m_out / name).string(),
-                                   ec.message()));
-    m_pvd.emplace_back(m_out / (name + ".pvd"));
-  }
+    return PvdWriter(m_out / (name + ".pvd"));
+  };
+  for (const std::string& name : m_file_names) m_pvd.push_back(stream(name));
   if (scene.fluid) {
-    for (const char* stream : {"fluid", "interface"}) {
-      std::error_code ec;
-      fs::create_directories(m_out / stream, ec);
-      if (ec)
-        throw InputError(fmt::format("cannot create output folder '{}': {}",
-                                     (m_out / stream).string(), ec.message()));
-    }
-    m_fluid_pvd.emplace(m_out / "fluid.pvd");
-    m_interface_pvd.emplace(m_out / "interface.pvd");
-    if (scene.fluid->params.liquid.enabled) {
-      std::error_code ec;
-      fs::create_directories(m_out / "liquid", ec);
-      if (ec)
-        throw InputError(fmt::format("cannot create output folder '{}': {}",
-                                     (m_out / "liquid").string(), ec.message()));
-      m_liquid_pvd.emplace(m_out / "liquid.pvd");
-    }
+    m_fluid_pvd.emplace(stream("fluid"));
+    m_interface_pvd.emplace(stream("interface"));
+    if (scene.fluid->params.liquid.enabled) m_liquid_pvd.emplace(stream("liquid"));
   }
 }
 
@@ -1070,8 +1053,7 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
     m_fluid_pvd->add(time, rel_f);
     m_interface_pvd->add(time, rel_i);
   }
-  ++m_frames;
-  m_frame_steps.push_back(step);
+  count_frame(step);
 }
 
 void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, double time,
@@ -1093,8 +1075,7 @@ void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, do
   m_fluid_pvd->add(time, rel_f);
   m_interface_pvd->add(time, rel_i);
   if (m_liquid_pvd) m_liquid_pvd->add(time, rel_l);
-  ++m_frames;
-  m_frame_steps.push_back(step);
+  count_frame(step);
 }
 
 void OutputWriter::count_frame(int step) {

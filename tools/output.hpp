@@ -492,7 +492,7 @@ class OutputWriter {
   int m_frames = 0;
   std::vector<int> m_frame_steps;  ///< the step of every frame written, in order
 
-  /// A frame of `step` written (or, quiet, not written): the count and the step list.
+  /// A frame of `step` written (or, quiet, skipped): the count and the step list.
   void count_frame(int step);
   /// Every collection: the bodies' in body order, then fluid.pvd and interface.pvd.
   std::vector<const PvdWriter*> streams() const;

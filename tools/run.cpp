@@ -55,8 +55,8 @@ class Progress {
       : m_total(total_steps), m_done0(done_before), m_start(now_seconds()) {
     if (mode == ProgressMode::Auto)
       mode = isatty(fileno(stderr)) ? ProgressMode::Tty : ProgressMode::Plain;
-    m_mode = mode;
-    m_last_print = m_start - 1.0;  // the first step is shown at once
+    m_mode = is_root_rank() ? mode : ProgressMode::Off;  // under mpirun, rank 0's line only
+    m_last_print = m_start - 1.0;                        // the first step is shown at once
   }
 
   /// Call after step `step` (1-based) ended at time t.
@@ -347,30 +347,8 @@ fs::path write_checkpoint(const Scene& scene, const coupling::FsiSimulation& sim
   return path;
 }
 
-/// A stop requested before the next step: the reason ("signal", "stop_file", "wall_time") and
-/// the one-line message, or nothing. Rank 0's answer (checked by it alone: signals, the file
-/// and the clock can differ between ranks).
-std::optional<std::pair<std::string, std::string>> stop_request_here(const RunOptions& opt,
-                                                                     const fs::path& stop_file,
-                                                                     const Session& ses,
-                                                                     double longest_step,
-                                                                     double longest_checkpoint);
-
-std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions& opt,
-                                                                const fs::path& stop_file,
-                                                                const Session& ses,
-                                                                double longest_step,
-                                                                double longest_checkpoint) {
-  std::optional<std::pair<std::string, std::string>> stop;
-  if (is_root_rank())
-    stop = stop_request_here(opt, stop_file, ses, longest_step, longest_checkpoint);
-  if (rank_count() == 1) return stop;
-  const std::string reason = root_decides(stop ? stop->first : std::string());
-  const std::string message = root_decides(stop ? stop->second : std::string());
-  if (reason.empty()) return std::nullopt;
-  return std::pair{reason, message};
-}
-
+/// A stop requested before the next step, as this process sees it: the reason ("signal",
+/// "stop_file", "wall_time") and the one-line message, or nothing.
 std::optional<std::pair<std::string, std::string>> stop_request_here(const RunOptions& opt,
                                                                      const fs::path& stop_file,
                                                                      const Session& ses,
@@ -391,6 +369,23 @@ std::optional<std::pair<std::string, std::string>> stop_request_here(const RunOp
                                    elapsed, *opt.wall_time, longest_step)};
   }
   return std::nullopt;
+}
+
+/// stop_request_here on rank 0, the same answer on every rank (signals, the file and the
+/// clock can differ between ranks; every rank must stop after the same step).
+std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions& opt,
+                                                                const fs::path& stop_file,
+                                                                const Session& ses,
+                                                                double longest_step,
+                                                                double longest_checkpoint) {
+  std::optional<std::pair<std::string, std::string>> stop;
+  if (is_root_rank())
+    stop = stop_request_here(opt, stop_file, ses, longest_step, longest_checkpoint);
+  if (rank_count() == 1) return stop;
+  const std::string reason = root_decides(stop ? stop->first : std::string());
+  const std::string message = root_decides(stop ? stop->second : std::string());
+  if (reason.empty()) return std::nullopt;
+  return std::pair{reason, message};
 }
 
 /// The stats row's solver and equilibrium columns from a step's report, and the run's
@@ -703,6 +698,7 @@ void finish_run(const solid::SolidWorld& world, const std::optional<RunRecorder>
 /// The simulation of `scene` with its recorder installed, as run_scene and resume_run build it.
 coupling::FsiSimulation build_simulation(const Scene& scene, RunResult& r,
                                          std::optional<RunRecorder>& fluid) {
+  if (scene.fluid) start_amg_backends();  // before the meshes exist (linear_solver.hpp)
   const double t = now_seconds();
   solid::SolidWorld world0 = build_world(scene);
   r.build_s += now_seconds() - t;
@@ -730,7 +726,6 @@ RunResult run_scene(const Scene& scene_in, const RunOptions& opt) {
   r.out_dir = opt.out_dir;
 
   std::optional<RunRecorder> fluid;
-  if (scene.fluid) start_amg_backends();  // before the meshes exist (linear_solver.hpp)
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
   if (fluid) sim.set_mesh_observer(fluid->mesh_observer());
   const solid::SolidWorld& world = sim.world();
@@ -862,7 +857,6 @@ RunResult resume_run(const ResumeOptions& ro) {
   r.resumed_from = step;
   visit_result(r, RecordLoader{*ck, "run/result/"});
   std::optional<RunRecorder> fluid;
-  if (scene.fluid) start_amg_backends();  // before the meshes exist (linear_solver.hpp)
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
   const solid::SolidWorld& world = sim.world();
   load_pose_ranges(*ck, world.bodies.size(), r);
