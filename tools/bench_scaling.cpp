@@ -84,7 +84,9 @@ ScalingRun run_once(const fs::path& scene, const BenchScalingOptions& opt, int r
                  "failed (exit code {}): {}",
                  ranks, threads, code, last_line(out.string() + ".err"));
   const StatsCsv csv = read_stats_csv(out / "stats.csv");
-  ScalingRun run{ranks, threads, {}, {}, {}};
+  ScalingRun run;
+  run.ranks = ranks;
+  run.threads = threads;
   for (std::size_t k = 0; k < csv.header.size(); ++k) {
     const std::string& name = csv.header[k];
     const bool phase = std::find(phases.begin(), phases.end(), name) != phases.end();

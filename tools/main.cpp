@@ -419,6 +419,12 @@ void add_scene_bench_options(CLI::App* cmd, std::string& scene, const std::strin
       ->capture_default_str();
 }
 
+/// A comma-separated list of counts, each at least 1 (thread, rank counts).
+void add_count_list_option(CLI::App* cmd, const std::string& name, std::vector<int>& counts,
+                           const std::string& help) {
+  cmd->add_option(name, counts, help)->delimiter(',')->check(CLI::PositiveNumber)->type_name("A,B");
+}
+
 Command add_bench_step(CLI::App& bench) {
   struct Opt {
     std::string scene, json;
@@ -455,11 +461,8 @@ Command add_bench_threads(CLI::App& bench) {
       "phase, the speed-up, and whether the physics came out the same bit for bit");
   add_scene_bench_options(cmd, o->scene, "dynamic scene file (JSON)", o->json, o->bench.steps,
                           "run");
-  cmd->add_option("--threads-list", o->bench.threads,
-                  "comma-separated thread counts, the first the reference (default 1,2)")
-      ->delimiter(',')
-      ->check(CLI::PositiveNumber)
-      ->type_name("A,B");
+  add_count_list_option(cmd, "--threads-list", o->bench.threads,
+                        "comma-separated thread counts, the first the reference (default 1,2)");
   add_set_option(cmd, o->bench.overrides, "override a scene value (repeatable)");
   return {cmd, [o] {
             o->bench.json_path = o->json;
@@ -480,20 +483,14 @@ Command add_bench_scaling(CLI::App& bench) {
       "parallel efficiency, and how far the physics is from the first run's");
   add_scene_bench_options(cmd, o->scene, "dynamic scene file (JSON)", o->json, o->bench.steps,
                           "run");
-  cmd->add_option("--threads", o->bench.threads,
-                  "comma-separated thread counts per rank (default 1,2)")
-      ->delimiter(',')
-      ->check(CLI::PositiveNumber)
-      ->type_name("A,B");
+  add_count_list_option(cmd, "--threads", o->bench.threads,
+                        "comma-separated thread counts per rank (default 1,2)");
   cmd->add_option("--repeat", o->bench.repeat,
                   "rounds of every pair, one after another; seconds are the medians (default 1)")
       ->check(at_least_one())
       ->type_name("K");
-  cmd->add_option("--ranks", o->bench.ranks,
-                  "comma-separated MPI rank counts (default 1; above 1 runs under mpirun)")
-      ->delimiter(',')
-      ->check(CLI::PositiveNumber)
-      ->type_name("A,B");
+  add_count_list_option(cmd, "--ranks", o->bench.ranks,
+                        "comma-separated MPI rank counts (default 1; above 1 runs under mpirun)");
   add_set_option(cmd, o->bench.overrides, "override a scene value (repeatable)");
   return {cmd, [o] {
             o->bench.json_path = o->json;
