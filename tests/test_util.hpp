@@ -107,6 +107,13 @@ struct CliResult {
   std::vector<std::string> err_lines() const { return lines_of(err); }
 };
 
+#ifdef TETFSI_SOURCE_DIR
+/// A scene shipped with tetfsi: data/scenes/<name> (name with its ".json").
+inline std::filesystem::path shipped_scene(const std::string& name) {
+  return std::filesystem::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / name;
+}
+#endif
+
 #ifdef TETFSI_EXE
 /// Run `tetfsi <args>` in folder `cwd`, capturing stdout and stderr. `limits` is a shell
 /// prefix (e.g. "ulimit -v 4000000;") for runs that must not take the machine down.

@@ -41,16 +41,13 @@ namespace mesh = tetfsi::mesh;
 namespace {
 
 using tetfsi::test::read_text;
+using tetfsi::test::shipped_scene;
 using tetfsi::test::TempDir;
 using Result = tetfsi::test::CliResult;
 
 /// At most 4 GB of address space and 5 minutes per run, so that a remesher that runs away
 /// fails the test instead of taking the machine down (as in test_cli.cpp).
 const std::string kFluidLimits = "ulimit -v 4000000; timeout 300";
-
-fs::path shipped_scene(const std::string& name) {
-  return fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / name;
-}
 
 /// `tetfsi run <scene> --out o --progress off <extra>` in `dir`; REQUIREs exit code 0.
 void run_scene(const fs::path& dir, const std::string& scene, const std::string& extra) {

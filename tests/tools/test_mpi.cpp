@@ -24,23 +24,25 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using tetfsi::test::contains;
 using tetfsi::test::read_text;
+using tetfsi::test::shipped_scene;
 using tetfsi::test::TempDir;
 
 namespace {
 
 using Result = tetfsi::test::CliResult;
 
-fs::path scene_file(const std::string& name) {
-  return fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / name;
-}
-
 bool have_mpirun() {
   return std::system("command -v mpirun >/dev/null 2>&1") == 0;
 }
 
-/// The shell prefix that runs `tetfsi` under `mpirun -np N` (as root too).
+/// The shell prefix that runs `tetfsi` under `mpirun -np N` (as root too). The Open MPI and
+/// PMIx variables of this process are dropped first: a test before this one in the same
+/// process may have started PETSc, and the variables of that singleton MPI start make the
+/// launched ranks fail.
 std::string mpirun_prefix(int n) {
   return fmt::format(
+      "unset $(env | sed -n "
+      "'s/^\\(OMPI_[A-Za-z0-9_]*\\|PMIX_[A-Za-z0-9_]*\\|PMI_[A-Za-z0-9_]*\\)=.*/\\1/p'); "
       "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
       "OMPI_MCA_rmaps_base_oversubscribe=1 "
       "mpirun --quiet -np {}",
@@ -78,7 +80,7 @@ void check_close(const fs::path& a, const fs::path& b, const std::vector<std::st
 void run_at_one_and_two_ranks(const fs::path& dir, const std::string& scene,
                               const std::string& args) {
   const std::string run =
-      fmt::format("run '{}' --progress off {}", scene_file(scene).string(), args);
+      fmt::format("run '{}' --progress off {}", shipped_scene(scene).string(), args);
   const Result one = tetfsi::test::run_tetfsi(dir, run + " --out r1");
   REQUIRE_MESSAGE(one.code == 0, one.err);
   const Result two = tetfsi::test::run_tetfsi(dir, run + " --out r2", mpirun_prefix(2));
@@ -111,12 +113,23 @@ TEST_CASE("mpi: bar (tet fluid - two-way) under mpirun -np 2 agrees with one ran
   TempDir dir("mpi_bar");
   run_at_one_and_two_ranks(dir.path, "bar.json", "--steps 12");
   // At a given rank count a run repeats bit for bit.
-  const Result again = tetfsi::test::run_tetfsi(
-      dir.path,
-      fmt::format("run '{}' --progress off --steps 12 --out r2b", scene_file("bar.json").string()),
-      mpirun_prefix(2));
+  const Result again =
+      tetfsi::test::run_tetfsi(dir.path,
+                               fmt::format("run '{}' --progress off --steps 12 --out r2b",
+                                           shipped_scene("bar.json").string()),
+                               mpirun_prefix(2));
   REQUIRE_MESSAGE(again.code == 0, again.err);
   tetfsi::test::check_same_runs(dir.path / "r2", dir.path / "r2b");
+  // Progress comes from rank 0 alone: one line per step.
+  const Result progress =
+      tetfsi::test::run_tetfsi(dir.path,
+                               fmt::format("run '{}' --progress plain --steps 2 --out r2c",
+                                           shipped_scene("bar.json").string()),
+                               mpirun_prefix(2));
+  REQUIRE_MESSAGE(progress.code == 0, progress.err);
+  int step_lines = 0;
+  for (const std::string& line : progress.err_lines()) step_lines += line.rfind("step ", 0) == 0;
+  CHECK(step_lines == 2);
   check_close(dir.path / "r1", dir.path / "r2",
               {"kinetic_energy", "elastic_energy", "fluid_kinetic_energy", "max_speed",
                "solid_flux", "interface_power"},
@@ -145,7 +158,7 @@ TEST_CASE("mpi: a subcommand other than run or resume under mpirun -np 2 is a on
   }
   TempDir dir("mpi_cli");
   const Result r = tetfsi::test::run_tetfsi(
-      dir.path, fmt::format("validate '{}'", scene_file("bar.json").string()), mpirun_prefix(2));
+      dir.path, fmt::format("validate '{}'", shipped_scene("bar.json").string()), mpirun_prefix(2));
   CHECK(r.code != 0);
   REQUIRE(r.err_lines().size() == 1);
   CHECK(contains(r.err, "error: only `tetfsi run` and `tetfsi resume` use MPI ranks (2 here)"));
@@ -157,7 +170,7 @@ TEST_CASE("mpi: tetfsi bench scaling times bar at 1 and 2 threads and ranks") {
   const Result r = tetfsi::test::run_tetfsi(
       dir.path,
       fmt::format("bench scaling '{}' --steps 3 --threads 1,2 --ranks {} --repeat 2 --json s.json",
-                  scene_file("bar.json").string(), mpi ? "1,2" : "1"));
+                  shipped_scene("bar.json").string(), mpi ? "1,2" : "1"));
   REQUIRE_MESSAGE(r.code == 0, r.err);
   const json j = json::parse(read_text(dir.path / "s.json"));
   const size_t runs = mpi ? 4 : 2;
@@ -193,13 +206,13 @@ TEST_CASE("mpi: tetfsi bench scaling times bar at 1 and 2 threads and ranks") {
 
 TEST_CASE("mpi: bench scaling - bad options are one-line errors") {
   TempDir dir("mpi_scaling_bad");
-  const std::string bar = scene_file("bar.json").string();
+  const std::string bar = shipped_scene("bar.json").string();
   std::vector<std::pair<std::string, std::string>> cases = {
       {fmt::format("bench scaling '{}' --set time.dt=-1", bar), "time.dt"},
       {fmt::format("bench scaling '{}' --steps 2 --set bodies.0.material.youngs_modulus=1e-300",
                    bar),
        "youngs_modulus"}};
-  cases.push_back({fmt::format("bench scaling '{}'", scene_file("csm1.json").string()),
+  cases.push_back({fmt::format("bench scaling '{}'", shipped_scene("csm1.json").string()),
                    "bench scaling needs a dynamic scene (mode is 'static')"});
   for (const auto& [args, expect] : cases) {
     CAPTURE(args);

@@ -27,6 +27,7 @@
 namespace fs = std::filesystem;
 using namespace tetfsi;
 using tetfsi::test::contains;
+using tetfsi::test::shipped_scene;
 using tetfsi::test::TempDir;
 using Result = tetfsi::test::CliResult;
 
@@ -34,10 +35,6 @@ namespace {
 
 /// At most 4 GB of address space and 2 minutes per run (as the other scene tests).
 const std::string kLimits = "ulimit -v 4000000; timeout 120";
-
-fs::path shipped_scene(const std::string& name) {
-  return fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / name;
-}
 
 /// A coarse smoke_jet run (the jet patch: y, z in [0.4, 0.6] on the -x wall, 2 m/s, smoke 1).
 const std::string kCoarseJet =

@@ -18,15 +18,12 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using tetfsi::test::contains;
 using tetfsi::test::read_text;
+using tetfsi::test::shipped_scene;
 using tetfsi::test::TempDir;
 
 namespace {
 
 using Result = tetfsi::test::CliResult;
-
-fs::path scene_file(const std::string& name) {
-  return fs::path(TETFSI_SOURCE_DIR) / "data" / "scenes" / name;
-}
 
 /// `tetfsi run SCENE ARGS` into dir/t<N> at N = 1, 2 and 3 threads; each run equals the first.
 void check_same_at_thread_counts(const fs::path& dir, const std::string& scene,
@@ -35,7 +32,7 @@ void check_same_at_thread_counts(const fs::path& dir, const std::string& scene,
     CAPTURE(n);
     const Result r = tetfsi::test::run_tetfsi(
         dir, fmt::format("run '{}' --out t{} --progress off --threads {} {}",
-                         scene_file(scene).string(), n, n, args));
+                         shipped_scene(scene).string(), n, n, args));
     REQUIRE_MESSAGE(r.code == 0, r.err);
     CHECK(json::parse(read_text(dir / fmt::format("t{}", n) / "summary.json"))["threads"] == n);
     CHECK(contains(r.out, fmt::format(" on {} thread{}, ", n, n == 1 ? "" : "s")));
@@ -71,7 +68,7 @@ TEST_CASE("threads: sheet_sag (the solid alone) is the same at 1 2 and 3 threads
 
 TEST_CASE("threads: --threads and TETFSI_THREADS - a bad value is a one-line error") {
   TempDir dir("threads_cli");
-  const std::string scene = scene_file("sheet_sag.json").string();
+  const std::string scene = shipped_scene("sheet_sag.json").string();
   for (const char* bad : {"0", "-1", "abc", "2.5"}) {
     CAPTURE(bad);
     Result r = tetfsi::test::run_tetfsi(
@@ -105,7 +102,7 @@ TEST_CASE("tetfsi bench threads: the phases at each thread count - the speed-up 
   TempDir dir("threads_bench");
   const Result r = tetfsi::test::run_tetfsi(
       dir.path, fmt::format("bench threads '{}' --steps 2 --threads-list 1,2 --json b.json",
-                            scene_file("sheet_sag.json").string()));
+                            shipped_scene("sheet_sag.json").string()));
   REQUIRE_MESSAGE(r.code == 0, r.err);
   for (const char* s :
        {"phase (s/step)", "1 thr", "2 thr", "x2", "assemble", "step", "2 threads: identical"})
@@ -119,6 +116,6 @@ TEST_CASE("tetfsi bench threads: the phases at each thread count - the speed-up 
   CHECK(j["phases"][4]["speedup"][0] == 1.0);
   const Result bad = tetfsi::test::run_tetfsi(
       dir.path,
-      fmt::format("bench threads '{}' --threads-list 0", scene_file("sheet_sag.json").string()));
+      fmt::format("bench threads '{}' --threads-list 0", shipped_scene("sheet_sag.json").string()));
   CHECK(bad.code != 0);
 }
