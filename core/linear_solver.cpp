@@ -10,6 +10,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/petsc_solver.hpp"
+#include "core/struct_solver.hpp"
 #include "core/timer.hpp"
 
 namespace tetfsi {
@@ -251,6 +252,8 @@ std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOp
     case SolverKind::Amg:
     case SolverKind::AmgGamg:
       return detail::make_petsc_solver(kind, opts);
+    case SolverKind::Pfmg:
+      return detail::make_pfmg_solver(opts);
   }
   throw InternalError(
       fmt::format("make_linear_solver: invalid SolverKind {}", static_cast<int>(kind)));

@@ -11,6 +11,8 @@
 ///  - `amg`            PETSc CG (SPD) or GMRES (`symmetric=false`) preconditioned by
 ///                     hypre BoomerAMG through PETSc                     [iterative]
 ///  - `amg_gamg`       the same with PETSc's own smoothed-aggregation GAMG [iterative]
+///  - `pfmg`           CG preconditioned by hypre's structured-grid multigrid PFMG, for the
+///                     7-point systems of the grid fluid (needs `set_grid`) [iterative]
 ///
 /// Conventions of every backend:
 ///  - `cholmod` and `cg_ic` check symmetry in `setup` (|A − Aᵀ| ≤ 1e-12 max|A|) and throw
@@ -29,6 +31,7 @@
 /// Symmetric but possibly indefinite systems (e.g. 3n × 3n StVK stiffness under
 /// compression): try `cholmod`; its `setup` throws `SolverError` when the matrix is not
 /// SPD, and the caller falls back to `umfpack`, which takes any nonsingular matrix.
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -38,15 +41,16 @@
 
 namespace tetfsi {
 
-enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg };
-inline constexpr EnumNames<SolverKind, 6> k_solver_kind_names{
+enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg, Pfmg };
+inline constexpr EnumNames<SolverKind, 7> k_solver_kind_names{
     "linear solver",
     {{{SolverKind::Cholmod, "cholmod"},
       {SolverKind::Umfpack, "umfpack"},
       {SolverKind::BiCgStabIlut, "bicgstab_ilut"},
       {SolverKind::CgIc, "cg_ic"},
       {SolverKind::Amg, "amg"},
-      {SolverKind::AmgGamg, "amg_gamg"}}}};
+      {SolverKind::AmgGamg, "amg_gamg"},
+      {SolverKind::Pfmg, "pfmg"}}}};
 
 /// All backend names in a stable order, e.g. for `--help` and benchmarks.
 const std::vector<std::string>& solver_names();
@@ -77,11 +81,21 @@ struct SolveReport {
   bool stagnated = false;
 };
 
+/// Where the unknowns of a system sit on a regular grid of dims[0] × dims[1] × dims[2] cells
+/// (cell id i + dims[0] (j + dims[1] k)): unknown u is cell cells[u], ids increasing.
+struct GridLayout {
+  std::array<Index, 3> dims{0, 0, 0};
+  std::vector<Index> cells;
+};
+
 /// A solver for A x = b with A fixed between `setup` and any number of `solve` calls.
 class LinearSolver {
  public:
   virtual ~LinearSolver() = default;
   virtual std::string name() const = 0;
+  /// The grid cells of the unknowns of the next `setup`'s matrix. Structured backends
+  /// (`pfmg`) need it; the others ignore it.
+  virtual void set_grid(const GridLayout& /*layout*/) {}
   /// Analyse/factor A or build the preconditioner. A must stay alive until the next setup.
   /// @throws SolverError if the factorization fails (e.g. CHOLMOD on a non-SPD matrix).
   virtual void setup(const SparseMatrix& A) = 0;

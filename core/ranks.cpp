@@ -75,11 +75,19 @@ RowRange rank_rows(Index n, int rank, int count) {
 
 void allgather_rows(double* x, Index n) {
   if (!mpi_up()) return;
+  std::vector<Index> begin(g_count + 1, n);
+  for (int r = 0; r < g_count; ++r) begin[r] = rank_rows(n, r, g_count).begin;
+  allgather_blocks(x, begin);
+}
+
+void allgather_blocks(double* x, const std::vector<Index>& begin) {
+  if (!mpi_up()) return;
+  TETFSI_CHECK(static_cast<int>(begin.size()) == g_count + 1,
+               "allgather_blocks: {} block starts for {} ranks", begin.size(), g_count);
   std::vector<int> counts(g_count), offsets(g_count);
   for (int r = 0; r < g_count; ++r) {
-    const RowRange rows = rank_rows(n, r, g_count);
-    counts[r] = static_cast<int>(rows.size());
-    offsets[r] = static_cast<int>(rows.begin);
+    counts[r] = static_cast<int>(begin[r + 1] - begin[r]);
+    offsets[r] = static_cast<int>(begin[r]);
   }
   const int err = MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, x, counts.data(),
                                  offsets.data(), MPI_DOUBLE, MPI_COMM_WORLD);

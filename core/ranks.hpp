@@ -10,6 +10,7 @@
 /// (allgather_rows), so the state stays the same on every rank. Rank 0 writes the output.
 /// Without mpirun (or with -np 1) there is one rank and nothing here communicates.
 #include <string>
+#include <vector>
 
 #include "core/types.hpp"
 
@@ -46,6 +47,9 @@ RowRange rank_rows(Index n, int rank, int count);
 /// x (length n on every rank) gets on every rank the rows each rank owns (rank_rows) from
 /// that rank: MPI_Allgatherv. A no-op with one rank.
 void allgather_rows(double* x, Index n);
+/// x on every rank gets rows [begin[r], begin[r + 1]) from rank r (begin: rank_count() + 1
+/// entries, non-decreasing): MPI_Allgatherv. A no-op with one rank.
+void allgather_blocks(double* x, const std::vector<Index>& begin);
 
 /// Whether `value` is the same on every rank (bit for bit). True with one rank.
 bool same_on_all_ranks(double value);

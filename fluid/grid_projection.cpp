@@ -1,7 +1,9 @@
 #include "fluid/grid_projection.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "core/error.hpp"
@@ -46,42 +48,86 @@ GridNumbering number_fluid_cells(const GridCells& gc) {
   return n;
 }
 
+namespace {
+
+/// The pressure coupling A/d of face f and the unknowns on its two sides (−1: none): both
+/// for an Interior face between fluid cells, one for a free-surface face (p = 0 across it) or
+/// an Open box face; w = 0 for a face that couples nothing (walls, solids, the air).
+struct FaceCoupling {
+  double w = 0.0;
+  Index a = -1, b = -1;
+};
+FaceCoupling face_coupling(const GridCells& gc, const GridNumbering& n, Index f) {
+  const FaceKind k = gc.face_kind[f];
+  if (k != FaceKind::Interior && k != FaceKind::Open) return {};
+  const GridSpec& g = gc.grid;
+  const double w = g.face_area(g.face_axis(f)) / grid_face_dual(gc, f);
+  if (k == FaceKind::Open) {
+    const Index in = grid_inner_cell(gc, f);
+    return in >= 0 ? FaceCoupling{w, n.unknown[in], -1} : FaceCoupling{};
+  }
+  const auto c = g.face_cells(f);
+  const Index a = n.unknown[c[0]], b = n.unknown[c[1]];
+  if (a < 0 && b < 0) return {};  // between two air cells
+  return {w, a, b};
+}
+
+}  // namespace
+
 SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, const Regions& r) {
   const GridSpec& g = gc.grid;
-  const Index nf = g.num_faces();
-  // Each face's triplets into its own 4 slots in parallel, then packed in face order (the
-  // order setFromTriplets sums duplicates in: bit for bit the serial loop's matrix).
-  std::vector<Triplet> slots(4 * static_cast<std::size_t>(nf));
-  std::vector<unsigned char> used(static_cast<std::size_t>(nf), 0);
-  parallel_for_each(nf, 4096, [&](Index f) {
-    const FaceKind k = gc.face_kind[f];
-    if (k != FaceKind::Interior && k != FaceKind::Open) return;
-    const double w = g.face_area(g.face_axis(f)) / grid_face_dual(gc, f);
-    const auto c = g.face_cells(f);
-    Triplet* t = &slots[4 * static_cast<std::size_t>(f)];
-    if (k == FaceKind::Open) {
-      const Index in = grid_inner_cell(gc, f);
-      if (in >= 0) t[used[f]++] = Triplet(n.unknown[in], n.unknown[in], w);
-      return;
-    }
-    const Index a = n.unknown[c[0]], b = n.unknown[c[1]];
-    if (a < 0 || b < 0) {  // the free surface (p = 0 across it), or between two air cells
-      if (a >= 0 || b >= 0) t[used[f]++] = Triplet(std::max(a, b), std::max(a, b), w);
-      return;
-    }
-    t[0] = Triplet(a, a, w);
-    t[1] = Triplet(b, b, w);
-    t[2] = Triplet(a, b, -w);
-    t[3] = Triplet(b, a, -w);
-    used[f] = 4;
-  });
-  std::vector<Triplet> trip;
-  trip.reserve(7 * n.cell.size());
-  for (Index f = 0; f < nf; ++f)
-    trip.insert(trip.end(), slots.begin() + 4 * f, slots.begin() + 4 * f + used[f]);
   const Index nu = static_cast<Index>(n.cell.size());
+  // Each unknown's column straight into compressed storage (symmetric: column = row). The
+  // entries of a column, by row: −z, −y, −x neighbour, the cell, +x, +y, +z (unknowns are in
+  // cell order); the diagonal sums its faces in face order (−x, +x, −y, +y, −z, +z), the
+  // order setFromTriplets of the faces' triplets summed them in: the same matrix bit for bit.
+  std::vector<std::array<Index, 6>> faces(static_cast<std::size_t>(nu));
+  std::vector<Index> count(static_cast<std::size_t>(nu) + 1, 0);
+  parallel_for_each(nu, 4096, [&](Index i) {
+    const auto ijk = g.cell_ijk(n.cell[i]);
+    Index k = 1;
+    for (int a = 0; a < 3; ++a)
+      for (int side = 0; side < 2; ++side) {
+        auto fi = ijk;
+        fi[a] += side;
+        const Index f = g.face(a, fi[0], fi[1], fi[2]);
+        faces[i][2 * a + side] = f;
+        const FaceCoupling fc = face_coupling(gc, n, f);
+        k += fc.a >= 0 && fc.b >= 0;
+      }
+    count[i + 1] = k;
+  });
+  for (Index i = 0; i < nu; ++i) count[i + 1] += count[i];
   SparseMatrix M(nu, nu);
-  M.setFromTriplets(trip.begin(), trip.end());
+  M.resizeNonZeros(count[nu]);
+  std::copy(count.begin(), count.end(), M.outerIndexPtr());
+  parallel_for_each(nu, 4096, [&](Index i) {
+    double diag = 0.0;
+    int below = 0, above = 0;  // neighbours with smaller / larger unknowns, by axis
+    std::array<std::pair<Index, double>, 3> lower{}, upper{};
+    for (int e = 0; e < 6; ++e) {
+      const FaceCoupling fc = face_coupling(gc, n, faces[i][e]);
+      if (fc.w == 0.0) continue;
+      diag += fc.w;
+      if (fc.a >= 0 && fc.b >= 0) {
+        if (e % 2 == 0)
+          lower[below++] = {fc.a, -fc.w};  // the −axis face: the neighbour is c[0]
+        else
+          upper[above++] = {fc.b, -fc.w};
+      }
+    }
+    Index k = M.outerIndexPtr()[i];
+    for (int e = below - 1; e >= 0; --e) {  // −z, −y, −x
+      M.innerIndexPtr()[k] = static_cast<Index>(lower[e].first);
+      M.valuePtr()[k++] = lower[e].second;
+    }
+    M.innerIndexPtr()[k] = static_cast<Index>(i);
+    M.valuePtr()[k++] = diag;
+    for (int e = 0; e < above; ++e) {  // +x, +y, +z
+      M.innerIndexPtr()[k] = static_cast<Index>(upper[e].first);
+      M.valuePtr()[k++] = upper[e].second;
+    }
+  });
   // One pin per region without an Open face: double the diagonal of its first cell.
   for (Index reg = 0; reg < r.count(); ++reg)
     if (!r.has_open[reg])
@@ -130,14 +176,12 @@ Regions grid_regions(const GridCells& gc) {
   const GridSpec& g = gc.grid;
   Regions r;
   r.cell_region = VecXi::Constant(g.num_cells(), -1);
-  std::vector<std::vector<Index>> next(static_cast<size_t>(g.num_cells()));
-  for (Index f = 0; f < g.num_faces(); ++f) {
-    if (!gc.interior(f)) continue;
+  // Fluid cells joined through Interior faces (not across a free surface or into the air).
+  const auto joined = [&](Index f) {
+    if (!gc.interior(f)) return false;
     const auto c = g.face_cells(f);
-    if (!gc.fluid(c[0]) || !gc.fluid(c[1])) continue;  // a free surface or the air
-    next[c[0]].push_back(c[1]);
-    next[c[1]].push_back(c[0]);
-  }
+    return gc.fluid(c[0]) && gc.fluid(c[1]);
+  };
   std::vector<Index> stack;
   for (Index c0 = 0; c0 < g.num_cells(); ++c0) {
     if (!gc.fluid(c0) || r.cell_region[c0] >= 0) continue;
@@ -149,10 +193,20 @@ Regions grid_regions(const GridCells& gc) {
     while (!stack.empty()) {
       const Index c = stack.back();
       stack.pop_back();
-      for (Index d : next[c])
-        if (r.cell_region[d] < 0) {
-          r.cell_region[d] = id;
-          stack.push_back(d);
+      const auto ijk = g.cell_ijk(c);
+      for (int a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side) {
+          if (side == 0 ? ijk[a] == 0 : ijk[a] + 1 == g.n[a]) continue;
+          auto fi = ijk;
+          fi[a] += side;
+          if (!joined(g.face(a, fi[0], fi[1], fi[2]))) continue;
+          auto ni = ijk;
+          ni[a] += side == 0 ? -1 : 1;
+          const Index d = g.cell(ni[0], ni[1], ni[2]);
+          if (r.cell_region[d] < 0) {
+            r.cell_region[d] = id;
+            stack.push_back(d);
+          }
         }
     }
   }
@@ -212,6 +266,7 @@ ProjectionReport grid_project(const GridCells& gc, const VecX& q_open, VecX& u, 
   rep.assembly_s = now_seconds() - t0;
 
   t0 = now_seconds();
+  solver.set_grid(GridLayout{{g.n[0], g.n[1], g.n[2]}, n.cell});
   solver.setup(M);
   rep.setup_s = now_seconds() - t0;
   VecX x = VecX::Zero(nu);

@@ -253,6 +253,8 @@ FluidStepReport FluidSimulation::step(TetMesh nm, double h,
   const ProjectionReport pr = project(pred.mesh, P.min_dual_fraction, qo, u, q, *I.solver);
   phases.add("assembly", pr.assembly_s);
   phases.add("solve", pr.setup_s + pr.solve_s);
+  logger().debug("pressure solve: {} cells, setup {:.3f} s, solve {:.3f} s, {} iterations",
+                 pred.mesh.num_tets(), pr.setup_s, pr.solve_s, pr.iterations);
   if (!pr.converged)
     logger().warn("fluid pressure solve did not converge: {} iterations, residual {:.3g}",
                   pr.iterations, pr.residual);

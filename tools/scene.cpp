@@ -619,6 +619,7 @@ class Parser {
     if (has(n, "decay")) read(child(n, "decay"), decay_keys(), fp);
     if (has(n, "transfer")) read(child(n, "transfer"), transfer_keys(), fp);
     if (has(n, "solver")) read(child(n, "solver"), fluid_solver_keys(), fp);
+    pressure_solver(n, f);
     if (has(n, "sources")) {
       const Node list = child(n, "sources");
       for_each(list, "expected an array", [&](const Node& e, std::size_t i) {
@@ -720,6 +721,19 @@ class Parser {
     }
     if (lq.regions.empty() && lq.sources.empty())
       fail(n.path, "has neither regions nor sources: give the liquid somewhere to start");
+  }
+
+  /// fluid.solver.linear: pfmg, the structured multigrid, is the grid's default and the
+  /// grid's alone.
+  void pressure_solver(const Node& n, FluidSpec& f) const {
+    const bool given = has(n, "solver") && has(child(n, "solver"), "linear");
+    if (f.discretization == Discretization::Grid) {
+      if (!given) f.params.solver = SolverKind::Pfmg;
+    } else if (f.params.solver == SolverKind::Pfmg) {
+      fail(child_path(child(n, "solver").path, "linear"),
+           "pfmg is the regular grid's structured multigrid (fluid.discretization \"grid\"); "
+           "the tet mesh's pressure needs amg (the default) or another backend");
+    }
   }
 
   /// fluid.grid of a grid scene: the grid's cells from cell_size or cells, within max_cells;

@@ -409,11 +409,22 @@ const Section<OutputSpec>& output_keys() {
   return s;
 }
 
+namespace {
+
+/// The bodies' backends: every one but the grid fluid's structured multigrid.
+KeySpec bodies_solver(KeySpec spec) {
+  std::erase(spec.choices, to_string(SolverKind::Pfmg));
+  return spec;
+}
+
+}  // namespace
+
 const Section<SolverSpec>& solver_keys() {
   static const Section<SolverSpec> s{
       "solver",
       "the solids' linear solver (see Linear solvers)",
-      {bind<SolverSpec>(one_of({.key = "linear", .doc = "the backend"}, k_solver_kind_names),
+      {bind<SolverSpec>(bodies_solver(one_of({.key = "linear", .doc = "the backend"},
+                                             k_solver_kind_names)),
                         TETFSI_AT(linear)),
        rel_tol_row<SolverSpec>("iterative backends: relative residual", &SolverSpec::rel_tol),
        max_iterations_row<SolverSpec>("iterative backends: iterations before the solve fails",
@@ -1260,8 +1271,10 @@ const Section<fluid::FluidParams>& fluid_solver_keys() {
   static const Section<F> s{
       "fluid.solver",
       "the pressure solve (see Linear solvers)",
-      {bind_enum<F>({.key = "linear", .doc = "the backend"}, k_solver_kind_names,
-                    TETFSI_AT(solver)),
+      {bind_enum<F>({.key = "linear",
+                     .doc = "the backend; `pfmg`, hypre's structured multigrid, on the grid only",
+                     .default_text = "`amg`; grid: `pfmg`"},
+                    k_solver_kind_names, TETFSI_AT(solver)),
        rel_tol_row<F>("relative residual", &F::solver_rel_tol),
        max_iterations_row<F>("iterations before the solve fails", &F::solver_max_iterations)}};
   return s;

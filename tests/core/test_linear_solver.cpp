@@ -3,6 +3,7 @@
 #include <doctest/doctest.h>
 
 #include <string>
+#include <vector>
 
 #include "core/error.hpp"
 #include "core/linear_solver.hpp"
@@ -38,12 +39,19 @@ bool is_direct(SolverKind k) {
   return k == SolverKind::Cholmod || k == SolverKind::Umfpack;
 }
 
+/// Every cell of an nx × ny × nz grid an unknown, in cell order (poisson3d's numbering).
+GridLayout full_grid(Index nx, Index ny, Index nz) {
+  GridLayout g{{nx, ny, nz}, {}};
+  for (Index c = 0; c < nx * ny * nz; ++c) g.cells.push_back(c);
+  return g;
+}
+
 }  // namespace
 
 TEST_SUITE("unit") {
   TEST_CASE("solver names round-trip and unknown names are rejected") {
     const auto& names = solver_names();
-    REQUIRE(names.size() == 6);
+    REQUIRE(names.size() == 7);
     CHECK(names.front() == "cholmod");
     for (const auto& n : names) CHECK(to_string(parse_solver_kind(n)) == n);
     CHECK_THROWS_AS(parse_solver_kind("superlu"), InputError);
@@ -92,6 +100,7 @@ TEST_SUITE("unit") {
       const SolverKind kind = parse_solver_kind(name);
       auto solver = make_linear_solver(kind, opts);
       CHECK(solver->name() == name);
+      solver->set_grid(full_grid(20, 20, 20));  // pfmg needs it, the others ignore it
       solver->setup(A);
       VecX x = VecX::Zero(A.rows());
       const SolveReport rep = solver->solve(b, x);
@@ -197,6 +206,7 @@ TEST_SUITE("unit") {
     for (const auto& name : solver_names()) {
       CAPTURE(name);
       auto solver = make_linear_solver(parse_solver_kind(name));
+      solver->set_grid(full_grid(10, 11, 12));
       solver->setup(A);
       VecX x = VecX::Zero(A.rows());
       CHECK(solver->solve(b1, x).converged);
@@ -276,14 +286,82 @@ TEST_SUITE("unit") {
     CHECK_THROWS_AS(make_linear_solver(SolverKind::CgIc, bad), InputError);
   }
 
+  TEST_CASE("pfmg: a Poisson problem on the cells outside a sphere, pinned, like UMFPACK") {
+    // The grid fluid's shape of system: unknowns on a subset of a 24 x 20 x 16 grid (a ball
+    // of cells left out, their neighbours' diagonals keeping the faces to it: Neumann-like
+    // rows with row sum 0), one diagonal doubled (the pin), coefficients differing by axis.
+    const Index nx = 24, ny = 20, nz = 16;
+    GridLayout layout{{nx, ny, nz}, {}};
+    std::vector<Index> unknown(nx * ny * nz, -1);
+    for (Index k = 0; k < nz; ++k)
+      for (Index j = 0; j < ny; ++j)
+        for (Index i = 0; i < nx; ++i) {
+          const double r2 = (i - 10.5) * (i - 10.5) + (j - 9.5) * (j - 9.5) + (k - 7.5) * (k - 7.5);
+          if (r2 < 25.0) continue;
+          const Index c = i + nx * (j + ny * k);
+          unknown[c] = static_cast<Index>(layout.cells.size());
+          layout.cells.push_back(c);
+        }
+    const Index n = static_cast<Index>(layout.cells.size());
+    const double w[3] = {1.0, 2.5, 0.4};
+    Triplets t;
+    for (Index u = 0; u < n; ++u) {
+      const Index c = layout.cells[u];
+      const Index ijk[3] = {c % nx, (c / nx) % ny, c / (nx * ny)};
+      const Index stride[3] = {1, nx, nx * ny}, dims[3] = {nx, ny, nz};
+      for (int a = 0; a < 3; ++a)
+        if (ijk[a] + 1 < dims[a] && unknown[c + stride[a]] >= 0) {
+          const Index v = unknown[c + stride[a]];
+          t.emplace_back(u, u, w[a]);
+          t.emplace_back(v, v, w[a]);
+          t.emplace_back(u, v, -w[a]);
+          t.emplace_back(v, u, -w[a]);
+        }
+    }
+    t.emplace_back(0, 0, 6.0);  // the pin
+    SparseMatrix A(n, n);
+    A.setFromTriplets(t.begin(), t.end());
+    VecX b = test_rhs(n);
+    b.array() -= b.mean();  // compatible, as the projection makes it
+    const VecX ref = direct_solution(A, b);
+    auto pfmg = make_linear_solver(SolverKind::Pfmg, SolverOptions{.rel_tol = 1e-10});
+    pfmg->set_grid(layout);
+    pfmg->setup(A);
+    VecX x;
+    const SolveReport rep = pfmg->solve(b, x);
+    CHECK(rep.converged);
+    CHECK(rep.residual <= 1e-10);
+    CHECK(rep.residual == doctest::Approx(relative_residual(A, b, x)).epsilon(1e-6));
+    CHECK(rep.iterations <= 40);
+    CHECK(rel_diff(x, ref) <= 1e-6);
+    // Again from that answer: converged at once.
+    const SolveReport again = pfmg->solve(b, x);
+    CHECK(again.iterations == 0);
+  }
+
+  TEST_CASE("pfmg: without the grid, or with a matrix the grid cannot hold, a SolverError") {
+    const SparseMatrix A = poisson3d(4, 4, 4);
+    auto pfmg = make_linear_solver(SolverKind::Pfmg);
+    CHECK_THROWS_WITH_AS(pfmg->setup(A), doctest::Contains("fluid.discretization"), SolverError);
+    // The 4 x 4 x 4 matrix on an 8 x 8 x 1 grid's cells: row 0's neighbours 4 and 16 are
+    // cells (4, 0) and (0, 2) there, no face neighbours of cell (0, 0).
+    GridLayout wrong = full_grid(8, 8, 1);
+    pfmg->set_grid(wrong);
+    CHECK_THROWS_WITH_AS(pfmg->setup(A), doctest::Contains("not face neighbours"), SolverError);
+    SolverOptions nonsym;
+    nonsym.symmetric = false;
+    CHECK_THROWS_AS(make_linear_solver(SolverKind::Pfmg, nonsym), InputError);
+  }
+
   TEST_CASE("multigrid backends need few iterations on a 125k-unknown Poisson problem") {
     // The property that makes amg worth its dependency: iterations nearly independent of n
     // (bench_solvers measured 7 for amg and 11 for amg_gamg at 250k and at 1M unknowns).
     const SparseMatrix A = poisson3d(50, 50, 50);
     const VecX b = test_rhs(A.rows());
-    for (const SolverKind kind : {SolverKind::Amg, SolverKind::AmgGamg}) {
+    for (const SolverKind kind : {SolverKind::Amg, SolverKind::AmgGamg, SolverKind::Pfmg}) {
       CAPTURE(to_string(kind));
       auto solver = make_linear_solver(kind);
+      solver->set_grid(full_grid(50, 50, 50));
       solver->setup(A);
       VecX x = VecX::Zero(A.rows());
       const SolveReport rep = solver->solve(b, x);

@@ -724,11 +724,17 @@ TEST_CASE("the fluid physics keys parse into fluid::FluidParams and resolve back
   j["gravity"] = {0, 0, 0};
   CHECK(parse_scene(j, "scene.json").fluid->params.up == Vec3(0, 0, 1));
 
-  // Every solver name is accepted for the pressure solve.
+  // Every solver name but the grid's structured multigrid is accepted for the tet mesh's
+  // pressure solve; pfmg there is a one-line error naming the key.
   for (const std::string& name : solver_names()) {
     CAPTURE(name);
     json k = fluid_physics_json();
     k["fluid"]["solver"]["linear"] = name;
+    if (name == "pfmg") {
+      CHECK_THROWS_WITH_AS(parse_scene(k, "scene.json"), doctest::Contains("fluid.solver.linear"),
+                           InputError);
+      continue;
+    }
     CHECK(to_string(parse_scene(k, "scene.json").fluid->params.solver) == name);
   }
 
