@@ -264,8 +264,8 @@ void PfmgSolver::make_solver() {
   TETFSI_HYPRE(HYPRE_StructPFMGSetRAPType(m_precond, 0));
   TETFSI_HYPRE(HYPRE_StructPFMGSetNumPreRelax(m_precond, 1));
   TETFSI_HYPRE(HYPRE_StructPFMGSetNumPostRelax(m_precond, 1));
-  TETFSI_HYPRE(HYPRE_StructPCGSetPrecond(m_solver, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup,
-                                         m_precond));
+  TETFSI_HYPRE(
+      HYPRE_StructPCGSetPrecond(m_solver, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup, m_precond));
   TETFSI_HYPRE(HYPRE_StructPCGSetup(m_solver, m_A, m_b, m_x));
 }
 

@@ -423,9 +423,9 @@ const Section<SolverSpec>& solver_keys() {
   static const Section<SolverSpec> s{
       "solver",
       "the solids' linear solver (see Linear solvers)",
-      {bind<SolverSpec>(bodies_solver(one_of({.key = "linear", .doc = "the backend"},
-                                             k_solver_kind_names)),
-                        TETFSI_AT(linear)),
+      {bind<SolverSpec>(
+           bodies_solver(one_of({.key = "linear", .doc = "the backend"}, k_solver_kind_names)),
+           TETFSI_AT(linear)),
        rel_tol_row<SolverSpec>("iterative backends: relative residual", &SolverSpec::rel_tol),
        max_iterations_row<SolverSpec>("iterative backends: iterations before the solve fails",
                                       &SolverSpec::max_iterations)}};
