@@ -283,6 +283,10 @@ bool is_symmetric(const SparseMatrix& A, double rel_tol) {
   return dmax <= rel_tol * amax;
 }
 
+std::unique_ptr<AmgPreconditioner> make_pfmg_preconditioner(const GridLayout& layout) {
+  return detail::make_pfmg_preconditioner(layout);
+}
+
 std::unique_ptr<AmgPreconditioner> make_amg_preconditioner() {
   return detail::make_petsc_preconditioner();
 }

@@ -125,6 +125,11 @@ class AmgPreconditioner {
 };
 /// @throws SolverError if PETSc cannot be initialised.
 std::unique_ptr<AmgPreconditioner> make_amg_preconditioner();
+/// One V-cycle of hypre's structured multigrid PFMG (as the `pfmg` backend's) on P's
+/// 7-point part over `layout`'s cells; P's entries joining cells that are no face neighbours
+/// (the bodies' couplings Jᵀ D J) are moved to the diagonal by their absolute value.
+/// @throws SolverError if MPI cannot be started.
+std::unique_ptr<AmgPreconditioner> make_pfmg_preconditioner(const GridLayout& layout);
 
 /// Start the AMG backends' libraries (PETSc, and with it Open MPI) now, if nobody did; a
 /// failure is left for the first AMG solver to report. Call it before a run allocates its

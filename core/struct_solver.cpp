@@ -63,7 +63,16 @@ int stencil_entry(const std::array<Index, 3>& a, const std::array<Index, 3>& b) 
 
 class PfmgSolver final : public LinearSolver {
  public:
-  explicit PfmgSolver(const SolverOptions& opts) : m_opts(opts) { ensure_hypre(); }
+  /// @param preconditioner_only no CG: `apply` runs one V-cycle, and A's entries between
+  ///   cells that are no face neighbours move to the diagonal by their absolute value (a
+  ///   matrix no smaller than A: stays SPD for an SPD A)
+  explicit PfmgSolver(const SolverOptions& opts, bool preconditioner_only = false)
+      : m_opts(opts), m_preconditioner_only(preconditioner_only) {
+    ensure_hypre();
+  }
+
+  /// z = one PFMG V-cycle on r from zero (preconditioner_only).
+  void apply(const VecX& r, VecX& z);
   PfmgSolver(const PfmgSolver&) = delete;
   PfmgSolver& operator=(const PfmgSolver&) = delete;
   ~PfmgSolver() override { release(); }
@@ -93,6 +102,7 @@ class PfmgSolver final : public LinearSolver {
   }
 
   SolveReport solve(const VecX& b, VecX& x) override;
+  double setup_seconds() const { return m_setup_s; }
 
  private:
   /// This rank's box of the grid, [lo, hi) per axis: the unknowns' bounding box, its
@@ -147,6 +157,7 @@ class PfmgSolver final : public LinearSolver {
   MPI_Comm comm() const { return rank_count() > 1 ? MPI_COMM_WORLD : MPI_COMM_SELF; }
 
   SolverOptions m_opts;
+  bool m_preconditioner_only = false;
   GridLayout m_layout;
   std::vector<Index> m_unknown_of_cell;  ///< per grid cell: its unknown, −1 if none
   Slab m_slab;
@@ -173,6 +184,10 @@ std::vector<double> PfmgSolver::stencil_values(const SparseMatrix& A) const {
       for (SparseMatrix::InnerIterator it(A, i); it; ++it) {
         const Index c2 = m_layout.cells[it.row()];
         const int e = stencil_entry(a, ijk(c2));
+        if (e < 0 && m_preconditioner_only) {
+          row[0] += std::abs(it.value());
+          continue;
+        }
         TETFSI_REQUIRE(SolverError, e >= 0,
                        "the matrix joins grid cells {} and {}, which are not face neighbours", c,
                        c2);
@@ -244,13 +259,6 @@ void PfmgSolver::build(const SparseMatrix& A) {
 }
 
 void PfmgSolver::make_solver() {
-  // CG on the true 2-norm: stop on ||r|| ≤ rel_tol ||b||, as the other backends.
-  TETFSI_HYPRE(HYPRE_StructPCGCreate(comm(), &m_solver));
-  TETFSI_HYPRE(HYPRE_StructPCGSetTol(m_solver, m_opts.rel_tol));
-  TETFSI_HYPRE(HYPRE_StructPCGSetAbsoluteTol(m_solver, 0.0));
-  TETFSI_HYPRE(HYPRE_StructPCGSetTwoNorm(m_solver, 1));
-  TETFSI_HYPRE(HYPRE_StructPCGSetRelChange(m_solver, 0));
-  TETFSI_HYPRE(HYPRE_StructPCGSetMaxIter(m_solver, m_opts.max_iterations));
   // One V-cycle per CG iteration, symmetric red–black Gauss–Seidel (1 sweep each way), the
   // Galerkin coarse operators (the masked cells and the pins make the coefficients jump).
   TETFSI_HYPRE(HYPRE_StructPFMGCreate(comm(), &m_precond));
@@ -264,10 +272,51 @@ void PfmgSolver::make_solver() {
   TETFSI_HYPRE(HYPRE_StructPFMGSetRAPType(m_precond, 0));
   TETFSI_HYPRE(HYPRE_StructPFMGSetNumPreRelax(m_precond, 1));
   TETFSI_HYPRE(HYPRE_StructPFMGSetNumPostRelax(m_precond, 1));
+  if (m_preconditioner_only) {
+    TETFSI_HYPRE(HYPRE_StructPFMGSetup(m_precond, m_A, m_b, m_x));
+    return;
+  }
+  // CG on the true 2-norm: stop on ||r|| ≤ rel_tol ||b||, as the other backends.
+  TETFSI_HYPRE(HYPRE_StructPCGCreate(comm(), &m_solver));
+  TETFSI_HYPRE(HYPRE_StructPCGSetTol(m_solver, m_opts.rel_tol));
+  TETFSI_HYPRE(HYPRE_StructPCGSetAbsoluteTol(m_solver, 0.0));
+  TETFSI_HYPRE(HYPRE_StructPCGSetTwoNorm(m_solver, 1));
+  TETFSI_HYPRE(HYPRE_StructPCGSetRelChange(m_solver, 0));
+  TETFSI_HYPRE(HYPRE_StructPCGSetMaxIter(m_solver, m_opts.max_iterations));
   TETFSI_HYPRE(
       HYPRE_StructPCGSetPrecond(m_solver, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup, m_precond));
   TETFSI_HYPRE(HYPRE_StructPCGSetup(m_solver, m_A, m_b, m_x));
 }
+
+void PfmgSolver::apply(const VecX& r, VecX& z) {
+  const Index n = static_cast<Index>(m_layout.cells.size());
+  TETFSI_CHECK(m_precond != nullptr && m_preconditioner_only && r.size() == n,
+               "pfmg preconditioner: apply before setup or wrong size ({} for {})", r.size(), n);
+  z = VecX::Zero(n);
+  try {
+    to_grid(r, m_b);
+    TETFSI_HYPRE(HYPRE_StructVectorSetConstantValues(m_x, 0.0));
+    TETFSI_HYPRE(HYPRE_StructPFMGSolve(m_precond, m_A, m_b, m_x));
+    from_grid(m_x, z);
+  } catch (const SolverError& e) {
+    throw SolverError(fmt::format("pfmg preconditioner: {}", e.what()));
+  }
+  allgather_blocks(z.data(), m_slab_begin);
+}
+
+/// PfmgSolver as the coupled Schur-CG's preconditioner (see make_pfmg_preconditioner).
+class PfmgPreconditioner final : public AmgPreconditioner {
+ public:
+  explicit PfmgPreconditioner(const GridLayout& layout) : m_pfmg(SolverOptions{}, true) {
+    m_pfmg.set_grid(layout);
+  }
+  void setup(const SparseMatrix& P) override { m_pfmg.setup(P); }
+  void apply(const VecX& r, VecX& z) override { m_pfmg.apply(r, z); }
+  double setup_seconds() const override { return m_pfmg.setup_seconds(); }
+
+ private:
+  PfmgSolver m_pfmg;
+};
 
 void PfmgSolver::to_grid(const VecX& v, HYPRE_StructVector g) const {
   if (m_slab.empty()) return;
@@ -340,6 +389,10 @@ SolveReport PfmgSolver::solve(const VecX& b, VecX& x) {
 }
 
 }  // namespace
+
+std::unique_ptr<AmgPreconditioner> make_pfmg_preconditioner(const GridLayout& layout) {
+  return std::make_unique<PfmgPreconditioner>(layout);
+}
 
 std::unique_ptr<LinearSolver> make_pfmg_solver(const SolverOptions& opts) {
   TETFSI_REQUIRE(InputError, opts.symmetric,

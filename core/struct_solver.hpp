@@ -21,4 +21,7 @@ namespace tetfsi::detail {
 /// @throws SolverError if MPI cannot be started (through PETSc).
 std::unique_ptr<LinearSolver> make_pfmg_solver(const SolverOptions& opts);
 
+/// One PFMG V-cycle as a preconditioner (see tetfsi::make_pfmg_preconditioner).
+std::unique_ptr<AmgPreconditioner> make_pfmg_preconditioner(const GridLayout& layout);
+
 }  // namespace tetfsi::detail

@@ -134,7 +134,8 @@ AmgPreconditioner* amg_for(const CoupledSystem& sys, const CoupledOptions& opt,
       sys.symmetric ? SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() * sys.J))
                     : SparseMatrix(sys.C + SparseMatrix(sys.Jt * dinv.asDiagonal() *
                                                         SparseMatrix(sys.Jt.transpose())));
-  own = make_amg_preconditioner();
+  own = sys.grid.dims[0] > 0 && opt.grid_multigrid ? make_pfmg_preconditioner(sys.grid)
+                                                   : make_amg_preconditioner();
   own->setup(Pm);
   AmgPreconditioner* amg = own.get();
   if (opt.reuse) {

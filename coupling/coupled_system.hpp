@@ -124,6 +124,11 @@ struct CoupledOptions {
   /// The interface half cells' inertia (file comment): the fluid between a Solid face and its
   /// cell's circumcentre moves with the face. false: the paper's form, no kinetic energy there.
   bool interface_mass = true;
+  /// schur_amg on the grid fluid: precondition with hypre's structured multigrid
+  /// (make_pfmg_preconditioner: P's 7-point part, the bodies' couplings beyond it on the
+  /// diagonal) instead of BoomerAMG on the whole P. Off by default: cheaper set-up and
+  /// V-cycles, but 2–6× the iterations where stiff bodies couple many cells (README).
+  bool grid_multigrid = false;
   /// schur_amg: if set, the AMG setup of the first solve is kept here and reused by later
   /// solves with this cache (see SolveCache: only for the same P).
   SolveCache* reuse = nullptr;
@@ -273,6 +278,9 @@ struct CoupledSystem {
   std::vector<VecX> R2;          ///< second block row right-hand sides (1 + #enclosed)
   std::vector<Index> enclosed;   ///< region ids of the enclosed regions
   std::vector<Cavity> cavities;  ///< per enclosed region
+  /// The grid fluid: the grid cell of each group (dims 0 on the tet mesh). schur_amg then
+  /// preconditions with hypre's structured multigrid (make_pfmg_preconditioner).
+  GridLayout grid;
 };
 
 /// Stack the free DOFs, J between them and the groups, C, the right-hand sides, the pins and

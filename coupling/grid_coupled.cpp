@@ -266,6 +266,8 @@ CoupledSystem assemble_grid_coupled(const GridCoupledInput& in, const CoupledOpt
     sys.pin_regions.has_open[r] = sys.regions.has_open[r] || sys.lifted[r];
   sys.gs = VecX::Constant(sys.ng, in.h).cwiseQuotient(sys.grho);  // h/ρ per cell
   sys.C = sys.gs.asDiagonal() * fluid::grid_pressure_matrix(*in.cells, d.cells, sys.pin_regions);
+  const fluid::GridSpec& g = in.cells->grid;
+  sys.grid = GridLayout{{g.n[0], g.n[1], g.n[2]}, d.cells.cell};
   VecX r = second_row(in, d, sys, r_prescribed, rep);
   find_enclosed(in, opt, sys);
   stack_right_hand_sides(sys, std::move(r), hydro);

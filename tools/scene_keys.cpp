@@ -1515,7 +1515,13 @@ const Section<CouplingSpec>& coupling_keys() {
                 "body (its kinetic energy counted: the added mass unbiased); false: the "
                 "paper's form"},
         [](const C& c) { return json(c.params.solve.interface_mass); },
-        [](C& c, const json& v) { c.params.solve.interface_mass = v.get<bool>(); }}}};
+        [](C& c, const json& v) { c.params.solve.interface_mass = v.get<bool>(); }},
+       {{.key = "grid_multigrid",
+         .type = KeyType::Boolean,
+         .doc = "grid fluid, `schur_amg`: precondition with hypre's structured multigrid "
+                "(PFMG) instead of BoomerAMG"},
+        [](const C& c) { return json(c.params.solve.grid_multigrid); },
+        [](C& c, const json& v) { c.params.solve.grid_multigrid = v.get<bool>(); }}}};
   return s;
 }
 

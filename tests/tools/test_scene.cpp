@@ -1063,7 +1063,7 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   CHECK(s.resolved["fluid"]["enclosed_density"] == 0.0);
   CHECK(s.resolved["coupling"] == json::parse(R"({ "scheme": "simultaneous",
       "solver": "schur_amg", "rel_tol": 1e-10, "max_iterations": 500,
-      "conserve_volume": true, "interface_mass": true })"));
+      "conserve_volume": true, "interface_mass": true, "grid_multigrid": false })"));
 
   // Only kinematic bodies (or none): one-way; a static scene: one-way too.
   json k = fluid_json();
@@ -1093,7 +1093,7 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   j["fluid"]["enclosed_density"] = 1000;
   j["coupling"] = json::parse(R"({ "scheme": "splitting", "solver": "bicgstab_ilut",
       "rel_tol": 1e-9, "max_iterations": 80, "conserve_volume": false,
-      "interface_mass": false })");
+      "interface_mass": false, "grid_multigrid": true })");
   const Scene c = parse_scene(j, "scene.json");
   CHECK(c.fluid->params.enclosed_density == 1000.0);
   CHECK(c.coupling->two_way);
@@ -1103,6 +1103,7 @@ TEST_CASE("coupling: defaults by the bodies and the mode, keys, resolved scene")
   CHECK(c.coupling->params.solve.max_iterations == 80);
   CHECK_FALSE(c.coupling->params.solve.conserve_volume);
   CHECK_FALSE(c.coupling->params.solve.interface_mass);
+  CHECK(c.coupling->params.solve.grid_multigrid);
   CHECK(c.resolved["coupling"] == j["coupling"]);
   CHECK(c.resolved["fluid"]["enclosed_density"] == 1000.0);
   const Scene back = parse_scene(c.resolved, "scene.json");
