@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "core/error.hpp"
@@ -16,44 +17,48 @@ namespace {
 constexpr Index kGrain = 1024;
 
 /// Side-aware trilinear interpolation of the faces of axis a at x; `probe` (at x) when x is
-/// near a body.
+/// near a body. The corners are visited in the order corner = u0 + 2 u1 + 4 u2 and summed in
+/// that order.
 double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x,
                          const GridSolids::Probe* probe) {
   const GridSpec& g = gc.grid;
-  std::array<Index, 3> base{};
-  Vec3 frac;
-  for (int b = 0; b < 3; ++b) {
-    const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
-    base[b] = static_cast<Index>(std::floor(s));
-    frac[b] = s - static_cast<double>(base[b]);
-  }
   // per axis b: the two clamped indices and weights of the corners below and above x
   std::array<std::array<Index, 2>, 3> idx{};
   std::array<std::array<double, 2>, 3> wt{};
-  for (int b = 0; b < 3; ++b)
-    for (int up = 0; up < 2; ++up) {
-      idx[b][up] = std::clamp<Index>(base[b] + up, 0, g.n[b] - (b == a ? 0 : 1));
-      wt[b][up] = up ? frac[b] : 1.0 - frac[b];
-    }
-  // cell (i, j, k) = i + n0 (j + n1 k); face (i, j, k) of axis a = off + i + d0 (j + d1 k)
-  const Index n0 = g.n[0], n1 = g.n[1];
-  const Index stride_a = a == 0 ? 1 : (a == 1 ? n0 : n0 * n1);
-  const Index off = g.face_offset(a), d0 = n0 + (a == 0), d1 = n1 + (a == 1);
-  double sum = 0, value = 0;
-  for (int corner = 0; corner < 8; ++corner) {
-    const int u0 = corner & 1, u1 = (corner >> 1) & 1, u2 = (corner >> 2) & 1;
-    const double w = wt[0][u0] * wt[1][u1] * wt[2][u2];
-    if (w <= 0) continue;
-    const std::array<Index, 3> ijk{idx[0][u0], idx[1][u1], idx[2][u2]};
-    // the face's two cells (g.face_cells) from (i, j, k): the one above, and one stride below
-    const Index c = ijk[0] + n0 * (ijk[1] + n1 * ijk[2]);
-    const Index above = ijk[a] < g.n[a] ? c : -1;
-    const Index below = ijk[a] > 0 ? c - stride_a : -1;
-    if (!gc.fluid(below) && !gc.fluid(above)) continue;
-    if (probe && !probe->visible(g.face_centre(a, ijk))) continue;
-    value += w * u[off + ijk[0] + d0 * (ijk[1] + d1 * ijk[2])];
-    sum += w;
+  for (int b = 0; b < 3; ++b) {
+    const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
+    const Index base = static_cast<Index>(std::floor(s));
+    const double frac = s - static_cast<double>(base);
+    const Index top = g.n[b] - (b == a ? 0 : 1);
+    idx[b] = {std::clamp<Index>(base, 0, top), std::clamp<Index>(base + 1, 0, top)};
+    wt[b] = {1.0 - frac, frac};
   }
+  // cell (i, j, k) = i + n0 (j + n1 k); face (i, j, k) of axis a = off + i + d0 (j + d1 k)
+  const Index n0 = g.n[0], n1 = g.n[1], na = g.n[a];
+  const Index stride_a = a == 0 ? 1 : (a == 1 ? n0 : n0 * n1);
+  const Index d0 = n0 + (a == 0), d1 = n1 + (a == 1);
+  const double* ua = u.data() + g.face_offset(a);
+  const int* body = gc.cell_body.data();
+  const std::uint8_t* air = gc.air.empty() ? nullptr : gc.air.data();
+  const auto fluid = [&](Index c) { return c >= 0 && body[c] < 0 && (!air || !air[c]); };
+  double sum = 0, value = 0;
+  for (int u2 = 0; u2 < 2; ++u2)
+    for (int u1 = 0; u1 < 2; ++u1) {
+      const Index j = idx[1][u1], k = idx[2][u2];
+      for (int u0 = 0; u0 < 2; ++u0) {
+        const double w = wt[0][u0] * wt[1][u1] * wt[2][u2];
+        if (w <= 0) continue;
+        const std::array<Index, 3> ijk{idx[0][u0], j, k};
+        // the face's two cells (g.face_cells) from (i, j, k): the one above, and one below
+        const Index c = ijk[0] + n0 * (j + n1 * k);
+        const Index above = ijk[a] < na ? c : -1;
+        const Index below = ijk[a] > 0 ? c - stride_a : -1;
+        if (!fluid(below) && !fluid(above)) continue;
+        if (probe && !probe->visible(g.face_centre(a, ijk))) continue;
+        value += w * ua[ijk[0] + d0 * (j + d1 * k)];
+        sum += w;
+      }
+    }
   return sum > 0 ? value / sum : 0.0;
 }
 
@@ -126,7 +131,7 @@ GridAdvected grid_advect(const GridCells& old, const GridCells& now, const VecX&
     bool clamped = false;
     const Vec3 x = grid_trace_back(old, u, g.cell_centre(c), h, clamped);
     cell_clamped[c] = clamped;
-    const auto st = grid_cell_stencil(old, x);
+    const CellStencil8 st = grid_cell_stencil8(old, x);
     if (st.empty()) {
       if (old.fluid(c))
         out.scalars.row(c) = scalars.row(c);

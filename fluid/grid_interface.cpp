@@ -84,8 +84,7 @@ namespace {
 
 /// grid_cell_stencil with the visibility of a cell (i, j, k) from x given by `sees`.
 template <class Sees>
-std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Vec3& x,
-                                                   Sees&& sees) {
+CellStencil8 cell_stencil(const GridCells& gc, const Vec3& x, Sees&& sees) {
   const GridSpec& g = gc.grid;
   std::array<Index, 3> base{};
   Vec3 frac;
@@ -94,7 +93,7 @@ std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Ve
     base[a] = static_cast<Index>(std::floor(s));
     frac[a] = s - static_cast<double>(base[a]);
   }
-  std::vector<std::pair<Index, double>> st;
+  CellStencil8 st;
   double sum = 0;
   for (int corner = 0; corner < 8; ++corner) {
     std::array<Index, 3> ijk{};
@@ -107,7 +106,7 @@ std::vector<std::pair<Index, double>> cell_stencil(const GridCells& gc, const Ve
     const Index c = g.cell(ijk[0], ijk[1], ijk[2]);
     // an air cell is read too, as its p = 0 (dropped from the stencil, its weight kept)
     if (w <= 0 || !gc.open_cell(c) || !sees(ijk)) continue;
-    if (gc.fluid(c)) st.emplace_back(c, w);
+    if (gc.fluid(c)) st.items[st.size++] = {c, w};
     sum += w;
   }
   for (auto& [c, w] : st) w /= sum;
@@ -154,11 +153,16 @@ std::vector<std::pair<Index, double>> linear_fit(const GridSpec& g, const Vec3& 
 
 }  // namespace
 
-std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
+CellStencil8 grid_cell_stencil8(const GridCells& gc, const Vec3& x) {
   const GridSpec& g = gc.grid;
   if (!gc.solids.near(g.cell_at(x))) return cell_stencil(gc, x, ProbeSees{&g, nullptr});
   const GridSolids::Probe probe(gc.solids, x, 1);
   return cell_stencil(gc, x, ProbeSees{&g, &probe});
+}
+
+std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x) {
+  const CellStencil8 st = grid_cell_stencil8(gc, x);
+  return {st.begin(), st.end()};
 }
 
 std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x) {
@@ -171,7 +175,10 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
     first[a] = static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a] - 0.5)) - 1;
     interior = interior && first[a] + 1 >= 0 && first[a] + 2 < g.n[a];
   }
-  if (!interior) return cell_stencil(gc, x, ProbeSees{&g, near ? &probe : nullptr});
+  if (!interior) {
+    const CellStencil8 st = cell_stencil(gc, x, ProbeSees{&g, near ? &probe : nullptr});
+    return {st.begin(), st.end()};
+  }
   // Which cells of the block x sees (each tested once): the 2 × 2 × 2 corners first.
   std::array<signed char, 64> seen{};  // 0 unknown, 1 visible, −1 hidden or outside
   const auto sees = [&](const std::array<Index, 3>& ijk) {
@@ -182,7 +189,8 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
     return seen[l] > 0;
   };
   const auto corner_sees = [&](const std::array<Index, 3>& ijk) { return !near || sees(ijk); };
-  std::vector<std::pair<Index, double>> st = cell_stencil(gc, x, corner_sees);
+  const CellStencil8 st8 = cell_stencil(gc, x, corner_sees);
+  std::vector<std::pair<Index, double>> st(st8.begin(), st8.end());
   bool all_usable = true;
   for (int corner = 0; corner < 8 && all_usable; ++corner) {
     const std::array<Index, 3> ijk{first[0] + 1 + (corner & 1), first[1] + 1 + ((corner >> 1) & 1),

@@ -18,6 +18,8 @@
 ///     - energy-consistent (J_consistent) = (V D1 H)ᵀ: the pressure of cell c pushes each of its
 ///       Solid faces with s_cf A_f p_c e_a, spread by the crossing's weights. Then the power
 ///       the fluid does on the solid equals the power the solid does on the fluid, exactly.
+#include <array>
+#include <utility>
 #include <vector>
 
 #include "core/types.hpp"
@@ -69,9 +71,22 @@ class GridInterface {
   std::vector<GridInterfaceFace> m_faces;
 };
 
+/// At most 8 (cell, weight) pairs, held inline (no allocation).
+struct CellStencil8 {
+  std::array<std::pair<Index, double>, 8> items{};
+  int size = 0;
+  bool empty() const { return size == 0; }
+  const std::pair<Index, double>* begin() const { return items.data(); }
+  const std::pair<Index, double>* end() const { return items.data() + size; }
+  std::pair<Index, double>* begin() { return items.data(); }
+  std::pair<Index, double>* end() { return items.data() + size; }
+};
+
 /// Side-aware trilinear interpolation stencil of cell-centred values at x: (cell, weight)
 /// pairs over the fluid cells of the 2 × 2 × 2 block around x that x sees (GridSolids),
 /// weights summing to 1; empty if none.
+CellStencil8 grid_cell_stencil8(const GridCells& gc, const Vec3& x);
+/// grid_cell_stencil8's pairs as a vector.
 std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, const Vec3& x);
 
 /// The same where all 8 cells are usable; otherwise a least-squares linear fit

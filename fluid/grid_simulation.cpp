@@ -98,18 +98,26 @@ void apply_sources(const GridCells& gc, const FluidParams& p, VecX& density, Vec
 /// Cells or faces per chunk of the parallel loops.
 constexpr Index kGrain = 4096;
 
-/// Central difference along axis a of a cell field at c, one-sided next to non-fluid cells
-/// and the box (0 if both neighbours are missing).
-double cell_derivative(const GridCells& gc, const Eigen::Ref<const VecX>& v, Index c, int a) {
+/// The fluid neighbours of cell c along each axis a: nb[a] = {below, above}, −1 where the
+/// neighbour is not fluid or outside the box.
+using AxisNeighbours = std::array<std::array<Index, 2>, 3>;
+AxisNeighbours fluid_neighbours(const GridCells& gc, Index c) {
   const GridSpec& g = gc.grid;
   const auto ijk = g.cell_ijk(c);
-  Index nb[2] = {-1, -1};
-  for (int s = 0; s < 2; ++s) {
-    auto q = ijk;
-    q[a] += s ? 1 : -1;
-    if (q[a] >= 0 && q[a] < g.n[a] && gc.fluid(g.cell(q[0], q[1], q[2])))
-      nb[s] = g.cell(q[0], q[1], q[2]);
+  const Index stride[3] = {1, g.n[0], g.n[0] * g.n[1]};
+  AxisNeighbours nb{};
+  for (int a = 0; a < 3; ++a) {
+    const Index below = ijk[a] > 0 ? c - stride[a] : -1;
+    const Index above = ijk[a] + 1 < g.n[a] ? c + stride[a] : -1;
+    nb[a] = {gc.fluid(below) ? below : -1, gc.fluid(above) ? above : -1};
   }
+  return nb;
+}
+
+/// Central difference along axis a of a cell field at c from its fluid neighbours nb,
+/// one-sided next to non-fluid cells and the box (0 if both neighbours are missing).
+double cell_derivative(const GridSpec& g, const VecX& v, Index c, const std::array<Index, 2>& nb,
+                       int a) {
   if (nb[0] >= 0 && nb[1] >= 0) return (v[nb[1]] - v[nb[0]]) / (2 * g.h[a]);
   if (nb[1] >= 0) return (v[nb[1]] - v[c]) / g.h[a];
   if (nb[0] >= 0) return (v[c] - v[nb[0]]) / g.h[a];
@@ -142,7 +150,10 @@ MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc) {
   const std::array<VecX, 3> comp_of = {VecX(uc.col(0)), VecX(uc.col(1)), VecX(uc.col(2))};
   parallel_for_each(nc, kGrain, [&](Index c) {
     if (!gc.fluid(c)) return;
-    const auto d = [&](int comp, int ax) { return cell_derivative(gc, comp_of[comp], c, ax); };
+    const AxisNeighbours nb = fluid_neighbours(gc, c);
+    const auto d = [&](int comp, int ax) {
+      return cell_derivative(gc.grid, comp_of[comp], c, nb[ax], ax);
+    };
     w.row(c) << d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1);
   });
   return w;
@@ -161,8 +172,9 @@ MatX3 grid_confinement(const GridCells& gc, const MatX3& uc, double epsilon) {
   const double hc = g.h.mean();
   parallel_for_each(nc, kGrain, [&](Index c) {
     if (!gc.fluid(c)) return;
-    const Vec3 grad(cell_derivative(gc, wn, c, 0), cell_derivative(gc, wn, c, 1),
-                    cell_derivative(gc, wn, c, 2));
+    const AxisNeighbours nb = fluid_neighbours(gc, c);
+    const Vec3 grad(cell_derivative(g, wn, c, nb[0], 0), cell_derivative(g, wn, c, nb[1], 1),
+                    cell_derivative(g, wn, c, nb[2], 2));
     const double gn = grad.norm();
     if (gn < 1e-12 * (wn[c] / hc + 1e-300)) return;
     // see [Fedkiw01, Eq. (11)]: f_conf = ε h (N × ω)
