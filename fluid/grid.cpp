@@ -153,6 +153,10 @@ GridSolids::GridSolids(const GridSpec& g, std::vector<mesh::SolidSurface> surfac
       P.e1 = T.p[1] - T.p[0];
       P.e2 = T.p[2] - T.p[0];
       P.e12 = P.e1.norm() * P.e2.norm();
+      const Vec3 cr = P.e1.cross(P.e2);
+      const double area2 = cr.norm();
+      const Vec3 n = area2 > 0 ? Vec3(cr / area2) : Vec3::Zero();
+      m_planes.emplace_back(n[0], n[1], n[2], n.dot(P.p0));
       P.lo = T.p[0].cwiseMin(T.p[1]).cwiseMin(T.p[2]);
       P.hi = T.p[0].cwiseMax(T.p[1]).cwiseMax(T.p[2]);
       P.body = static_cast<Index>(b);
@@ -221,6 +225,15 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
     i0[ax] = g.axis_index(ax, lo);
     i1[ax] = g.axis_index(ax, hi);
   }
+  // A segment within two cells of the middle of its cell range, where no triangle's box
+  // reaches (the reach-2 list of the middle cell empty), meets no triangle.
+  if ((i1[0] - i0[0]) <= 4 && (i1[1] - i0[1]) <= 4 && (i1[2] - i0[2]) <= 4) {
+    const Index mid = g.cell((i0[0] + i1[0]) / 2, (i0[1] + i1[1]) / 2, (i0[2] + i1[2]) / 2);
+    if (m_start[2][mid] == m_start[2][mid + 1]) {
+      if (t_out) *t_out = std::numeric_limits<double>::infinity();
+      return false;
+    }
+  }
   const Vec3 d = b - a;
   const double dn = d.norm();
   double best = std::numeric_limits<double>::infinity();
@@ -229,8 +242,10 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
       for (Index i = i0[0]; i <= i1[0]; ++i) {
         const Index c = g.cell(i, j, k);
         for (Index e = m_start[0][c]; e < m_start[0][c + 1]; ++e) {
+          // plane and box tests first: they cannot reject a crossing (their slack is far
+          // above round-off)
+          if (one_side(m_items[0][e], a, b)) continue;
           const Packed& T = m_tris[m_items[0][e]];
-          // a box test first: it cannot reject a crossing (the slack is far above round-off)
           if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) continue;
           double s = 0;
           Vec3 w;
@@ -264,6 +279,11 @@ GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach)
   const Index c = g.cell(i[0], i[1], i[2]);
   m_begin = solids.m_items[reach].data() + solids.m_start[reach][c];
   m_end = solids.m_items[reach].data() + solids.m_start[reach][c + 1];
+  m_side.reserve(static_cast<size_t>(m_end - m_begin));
+  for (const Index* e = m_begin; e != m_end; ++e) {
+    const Eigen::Vector4d& P = solids.m_planes[*e];
+    m_side.emplace_back(P[0], P[1], P[2], P[0] * x[0] + P[1] * x[1] + P[2] * x[2] - P[3]);
+  }
 }
 
 bool GridSolids::Probe::visible(const Vec3& b) const {
@@ -277,8 +297,14 @@ bool GridSolids::Probe::visible(const Vec3& b) const {
   const Vec3 slo = m_x.cwiseMin(b).array() - margin, shi = m_x.cwiseMax(b).array() + margin;
   const Vec3 d = b - m_x;
   const double dn = d.norm();
-  for (const Index* e = m_begin; e != m_end; ++e) {
-    const Packed& T = m_solids->m_tris[*e];
+  const size_t n = m_side.size();
+  for (size_t i = 0; i < n; ++i) {
+    // the plane test first (x and b both farther than the margin on one side cannot cross)
+    const Eigen::Vector4d& P = m_side[i];
+    const double db = P[0] * d[0] + P[1] * d[1] + P[2] * d[2] + P[3];
+    const bool above = (P[3] > margin) & (db > margin), below = (P[3] < -margin) & (db < -margin);
+    if (above | below) continue;
+    const Packed& T = m_solids->m_tris[m_begin[i]];
     if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) continue;
     double s = 0;
     Vec3 w;
