@@ -260,6 +260,11 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
 }
 
 GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach)
+    : Probe(solids, x, reach, Vec3::Constant(-std::numeric_limits<double>::infinity()),
+            Vec3::Constant(std::numeric_limits<double>::infinity())) {}
+
+GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach, const Vec3& qlo,
+                         const Vec3& qhi)
     : m_solids(&solids), m_x(x) {
   TETFSI_CHECK(reach >= 0 && reach <= 2, "GridSolids::Probe: reach {} (0..2)", reach);
   if (solids.m_tris.empty()) return;
@@ -269,19 +274,26 @@ GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach)
     i[a] = g.axis_index(a, x[a]);
     const Index lo = i[a] - reach, hi = i[a] + reach;
     const double inf = std::numeric_limits<double>::infinity();
-    m_box_lo[a] = lo <= 0 ? -inf : g.lo[a] + static_cast<double>(lo) * g.h[a];
-    m_box_hi[a] = hi >= g.n[a] - 1 ? inf : g.lo[a] + static_cast<double>(hi + 1) * g.h[a];
+    m_box_lo[a] = std::max(qlo[a], lo <= 0 ? -inf : g.lo[a] + static_cast<double>(lo) * g.h[a]);
+    m_box_hi[a] =
+        std::min(qhi[a], hi >= g.n[a] - 1 ? inf : g.lo[a] + static_cast<double>(hi + 1) * g.h[a]);
   }
   if ((x.array() < m_box_lo.array()).any() || (x.array() > m_box_hi.array()).any()) {
     m_box_lo = m_box_hi = x;  // (not inside its own block by round-off: every query falls back)
     m_box_hi[0] = -std::numeric_limits<double>::infinity();
+    return;
   }
+  // A triangle whose box misses the query box (with the segment test's slack) fails the box
+  // test of every query inside it: it is left out.
+  const Vec3 klo = m_box_lo.array() - solids.m_margin, khi = m_box_hi.array() + solids.m_margin;
   const Index c = g.cell(i[0], i[1], i[2]);
-  m_begin = solids.m_items[reach].data() + solids.m_start[reach][c];
-  m_end = solids.m_items[reach].data() + solids.m_start[reach][c + 1];
-  m_side.reserve(static_cast<size_t>(m_end - m_begin));
-  for (const Index* e = m_begin; e != m_end; ++e) {
+  const Index* begin = solids.m_items[reach].data() + solids.m_start[reach][c];
+  const Index* end = solids.m_items[reach].data() + solids.m_start[reach][c + 1];
+  for (const Index* e = begin; e != end; ++e) {
+    const Packed& T = solids.m_tris[*e];
+    if ((khi.array() < T.lo.array()).any() || (klo.array() > T.hi.array()).any()) continue;
     const Eigen::Vector4d& P = solids.m_planes[*e];
+    m_idx.push_back(*e);
     m_side.emplace_back(P[0], P[1], P[2], P[0] * x[0] + P[1] * x[1] + P[2] * x[2] - P[3]);
   }
 }
@@ -292,24 +304,31 @@ bool GridSolids::Probe::visible(const Vec3& b) const {
   // point lies in a block cell, whose bucket holds every triangle whose box reaches it).
   if ((b.array() < m_box_lo.array()).any() || (b.array() > m_box_hi.array()).any())
     return m_solids->visible(m_x, b);
-  if (m_begin == m_end) return true;
+  if (m_side.empty()) return true;
   const double margin = m_solids->m_margin;
   const Vec3 slo = m_x.cwiseMin(b).array() - margin, shi = m_x.cwiseMax(b).array() + margin;
   const Vec3 d = b - m_x;
   const double dn = d.norm();
-  const size_t n = m_side.size();
-  for (size_t i = 0; i < n; ++i) {
-    // the plane test first (x and b both farther than the margin on one side cannot cross)
+  // Whether list entry i's triangle crosses the segment: the plane test first (x and b both
+  // farther than the margin on one side cannot cross), then the box, then the crossing.
+  const auto hides = [&](size_t i) {
     const Eigen::Vector4d& P = m_side[i];
     const double db = P[0] * d[0] + P[1] * d[1] + P[2] * d[2] + P[3];
     const bool above = (P[3] > margin) & (db > margin), below = (P[3] < -margin) & (db < -margin);
-    if (above | below) continue;
-    const Packed& T = m_solids->m_tris[m_begin[i]];
-    if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) continue;
+    if (above | below) return false;
+    const Packed& T = m_solids->m_tris[m_idx[i]];
+    if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) return false;
     double s = 0;
     Vec3 w;
-    if (m_solids->crosses(T, m_x, d, dn, s, w)) return false;
-  }
+    return m_solids->crosses(T, m_x, d, dn, s, w);
+  };
+  if (hides(m_last)) return false;
+  const size_t n = m_side.size();
+  for (size_t i = 0; i < n; ++i)
+    if (i != m_last && hides(i)) {
+      m_last = i;
+      return false;
+    }
   return true;
 }
 

@@ -62,8 +62,9 @@ struct GridSpec {
   std::array<Index, 3> cell_ijk(Index c) const {
     return {c % n[0], (c / n[0]) % n[1], c / (n[0] * n[1])};
   }
-  Vec3 cell_centre(Index c) const {
-    const auto ijk = cell_ijk(c);
+  Vec3 cell_centre(Index c) const { return cell_centre(cell_ijk(c)); }
+  /// The centre of cell (i, j, k).
+  Vec3 cell_centre(const std::array<Index, 3>& ijk) const {
     Vec3 x;
     for (int a = 0; a < 3; ++a) x[a] = lo[a] + (static_cast<double>(ijk[a]) + 0.5) * h[a];
     return x;
@@ -149,16 +150,22 @@ class GridSolids {
   class Probe {
    public:
     Probe(const GridSolids& solids, const Vec3& x, int reach);
+    /// The same for queries that mostly end in the box [qlo, qhi] (which holds x): only the
+    /// block's triangles whose box meets it are kept, and queries outside it fall back.
+    Probe(const GridSolids& solids, const Vec3& x, int reach, const Vec3& qlo, const Vec3& qhi);
     bool visible(const Vec3& b) const;
 
    private:
     const GridSolids* m_solids;
     Vec3 m_x;
     Vec3 m_box_lo, m_box_hi;  ///< the block's box, unbounded where it reaches the grid's side
-    const Index* m_begin = nullptr;
-    const Index* m_end = nullptr;
-    /// Per list entry: the triangle's unit normal and x's signed distance to its plane.
+    /// Per kept list entry: the triangle (index into m_tris), its unit normal and x's signed
+    /// distance to its plane.
+    std::vector<Index> m_idx;
     std::vector<Eigen::Vector4d> m_side;
+    /// The list entry that hid the last hidden query: tested first, as the next query that
+    /// is hidden is most often hidden by the same triangle.
+    mutable size_t m_last = 0;
   };
 
  private:

@@ -81,7 +81,8 @@ Vec3 stop(const GridCells& gc, const Vec3& a, Vec3 b, bool& clamped) {
 
 double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x) {
   if (!gc.solids.near(gc.grid.cell_at(x))) return face_component_at(gc, u, a, x, nullptr);
-  const GridSolids::Probe probe(gc.solids, x, 1);
+  // the 2 × 2 × 2 face centres queried lie within a cell of x
+  const GridSolids::Probe probe(gc.solids, x, 1, x - gc.grid.h, x + gc.grid.h);
   return face_component_at(gc, u, a, x, &probe);
 }
 
@@ -91,7 +92,7 @@ Vec3 grid_velocity_at(const GridCells& gc, const VecX& u, const Vec3& x) {
   if (!gc.solids.near(gc.grid.cell_at(x)))
     return Vec3(face_component_at(gc, u, 0, x, nullptr), face_component_at(gc, u, 1, x, nullptr),
                 face_component_at(gc, u, 2, x, nullptr));
-  const GridSolids::Probe probe(gc.solids, x, 1);
+  const GridSolids::Probe probe(gc.solids, x, 1, x - gc.grid.h, x + gc.grid.h);
   return Vec3(face_component_at(gc, u, 0, x, &probe), face_component_at(gc, u, 1, x, &probe),
               face_component_at(gc, u, 2, x, &probe));
 }

@@ -118,7 +118,7 @@ struct ProbeSees {
   const GridSpec* g;
   const GridSolids::Probe* probe;
   bool operator()(const std::array<Index, 3>& ijk) const {
-    return !probe || probe->visible(g->cell_centre(g->cell(ijk[0], ijk[1], ijk[2])));
+    return !probe || probe->visible(g->cell_centre(ijk));
   }
 };
 
@@ -132,11 +132,14 @@ std::vector<std::pair<Index, double>> linear_fit(const GridSpec& g, const Vec3& 
   std::vector<Index> cells;
   std::vector<Eigen::Vector4d> rows;
   std::vector<double> wts;
+  cells.reserve(64);
+  rows.reserve(64);
+  wts.reserve(64);
   for (int l = 0; l < 64; ++l) {
     if (!usable[l]) continue;
-    const Index c = g.cell(first[0] + l % 4, first[1] + (l / 4) % 4, first[2] + l / 16);
-    const Vec3 d = (g.cell_centre(c) - x).cwiseQuotient(g.h);
-    cells.push_back(c);
+    const std::array<Index, 3> ijk{first[0] + l % 4, first[1] + (l / 4) % 4, first[2] + l / 16};
+    const Vec3 d = (g.cell_centre(ijk) - x).cwiseQuotient(g.h);
+    cells.push_back(g.cell(ijk[0], ijk[1], ijk[2]));
     rows.emplace_back(1.0, d[0], d[1], d[2]);
     wts.push_back(1.0 / (1.0 + d.squaredNorm()));
   }
@@ -156,7 +159,8 @@ std::vector<std::pair<Index, double>> linear_fit(const GridSpec& g, const Vec3& 
 CellStencil8 grid_cell_stencil8(const GridCells& gc, const Vec3& x) {
   const GridSpec& g = gc.grid;
   if (!gc.solids.near(g.cell_at(x))) return cell_stencil(gc, x, ProbeSees{&g, nullptr});
-  const GridSolids::Probe probe(gc.solids, x, 1);
+  // the 2 × 2 × 2 cell centres queried lie within a cell of x
+  const GridSolids::Probe probe(gc.solids, x, 1, x - g.h, x + g.h);
   return cell_stencil(gc, x, ProbeSees{&g, &probe});
 }
 
@@ -168,13 +172,15 @@ std::vector<std::pair<Index, double>> grid_cell_stencil(const GridCells& gc, con
 std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& gc, const Vec3& x) {
   const GridSpec& g = gc.grid;
   const bool near = gc.solids.near(g.cell_at(x));
-  const GridSolids::Probe probe(gc.solids, x, 2);  // reaches the 4 × 4 × 4 block
   std::array<Index, 3> first{};
   bool interior = true;
   for (int a = 0; a < 3; ++a) {
     first[a] = static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a] - 0.5)) - 1;
     interior = interior && first[a] + 1 >= 0 && first[a] + 2 < g.n[a];
   }
+  // reaches the 4 × 4 × 4 block, whose cell centres are the queries
+  const GridSolids::Probe probe(gc.solids, x, 2, g.cell_centre(first),
+                                g.cell_centre({first[0] + 3, first[1] + 3, first[2] + 3}));
   if (!interior) {
     const CellStencil8 st = cell_stencil(gc, x, ProbeSees{&g, near ? &probe : nullptr});
     return {st.begin(), st.end()};
@@ -185,7 +191,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
     const int l =
         static_cast<int>((ijk[0] - first[0]) + 4 * ((ijk[1] - first[1]) + 4 * (ijk[2] - first[2])));
     if (seen[l] == 0)
-      seen[l] = probe.visible(g.cell_centre(g.cell(ijk[0], ijk[1], ijk[2]))) ? 1 : -1;
+      seen[l] = probe.visible(g.cell_centre(ijk)) ? 1 : -1;
     return seen[l] > 0;
   };
   const auto corner_sees = [&](const std::array<Index, 3>& ijk) { return !near || sees(ijk); };
