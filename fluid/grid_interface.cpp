@@ -190,8 +190,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
   const auto sees = [&](const std::array<Index, 3>& ijk) {
     const int l =
         static_cast<int>((ijk[0] - first[0]) + 4 * ((ijk[1] - first[1]) + 4 * (ijk[2] - first[2])));
-    if (seen[l] == 0)
-      seen[l] = probe.visible(g.cell_centre(ijk)) ? 1 : -1;
+    if (seen[l] == 0) seen[l] = probe.visible(g.cell_centre(ijk)) ? 1 : -1;
     return seen[l] > 0;
   };
   const auto corner_sees = [&](const std::array<Index, 3>& ijk) { return !near || sees(ijk); };
