@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdlib>
+#include <exception>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -16,6 +17,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include "core/ranks.hpp"
 
@@ -102,6 +104,38 @@ void parallel_for_chunks(Index n, Index grain, const std::function<void(Index, I
     arena->execute(loop);
   else
     loop();
+}
+
+void run_alongside(const std::function<void()>& main, const std::function<void()>& side) {
+  if (thread_count() == 1) {
+    main();
+    side();
+    return;
+  }
+  std::exception_ptr main_error, side_error;
+  auto both = [&] {
+    tbb::task_group group;
+    group.run([&] {
+      try {
+        side();
+      } catch (...) {
+        side_error = std::current_exception();
+      }
+    });
+    try {
+      main();
+    } catch (...) {
+      main_error = std::current_exception();
+    }
+    group.wait();
+  };
+  tbb::task_arena* arena = thread_limit().arena.get();
+  if (arena)
+    arena->execute(both);
+  else
+    both();
+  if (main_error) std::rethrow_exception(main_error);
+  if (side_error) std::rethrow_exception(side_error);
 }
 
 }  // namespace tetfsi

@@ -54,6 +54,13 @@ void parallel_for_each(Index n, Index grain, F&& fn) {
   });
 }
 
+/// main() on the calling thread and side() as a task beside it (on another thread of the
+/// pool when there is one: work that does not use the pool, such as a serial solver, leaves
+/// the other threads free for it), returning when both are done. The two must not write
+/// what the other reads. At one thread: main() then side(). An exception from either
+/// reaches the caller (main's first) after both have ended.
+void run_alongside(const std::function<void()>& main, const std::function<void()>& side);
+
 /// The number of chunks parallel_for_chunks cuts [0, n) into (0 for n ≤ 0).
 inline Index num_chunks(Index n, Index grain) {
   return n <= 0 ? 0 : (n + grain - 1) / grain;

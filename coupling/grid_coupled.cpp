@@ -356,12 +356,31 @@ CoupledSolution solve_grid_coupled(const GridCoupledInput& in, const CoupledOpti
 
 // ---- the grid fluid behind the seam ------------------------------------------------------
 
+namespace {
+
+/// Whether the step needs the paper's J: its forces, or the hydrostatic pressure's.
+bool needs_paper_J(GridPressureForces forces, const fluid::FluidParams& params) {
+  return forces == GridPressureForces::Paper || params.gravity.squaredNorm() > 0;
+}
+
+}  // namespace
+
 GridPredicted::GridPredicted(fluid::GridPrediction pred, const fluid::FluidParams& params,
                              const std::vector<BodyInterface>& bodies, GridPressureForces forces)
     : m_pred(std::move(pred)), m_params(params), m_iface(m_pred.cells, bodies), m_forces(forces) {
   m_Jc = m_iface.J_consistent();
-  if (forces == GridPressureForces::Paper || params.gravity.squaredNorm() > 0)
-    m_Jp = m_iface.J_paper();
+  if (needs_paper_J(forces, params)) m_Jp = m_iface.J_paper();
+}
+
+void fill_grid_force_cache(const fluid::GridCells& gc, const std::vector<BodyInterface>& bodies,
+                           GridPressureForces forces, const fluid::FluidParams& params, double time,
+                           GridForceCache& cache) {
+  const fluid::GridInterface iface(gc, bodies);
+  cache.valid = false;
+  cache.Jc = iface.J_consistent();
+  cache.Jp = needs_paper_J(forces, params) ? iface.J_paper() : SparseMatrix();
+  cache.time = time;
+  cache.valid = true;
 }
 
 CoupledSolution GridPredicted::solve(const std::vector<CoupledBody>& bodies,

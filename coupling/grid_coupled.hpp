@@ -109,6 +109,13 @@ struct GridForceCache {
   SparseMatrix Jc, Jp;  ///< (V D1 H)ᵀ; the paper's J (empty if the step did not need it)
 };
 
+/// The J matrices a two-way step keeps for a classified grid `gc` (Jc always, Jp when
+/// `forces` is Paper or there is gravity), put in `cache` for the fluid time `time` (the
+/// one-way step builds them beside its pressure solve for the output's forces).
+void fill_grid_force_cache(const fluid::GridCells& gc, const std::vector<BodyInterface>& bodies,
+                           GridPressureForces forces, const fluid::FluidParams& params, double time,
+                           GridForceCache& cache);
+
 /// The fluid's nodal forces on the bodies on the fluid's current grid (3n per body, N): the
 /// dynamic pressure through the J of `forces`, the hydrostatic one through the paper's J; the
 /// matrices from `cache` when it holds this grid's.

@@ -155,7 +155,17 @@ FsiStepReport FsiSimulation::step_one_way(double h, PhaseTimes& phases) {
       s = grid_surfaces(current_positions(m_world));
     }
     const double t0 = now_seconds();
-    r.fluid = m_grid->step(std::move(s), motion, h, fp);
+    // The output's J for the step's grid, built beside the (serial) pressure solve.
+    m_grid_cache.valid = false;
+    GridForceCache cache;
+    std::function<void(const fluid::GridCells&)> alongside;
+    if (!m_policy->surfaces().empty())
+      alongside = [&](const fluid::GridCells& gc) {
+        fill_grid_force_cache(gc, body_interfaces(m_world, m_policy->surfaces()), m_grid_forces,
+                              m_grid->params(), m_grid->time() + h, cache);
+      };
+    r.fluid = m_grid->step(std::move(s), motion, h, fp, alongside);
+    if (cache.valid && cache.time == m_grid->time()) m_grid_cache = std::move(cache);
     r.fluid_s = now_seconds() - t0;
   } else {
     mesh::TetMesh m = build_mesh(current_positions(m_world), phases);

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
+#include "core/log.hpp"
 #include "core/parallel.hpp"
 #include "fluid/forces.hpp"
 #include "fluid/grid_advect.hpp"
@@ -368,6 +369,8 @@ std::pair<VecX, VecX> GridFluid::project(const GridPrediction& pred, FluidStepRe
   const ProjectionReport pr = grid_project(pred.cells, s * pred.p_open, u, q, *m_solver);
   phases.add("assembly", pr.assembly_s);
   phases.add("solve", pr.setup_s + pr.solve_s);
+  logger().debug("grid pressure solve: {} unknowns, setup {:.3f} s, solve {:.3f} s, {} iterations",
+                 pr.groups, pr.setup_s, pr.solve_s, pr.iterations);
   rep.converged = pr.converged;
   rep.iterations = pr.iterations;
   rep.residual = pr.residual;
@@ -441,11 +444,16 @@ FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, Fluid
 
 FluidStepReport GridFluid::step(std::vector<mesh::SolidSurface> surfaces,
                                 const std::vector<SolidSurfaceMotion>& motions, double h,
-                                PhaseTimes& phases) {
+                                PhaseTimes& phases,
+                                const std::function<void(const GridCells&)>& alongside) {
   GridPrediction pred = predict(std::move(surfaces), motions, h, phases);
   FluidStepReport rep;
-  auto [u, p] = project(pred, rep, phases);
-  return commit(std::move(pred), std::move(u), std::move(p), rep);
+  std::pair<VecX, VecX> up;
+  if (alongside)
+    run_alongside([&] { up = project(pred, rep, phases); }, [&] { alongside(pred.cells); });
+  else
+    up = project(pred, rep, phases);
+  return commit(std::move(pred), std::move(up.first), std::move(up.second), rep);
 }
 
 void GridFluid::set_state(GridState s) {

@@ -12,6 +12,7 @@
 /// Vorticity confinement [Fedkiw01, Eq. (11)] on the cell-centred velocity (central
 /// differences, one-sided next to solids). Regions sealed by Solid faces take
 /// `enclosed_density` (grid_cell_density).
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -76,10 +77,12 @@ class GridFluid {
   /// End the step: state, time += h; fills the report's diagnostics.
   /// @throws SolverError if u or p_dyn is not finite (the fluid is then unchanged).
   FluidStepReport commit(GridPrediction pred, VecX u, VecX p_dyn, FluidStepReport rep = {});
-  /// predict, project, commit.
+  /// predict, project, commit; `alongside(cells)`, if given, runs beside the projection
+  /// (run_alongside: the pressure solver is serial) on the step's classified grid, which
+  /// commit then makes cells().
   FluidStepReport step(std::vector<mesh::SolidSurface> surfaces,
-                       const std::vector<SolidSurfaceMotion>& motions, double h,
-                       PhaseTimes& phases);
+                       const std::vector<SolidSurfaceMotion>& motions, double h, PhaseTimes& phases,
+                       const std::function<void(const GridCells&)>& alongside = {});
 
   /// The state the next step reads as records under `prefix` (core/checkpoint.hpp): the
   /// bodies' surfaces the grid is classified around (classify_grid rebuilds the rest from
