@@ -142,6 +142,11 @@ class GridSolids {
   /// Whether a triangle's bucket is within one cell of cell c (else every query near c is
   /// trivially free).
   bool near(Index c) const { return !m_near.empty() && m_near[c] != 0; }
+  /// No triangle's box reaches the cells within `reach` (0, 1 or 2) cells of cell c.
+  bool clear(Index c, int reach) const {
+    const std::vector<Index>& start = m_start[static_cast<size_t>(reach)];
+    return start.empty() || start[c] == start[c + 1];
+  }
 
   /// Many visibility queries from one point x: the triangles bucketed in the cells within
   /// `reach` (0, 1 or 2) cells of x's cell, each once (lists kept per cell), and each query

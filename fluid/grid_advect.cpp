@@ -16,22 +16,46 @@ namespace {
 /// Faces or cells per chunk of the parallel loops.
 constexpr Index kGrain = 1024;
 
-/// Side-aware trilinear interpolation of the faces of axis a at x; `probe` (at x) when x is
-/// near a body. The corners are visited in the order corner = u0 + 2 u1 + 4 u2 and summed in
-/// that order.
-double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x,
+/// A point's place on the grid: per axis b its two clamped lattice indices and weights for
+/// the faces of axis b (t = 0, at lo + i h) and for the cell-centred lattice (t = 1, at
+/// lo + (i + ½) h, where the other axes' faces lie), and the cell holding it (cell_at).
+struct PointWeights {
+  std::array<std::array<std::array<Index, 2>, 3>, 2> idx{};
+  std::array<std::array<std::array<double, 2>, 3>, 2> wt{};
+  Index cell = 0;
+};
+
+PointWeights point_weights(const GridSpec& g, const Vec3& x) {
+  PointWeights pw;
+  std::array<Index, 3> ijk{};
+  for (int b = 0; b < 3; ++b) {
+    const double s0 = (x[b] - g.lo[b]) / g.h[b];
+    for (int t = 0; t < 2; ++t) {
+      const double s = s0 - (t == 0 ? 0.0 : 0.5);
+      const Index base = static_cast<Index>(std::floor(s));
+      const double frac = s - static_cast<double>(base);
+      const Index top = g.n[b] - t;
+      pw.idx[t][b] = {std::clamp<Index>(base, 0, top), std::clamp<Index>(base + 1, 0, top)};
+      pw.wt[t][b] = {1.0 - frac, frac};
+    }
+    ijk[b] = std::clamp<Index>(static_cast<Index>(std::floor(s0)), 0, g.n[b] - 1);
+  }
+  pw.cell = g.cell(ijk[0], ijk[1], ijk[2]);
+  return pw;
+}
+
+/// Side-aware trilinear interpolation of the faces of axis a at x (weights pw); `probe` (at
+/// x) when x is near a body. The corners are visited in the order corner = u0 + 2 u1 + 4 u2
+/// and summed in that order.
+double face_component_at(const GridCells& gc, const VecX& u, int a, const PointWeights& pw,
                          const GridSolids::Probe* probe) {
   const GridSpec& g = gc.grid;
   // per axis b: the two clamped indices and weights of the corners below and above x
-  std::array<std::array<Index, 2>, 3> idx{};
-  std::array<std::array<double, 2>, 3> wt{};
+  std::array<const std::array<Index, 2>*, 3> idx{};
+  std::array<const std::array<double, 2>*, 3> wt{};
   for (int b = 0; b < 3; ++b) {
-    const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
-    const Index base = static_cast<Index>(std::floor(s));
-    const double frac = s - static_cast<double>(base);
-    const Index top = g.n[b] - (b == a ? 0 : 1);
-    idx[b] = {std::clamp<Index>(base, 0, top), std::clamp<Index>(base + 1, 0, top)};
-    wt[b] = {1.0 - frac, frac};
+    idx[b] = &pw.idx[b == a ? 0 : 1][b];
+    wt[b] = &pw.wt[b == a ? 0 : 1][b];
   }
   // cell (i, j, k) = i + n0 (j + n1 k); face (i, j, k) of axis a = off + i + d0 (j + d1 k)
   const Index n0 = g.n[0], n1 = g.n[1], na = g.n[a];
@@ -44,11 +68,11 @@ double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& 
   double sum = 0, value = 0;
   for (int u2 = 0; u2 < 2; ++u2)
     for (int u1 = 0; u1 < 2; ++u1) {
-      const Index j = idx[1][u1], k = idx[2][u2];
+      const Index j = (*idx[1])[u1], k = (*idx[2])[u2];
       for (int u0 = 0; u0 < 2; ++u0) {
-        const double w = wt[0][u0] * wt[1][u1] * wt[2][u2];
+        const double w = (*wt[0])[u0] * (*wt[1])[u1] * (*wt[2])[u2];
         if (w <= 0) continue;
-        const std::array<Index, 3> ijk{idx[0][u0], j, k};
+        const std::array<Index, 3> ijk{(*idx[0])[u0], j, k};
         // the face's two cells (g.face_cells) from (i, j, k): the one above, and one below
         const Index c = ijk[0] + n0 * (j + n1 * k);
         const Index above = ijk[a] < na ? c : -1;
@@ -62,14 +86,17 @@ double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& 
   return sum > 0 ? value / sum : 0.0;
 }
 
-/// b moved back inside the box and to just before the first body triangle on a → b.
-Vec3 stop(const GridCells& gc, const Vec3& a, Vec3 b, bool& clamped) {
+/// b moved back inside the box and to just before the first body triangle on a → b. `clear`:
+/// no triangle within two cells of a's cell (GridSolids::clear), so that a segment shorter
+/// than a cell on every axis meets none.
+Vec3 stop(const GridCells& gc, const Vec3& a, Vec3 b, bool clear, bool& clamped) {
   const GridSpec& g = gc.grid;
   const double hmin = g.h.minCoeff(), margin = 1e-6 * hmin;
   const Vec3 lo = g.lo.array() + margin, hi = g.hi().array() - margin;
   const Vec3 inside = b.cwiseMax(lo).cwiseMin(hi);
   if (inside != b) clamped = true;
   b = inside;
+  if (clear && ((b - a).cwiseAbs().array() <= g.h.array()).all()) return b;
   double s = 0;
   if (gc.solids.first_crossing(a, b, nullptr, &s)) {
     const double len = (b - a).norm();
@@ -80,27 +107,38 @@ Vec3 stop(const GridCells& gc, const Vec3& a, Vec3 b, bool& clamped) {
 }
 
 double face_component_at(const GridCells& gc, const VecX& u, int a, const Vec3& x) {
-  if (!gc.solids.near(gc.grid.cell_at(x))) return face_component_at(gc, u, a, x, nullptr);
+  const PointWeights pw = point_weights(gc.grid, x);
+  if (!gc.solids.near(pw.cell)) return face_component_at(gc, u, a, pw, nullptr);
   // the 2 × 2 × 2 face centres queried lie within a cell of x
   const GridSolids::Probe probe(gc.solids, x, 1, x - gc.grid.h, x + gc.grid.h);
-  return face_component_at(gc, u, a, x, &probe);
+  return face_component_at(gc, u, a, pw, &probe);
+}
+
+/// grid_velocity_at with x's weights; also gives x's cell.
+Vec3 velocity_at(const GridCells& gc, const VecX& u, const Vec3& x, Index* cell = nullptr) {
+  const PointWeights pw = point_weights(gc.grid, x);
+  if (cell) *cell = pw.cell;
+  if (!gc.solids.near(pw.cell))
+    return Vec3(face_component_at(gc, u, 0, pw, nullptr), face_component_at(gc, u, 1, pw, nullptr),
+                face_component_at(gc, u, 2, pw, nullptr));
+  const GridSolids::Probe probe(gc.solids, x, 1, x - gc.grid.h, x + gc.grid.h);
+  return Vec3(face_component_at(gc, u, 0, pw, &probe), face_component_at(gc, u, 1, pw, &probe),
+              face_component_at(gc, u, 2, pw, &probe));
 }
 
 }  // namespace
 
 Vec3 grid_velocity_at(const GridCells& gc, const VecX& u, const Vec3& x) {
-  if (!gc.solids.near(gc.grid.cell_at(x)))
-    return Vec3(face_component_at(gc, u, 0, x, nullptr), face_component_at(gc, u, 1, x, nullptr),
-                face_component_at(gc, u, 2, x, nullptr));
-  const GridSolids::Probe probe(gc.solids, x, 1, x - gc.grid.h, x + gc.grid.h);
-  return Vec3(face_component_at(gc, u, 0, x, &probe), face_component_at(gc, u, 1, x, &probe),
-              face_component_at(gc, u, 2, x, &probe));
+  return velocity_at(gc, u, x);
 }
 
 Vec3 grid_trace_back(const GridCells& gc, const VecX& u, const Vec3& x, double h, bool& clamped) {
   // [Stam99] RK2 (midpoint) back-trace
-  const Vec3 xm = stop(gc, x, x - 0.5 * h * grid_velocity_at(gc, u, x), clamped);
-  return stop(gc, x, x - h * grid_velocity_at(gc, u, xm), clamped);
+  Index cell = 0;
+  const Vec3 v = velocity_at(gc, u, x, &cell);
+  const bool clear = gc.solids.clear(cell, 2);
+  const Vec3 xm = stop(gc, x, x - 0.5 * h * v, clear, clamped);
+  return stop(gc, x, x - h * velocity_at(gc, u, xm), clear, clamped);
 }
 
 GridAdvected grid_advect(const GridCells& old, const GridCells& now, const VecX& u,
