@@ -106,34 +106,36 @@ void parallel_for_chunks(Index n, Index grain, const std::function<void(Index, I
     loop();
 }
 
-void run_alongside(const std::function<void()>& main, const std::function<void()>& side) {
-  if (thread_count() == 1) {
-    main();
-    side();
-    return;
+namespace {
+
+/// fn(), an exception it throws kept in `error`.
+void capture(const std::function<void()>& fn, std::exception_ptr& error) {
+  try {
+    fn();
+  } catch (...) {
+    error = std::current_exception();
   }
+}
+
+}  // namespace
+
+void run_alongside(const std::function<void()>& main, const std::function<void()>& side) {
   std::exception_ptr main_error, side_error;
   auto both = [&] {
     tbb::task_group group;
-    group.run([&] {
-      try {
-        side();
-      } catch (...) {
-        side_error = std::current_exception();
-      }
-    });
-    try {
-      main();
-    } catch (...) {
-      main_error = std::current_exception();
-    }
+    group.run([&] { capture(side, side_error); });
+    capture(main, main_error);
     group.wait();
   };
   tbb::task_arena* arena = thread_limit().arena.get();
-  if (arena)
+  if (thread_count() == 1) {
+    capture(main, main_error);
+    capture(side, side_error);
+  } else if (arena) {
     arena->execute(both);
-  else
+  } else {
     both();
+  }
   if (main_error) std::rethrow_exception(main_error);
   if (side_error) std::rethrow_exception(side_error);
 }

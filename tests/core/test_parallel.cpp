@@ -3,10 +3,14 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <mutex>
 #include <set>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -134,6 +138,55 @@ TEST_SUITE("unit") {
                                                if (i == 500) throw InputError("item 500");
                                              }),
                            "item 500", InputError);
+    }
+  }
+
+  TEST_CASE("run_alongside: at 2 threads side runs while main waits for it; at 1 thread after") {
+    const ThreadCountGuard guard;
+    set_thread_count(2);
+    // main blocks until side has started: only a side on another thread can release it (a
+    // minute's bound, so that a wrong implementation fails instead of hanging)
+    std::mutex m;
+    std::condition_variable cv;
+    bool side_started = false, released = false;
+    double side_sum = 0;
+    run_alongside(
+        [&] {
+          std::unique_lock<std::mutex> lock(m);
+          released = cv.wait_for(lock, std::chrono::seconds(60), [&] { return side_started; });
+        },
+        [&] {
+          {
+            const std::lock_guard<std::mutex> lock(m);
+            side_started = true;
+          }
+          cv.notify_all();
+          side_sum = chunked_sum(10000, 64);  // a parallel loop inside the side task
+        });
+    CHECK(released);
+    CHECK(side_sum == chunked_sum(10000, 64));
+
+    set_thread_count(1);
+    std::string order;
+    run_alongside([&] { order += "main "; }, [&] { order += "side"; });
+    CHECK(order == "main side");
+  }
+
+  TEST_CASE("run_alongside: exceptions reach the caller after both ended, main's first") {
+    const ThreadCountGuard guard;
+    for (const int threads : {1, 2}) {
+      CAPTURE(threads);
+      set_thread_count(threads);
+      std::atomic<bool> side_done{false};
+      CHECK_THROWS_WITH_AS(
+          run_alongside([] { throw InputError("main failed"); }, [&] { side_done = true; }),
+          "main failed", InputError);
+      CHECK(side_done);
+      CHECK_THROWS_WITH_AS(run_alongside([] {}, [] { throw SolverError("side failed"); }),
+                           "side failed", SolverError);
+      CHECK_THROWS_WITH_AS(run_alongside([] { throw InputError("main failed"); },
+                                         [] { throw SolverError("side failed"); }),
+                           "main failed", InputError);
     }
   }
 }

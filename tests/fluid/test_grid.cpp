@@ -641,3 +641,50 @@ TEST_CASE("grid fluid: vorticity confinement puts energy back into a decaying vo
   CHECK_THROWS_WITH_AS(GridFluid(bad, g, mesh::FluidDomain{}),
                        doctest::Contains("fluid.vorticity_confinement"), InputError);
 }
+
+TEST_CASE("MAC grid: probes (with a query box or not) and clear() agree with first_crossing") {
+  // A thin sheet tilted on two axes and a sphere, on 20 × 10 × 10 cells of 0.05 m.
+  const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1, 0.5, 0.5), {20, 10, 10});
+  mesh::VolumeMesh sheet =
+      mesh::make_box(Vec3(-0.006, -0.15, -0.15), Vec3(0.006, 0.15, 0.15), Vec3i(1, 6, 6));
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(0.6, Vec3::UnitZ()) * Eigen::AngleAxisd(0.3, Vec3::UnitY()))
+          .toRotationMatrix();
+  for (Index v = 0; v < sheet.vertices.rows(); ++v)
+    sheet.vertices.row(v) =
+        (R * sheet.vertices.row(v).transpose() + Vec3(0.35, 0.25, 0.25)).transpose();
+  const GridCells gc = classify_grid(
+      g, mesh::FluidDomain{}, {surface_of(sheet, 0), sphere(Vec3(0.75, 0.25, 0.25), 0.1, 1)});
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), step(-2.0, 2.0);
+  int queries = 0, hidden = 0, clear_segments = 0;
+  for (int n = 0; n < 4000; ++n) {
+    const Vec3 x(unit(rng), 0.5 * unit(rng), 0.5 * unit(rng));
+    const GridSolids::Probe plain1(gc.solids, x, 1), plain2(gc.solids, x, 2);
+    const GridSolids::Probe boxed1(gc.solids, x, 1, x - g.h, x + g.h);
+    const GridSolids::Probe boxed2(gc.solids, x, 2, x - 1.5 * g.h, x + 1.5 * g.h);
+    const bool clear = gc.solids.clear(g.cell_at(x), 2);
+    for (int q = 0; q < 8; ++q) {
+      const Vec3 b = (x + Vec3(step(rng), step(rng), step(rng)).cwiseProduct(g.h))
+                         .cwiseMax(Vec3::Zero())
+                         .cwiseMin(g.hi());
+      const bool seen = !gc.solids.first_crossing(x, b);
+      CAPTURE(n);
+      CAPTURE(q);
+      CHECK(plain1.visible(b) == seen);
+      CHECK(plain2.visible(b) == seen);
+      CHECK(boxed1.visible(b) == seen);
+      CHECK(boxed2.visible(b) == seen);
+      ++queries;
+      hidden += seen ? 0 : 1;
+      if (clear && ((b - x).cwiseAbs().array() <= g.h.array()).all()) {
+        CHECK(seen);
+        ++clear_segments;
+      }
+    }
+  }
+  // both answers and the clear case were exercised
+  CHECK(hidden > 300);
+  CHECK(queries - hidden > 300);
+  CHECK(clear_segments > 1000);
+}
