@@ -311,4 +311,20 @@ std::unique_ptr<LinearSolver> factor_symmetric(const SparseMatrix& A) {
   return s;
 }
 
+double detail::setup_or_release(const std::string& name, const std::function<void()>& build,
+                                const std::function<void()>& release) {
+  const double t0 = now_seconds();
+  release();
+  try {
+    build();
+  } catch (const SolverError& e) {
+    release();
+    throw SolverError(fmt::format("{}: {}", name, e.what()));
+  } catch (...) {
+    release();
+    throw;
+  }
+  return now_seconds() - t0;
+}
+
 }  // namespace tetfsi

@@ -32,6 +32,7 @@
 /// compression): try `cholmod`; its `setup` throws `SolverError` when the matrix is not
 /// SPD, and the caller falls back to `umfpack`, which takes any nonsingular matrix.
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -144,5 +145,15 @@ double relative_residual(const SparseMatrix& A, const VecX& b, const VecX& x);
 
 /// Whether A is square and |A_ij − A_ji| ≤ rel_tol · max|A| for all i, j.
 bool is_symmetric(const SparseMatrix& A, double rel_tol = 1e-12);
+
+namespace detail {
+
+/// A backend's set-up: release(), then build(); if build throws, release() again (no
+/// half-built solver: solve() refuses until a set-up succeeds) and rethrow, a SolverError
+/// as "<name>: <message>". @returns the seconds it took.
+double setup_or_release(const std::string& name, const std::function<void()>& build,
+                        const std::function<void()>& release);
+
+}  // namespace detail
 
 }  // namespace tetfsi

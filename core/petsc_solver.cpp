@@ -225,18 +225,8 @@ class PetscAmgSolver final : public LinearSolver {
   std::string name() const override { return to_string(m_kind); }
 
   void setup(const SparseMatrix& A) override {
-    const double t0 = now_seconds();
-    release();
-    try {
-      build(A);
-    } catch (const SolverError& e) {
-      release();  // no half-built solver: solve() will refuse until a setup succeeds
-      throw SolverError(fmt::format("{}: {}", name(), e.what()));
-    } catch (...) {
-      release();
-      throw;
-    }
-    m_setup_s = now_seconds() - t0;
+    m_setup_s = detail::setup_or_release(
+        name(), [&] { build(A); }, [&] { release(); });
   }
 
  private:

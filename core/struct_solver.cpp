@@ -87,18 +87,8 @@ class PfmgSolver final : public LinearSolver {
   }
 
   void setup(const SparseMatrix& A) override {
-    const double t0 = now_seconds();
-    release();
-    try {
-      build(A);
-    } catch (const SolverError& e) {
-      release();  // no half-built solver: solve() refuses until a setup succeeds
-      throw SolverError(fmt::format("pfmg: {}", e.what()));
-    } catch (...) {
-      release();
-      throw;
-    }
-    m_setup_s = now_seconds() - t0;
+    m_setup_s = detail::setup_or_release(
+        name(), [&] { build(A); }, [&] { release(); });
   }
 
   SolveReport solve(const VecX& b, VecX& x) override;

@@ -81,7 +81,8 @@ SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, c
   // entries of a column, by row: −z, −y, −x neighbour, the cell, +x, +y, +z (unknowns are in
   // cell order); the diagonal sums its faces in face order (−x, +x, −y, +y, −z, +z), the
   // order setFromTriplets of the faces' triplets summed them in: the same matrix bit for bit.
-  std::vector<std::array<Index, 6>> faces(static_cast<std::size_t>(nu));
+  // The couplings of each unknown's six faces, kept from the counting pass for the filling.
+  std::vector<std::array<FaceCoupling, 6>> faces(static_cast<std::size_t>(nu));
   std::vector<Index> count(static_cast<std::size_t>(nu) + 1, 0);
   parallel_for_each(nu, 4096, [&](Index i) {
     const auto ijk = g.cell_ijk(n.cell[i]);
@@ -90,9 +91,8 @@ SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, c
       for (int side = 0; side < 2; ++side) {
         auto fi = ijk;
         fi[a] += side;
-        const Index f = g.face(a, fi[0], fi[1], fi[2]);
-        faces[i][2 * a + side] = f;
-        const FaceCoupling fc = face_coupling(gc, n, f);
+        const FaceCoupling fc = face_coupling(gc, n, g.face(a, fi[0], fi[1], fi[2]));
+        faces[i][2 * a + side] = fc;
         k += fc.a >= 0 && fc.b >= 0;
       }
     count[i + 1] = k;
@@ -106,7 +106,7 @@ SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, c
     int below = 0, above = 0;  // neighbours with smaller / larger unknowns, by axis
     std::array<std::pair<Index, double>, 3> lower{}, upper{};
     for (int e = 0; e < 6; ++e) {
-      const FaceCoupling fc = face_coupling(gc, n, faces[i][e]);
+      const FaceCoupling& fc = faces[i][e];
       if (fc.w == 0.0) continue;
       diag += fc.w;
       if (fc.a >= 0 && fc.b >= 0) {
@@ -138,20 +138,21 @@ SparseMatrix grid_pressure_matrix(const GridCells& gc, const GridNumbering& n, c
 void grid_apply_gradient(const GridCells& gc, const VecX& q, const VecX& q_open, VecX& u) {
   const GridSpec& g = gc.grid;
   const Index nf = g.num_faces();
-  // see [Chentanez06, Eq. (2)]: u = u* − (h/ρ) G p on the pressure-coupled faces.
-  for (Index f = 0; f < nf; ++f) {
+  // see [Chentanez06, Eq. (2)]: u = u* − (h/ρ) G p on the pressure-coupled faces (each face
+  // its own slot, in parallel).
+  parallel_for_each(nf, 4096, [&](Index f) {
     const FaceKind k = gc.face_kind[f];
     if (k == FaceKind::Interior) {
       const auto c = g.face_cells(f);
       u[f] -= (q[c[1]] - q[c[0]]) / grid_face_dual(gc, f);
     } else if (k == FaceKind::Open) {
       const Index in = grid_inner_cell(gc, f);
-      if (in < 0) continue;
+      if (in < 0) return;
       const double qo = q_open.size() == nf ? q_open[f] : 0.0;
       const bool upper = g.face_cells(f)[1] < 0;  // the box's upper side: +e_a points out
       u[f] -= (upper ? qo - q[in] : q[in] - qo) / grid_face_dual(gc, f);
     }
-  }
+  });
 }
 
 VecX grid_net_flux(const GridCells& gc, const VecX& u) {
