@@ -125,6 +125,41 @@ void for_each_face_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
   });
 }
 
+/// The particles that may touch each z-slab of `size` lattice indices, listed in particle
+/// order per z lattice (t = 0: the z faces', 1: the cell centres', where the x and y faces
+/// lie): a particle touches the z indices [sc − 2, sc + 1] at most (sc its clamped z lattice
+/// coordinate), so it is listed for the one or two slabs those reach.
+struct SlabLists {
+  Index slabs = 0;
+  std::array<std::vector<Index>, 2> start, items;
+};
+SlabLists slab_particles(const GridSpec& g, const MatX3& x, Index size) {
+  SlabLists sl;
+  sl.slabs = (g.n[2] + size) / size;  // covers the n_z + 1 z indices of the z faces
+  const Index np = x.rows();
+  std::vector<std::array<Index, 2>> reach(static_cast<size_t>(np));
+  for (int t = 0; t < 2; ++t) {
+    const double top = static_cast<double>(lattice_size(g, 2, t == 0 ? 2 : 0) - 1);
+    const auto slab = [&](double z) {
+      return std::clamp<Index>(static_cast<Index>(std::floor(z / size)), 0, sl.slabs - 1);
+    };
+    std::vector<Index>& start = sl.start[t];
+    start.assign(static_cast<size_t>(sl.slabs) + 1, 0);
+    for (Index p = 0; p < np; ++p) {
+      const double sc = std::clamp((x(p, 2) - g.lo[2]) / g.h[2] - (t == 0 ? 0.0 : 0.5), 0.0, top);
+      reach[p] = std::isfinite(sc) ? std::array<Index, 2>{slab(sc - 2), slab(sc + 1)}
+                                   : std::array<Index, 2>{0, sl.slabs - 1};
+      for (Index k = reach[p][0]; k <= reach[p][1]; ++k) ++start[k + 1];
+    }
+    for (Index k = 0; k < sl.slabs; ++k) start[k + 1] += start[k];
+    sl.items[t].resize(static_cast<size_t>(start[sl.slabs]));
+    std::vector<Index> fill(start.begin(), start.end() - 1);
+    for (Index p = 0; p < np; ++p)
+      for (Index k = reach[p][0]; k <= reach[p][1]; ++k) sl.items[t][fill[k]++] = p;
+  }
+  return sl;
+}
+
 }  // namespace
 
 ParticleBuckets bucket_particles(const GridSpec& g, const MatX3& x) {
@@ -321,16 +356,28 @@ VecX particles_to_faces(const GridSpec& g, const LiquidParticles& lp,
                         std::vector<std::uint8_t>& known) {
   const Index nf = g.num_faces();
   VecX num = VecX::Zero(nf), den = VecX::Zero(nf);
-  // scatter in particle order (serial: the sums are bit for bit at any thread count)
-  for (Index p = 0; p < lp.size(); ++p) {
-    const Vec3 x = lp.x.row(p).transpose();
-    for (int a = 0; a < 3; ++a)
-      for_each_face_weight(g, a, x, [&](Index f, double w) {
-        if (w <= 0) return;
-        num[f] += w * lp.v(p, a);
-        den[f] += w;
-      });
-  }
+  // Scatter in particle order, in parallel over (axis, z-slab of its faces) tasks: each task
+  // owns its faces and adds to them in particle order, so every face's sums are those of the
+  // serial scatter, bit for bit at any thread count.
+  constexpr Index kSlab = 8;
+  const SlabLists sl = slab_particles(g, lp.x, kSlab);
+  const Index slabs = sl.slabs;
+  const auto& start = sl.start;
+  const auto& items = sl.items;
+  parallel_for_each(3 * slabs, 1, [&](Index task) {
+    const int a = static_cast<int>(task % 3), t = a == 2 ? 0 : 1;
+    const Index slab = task / 3, k0 = slab * kSlab, k1 = k0 + kSlab;
+    for (Index e = start[t][slab]; e < start[t][slab + 1]; ++e) {
+      const Index p = items[t][e];
+      for_each_lattice_weight(g, a, lp.x.row(p).transpose(),
+                              [&](const std::array<Index, 3>& ijk, double w) {
+                                if (w <= 0 || ijk[2] < k0 || ijk[2] >= k1) return;
+                                const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
+                                num[f] += w * lp.v(p, a);
+                                den[f] += w;
+                              });
+    }
+  });
   known.assign(static_cast<size_t>(nf), 0);
   VecX u = VecX::Zero(nf);
   for (Index f = 0; f < nf; ++f)
