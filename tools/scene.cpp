@@ -1223,6 +1223,33 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
   return parse_scene_text(buffer.str(), file, overrides);
 }
 
+namespace {
+
+/// nlohmann's parse error `reason` with its "last read: '…'" excerpt kept to one short line:
+/// runs of white space (and the escaped newlines "<U+000A>") as one space, at most the last
+/// 80 characters (a deeply nested or long token would otherwise fill screens).
+std::string short_parse_reason(std::string reason) {
+  const std::string tag = "last read: '";
+  const auto begin = reason.find(tag);
+  if (begin == std::string::npos) return reason;
+  const auto from = begin + tag.size();
+  auto end = reason.find("'; ", from);
+  if (end == std::string::npos) end = reason.rfind('\'');
+  if (end == std::string::npos || end < from) return reason;
+  std::string excerpt = reason.substr(from, end - from), out;
+  for (std::size_t pos = 0; (pos = excerpt.find("<U+000A>", pos)) != std::string::npos;)
+    excerpt.replace(pos, 8, " ");
+  for (const char c : excerpt) {
+    const bool space = c == ' ' || c == '\t' || c == '\r' || c == '\n';
+    if (space && !out.empty() && out.back() == ' ') continue;
+    out += space ? ' ' : c;
+  }
+  if (out.size() > 80) out = "..." + out.substr(out.size() - 80);
+  return reason.substr(0, from) + out + reason.substr(end);
+}
+
+}  // namespace
+
 Scene parse_scene_text(const std::string& text, const fs::path& file,
                        const std::vector<std::string>& overrides) {
   const std::string name = display_name(file);
@@ -1244,6 +1271,7 @@ Scene parse_scene_text(const std::string& text, const fs::path& file,
     std::string reason = e.what();
     const auto colon = reason.find(": ", reason.find("parse error"));
     if (colon != std::string::npos) reason = reason.substr(colon + 2);
+    reason = short_parse_reason(reason);
     throw InputError(
         fmt::format("{}: line {}, column {}: invalid JSON: {}", name, line, column, reason));
   }

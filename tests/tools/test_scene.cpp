@@ -406,6 +406,27 @@ TEST_CASE("load_scene: missing file, JSON syntax errors with line and column") {
   check_input_error([&] { load_scene(p); }, {"broken.json: line 4, column 3: invalid JSON"});
   const fs::path q = dir.write("truncated.json", "{ \"bodies\": [");
   check_input_error([&] { load_scene(q); }, {"truncated.json: line 1, column", "invalid JSON"});
+  // A bad token after deep, indented nesting (found by the fuzz test): the parser's "last
+  // read" excerpt is kept short, its white space folded, so that the error stays one line.
+  std::string deep = "{ \"gravity\": ";
+  for (int k = 0; k < 40; ++k) deep.append("[\n").append(2 * static_cast<std::size_t>(k), ' ');
+  deep.append("[]");
+  for (int k = 39; k >= 0; --k)
+    deep.append("\n").append(2 * static_cast<std::size_t>(k), ' ').append("]");
+  deep.append("A }");
+  const fs::path n = dir.write("deep.json", deep);
+  try {
+    load_scene(n);
+    FAIL("no error");
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    CHECK(what.find("deep.json: line 81, column") != std::string::npos);
+    CHECK(what.find("invalid JSON") != std::string::npos);
+    CHECK(what.find("last read: '...") != std::string::npos);
+    CHECK(what.find("] ]A'") != std::string::npos);
+    CHECK(what.size() < 300);
+    CHECK(what.find('\n') == std::string::npos);
+  }
   // A key given twice would silently keep the last value: rejected, with its path.
   const fs::path d =
       dir.write("dup.json", R"({ "bodies": [ { "name": "a", "mesh": { "box": { "lo": [0, 0, 0],
