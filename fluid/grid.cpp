@@ -229,7 +229,7 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
   // reaches (the reach-2 list of the middle cell empty), meets no triangle.
   if ((i1[0] - i0[0]) <= 4 && (i1[1] - i0[1]) <= 4 && (i1[2] - i0[2]) <= 4) {
     const Index mid = g.cell((i0[0] + i1[0]) / 2, (i0[1] + i1[1]) / 2, (i0[2] + i1[2]) / 2);
-    if (m_start[2][mid] == m_start[2][mid + 1]) {
+    if (clear(mid, 2)) {
       if (t_out) *t_out = std::numeric_limits<double>::infinity();
       return false;
     }
@@ -246,7 +246,7 @@ bool GridSolids::first_crossing(const Vec3& a, const Vec3& b, SurfacePoint* hit,
           // above round-off)
           if (one_side(m_items[0][e], a, b)) continue;
           const Packed& T = m_tris[m_items[0][e]];
-          if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) continue;
+          if (box_misses(T, slo, shi)) continue;
           double s = 0;
           Vec3 w;
           if (!crosses(T, a, d, dn, s, w) || s >= best) continue;
@@ -291,7 +291,7 @@ GridSolids::Probe::Probe(const GridSolids& solids, const Vec3& x, int reach, con
   const Index* end = solids.m_items[reach].data() + solids.m_start[reach][c + 1];
   for (const Index* e = begin; e != end; ++e) {
     const Packed& T = solids.m_tris[*e];
-    if ((khi.array() < T.lo.array()).any() || (klo.array() > T.hi.array()).any()) continue;
+    if (box_misses(T, klo, khi)) continue;
     const Eigen::Vector4d& P = solids.m_planes[*e];
     m_idx.push_back(*e);
     m_side.emplace_back(P[0], P[1], P[2], P[0] * x[0] + P[1] * x[1] + P[2] * x[2] - P[3]);
@@ -314,10 +314,9 @@ bool GridSolids::Probe::visible(const Vec3& b) const {
   const auto hides = [&](size_t i) {
     const Eigen::Vector4d& P = m_side[i];
     const double db = P[0] * d[0] + P[1] * d[1] + P[2] * d[2] + P[3];
-    const bool above = (P[3] > margin) & (db > margin), below = (P[3] < -margin) & (db < -margin);
-    if (above | below) return false;
+    if (one_side(P[3], db, margin)) return false;
     const Packed& T = m_solids->m_tris[m_idx[i]];
-    if ((shi.array() < T.lo.array()).any() || (slo.array() > T.hi.array()).any()) return false;
+    if (box_misses(T, slo, shi)) return false;
     double s = 0;
     Vec3 w;
     return m_solids->crosses(T, m_x, d, dn, s, w);

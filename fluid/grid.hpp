@@ -180,13 +180,22 @@ class GridSolids {
     double e12 = 0;
     Index body = -1, tri = -1;
   };
-  /// Whether a and b lie strictly on one side of T's plane, both farther than the margin
-  /// (then the segment cannot cross T: a test that rejects before the box and crossing tests).
+  /// Whether signed plane distances da and db lie strictly on one side, both farther than
+  /// the margin (then the segment cannot cross the plane's triangle).
+  static bool one_side(double da, double db, double margin) {
+    return ((da > margin) & (db > margin)) | ((da < -margin) & (db < -margin));
+  }
+  /// Whether a and b lie strictly on one side of triangle t's plane (one_side): a test that
+  /// rejects before the box and crossing tests.
   bool one_side(Index t, const Vec3& a, const Vec3& b) const {
     const Eigen::Vector4d& P = m_planes[t];
     const double da = P[0] * a[0] + P[1] * a[1] + P[2] * a[2] - P[3];
     const double db = P[0] * b[0] + P[1] * b[1] + P[2] * b[2] - P[3];
-    return (da > m_margin && db > m_margin) || (da < -m_margin && db < -m_margin);
+    return one_side(da, db, m_margin);
+  }
+  /// Whether T's bounding box misses the box [lo, hi].
+  static bool box_misses(const Packed& T, const Vec3& lo, const Vec3& hi) {
+    return (hi.array() < T.lo.array()).any() || (lo.array() > T.hi.array()).any();
   }
   bool crosses(const Packed& T, const Vec3& a, const Vec3& d, double dn, double& s,
                Vec3& bary) const;
