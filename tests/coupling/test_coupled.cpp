@@ -264,6 +264,62 @@ TEST_CASE(
 
 namespace {
 
+/// The potential flow between a sphere of radius a moving at U ẑ and a fixed concentric
+/// sphere of radius R (centre c): φ = U z (A + B / r³), A − 2B/a³ = 1, A − 2B/R³ = 0.
+Vec3 sphere_flow(const Vec3& x, const Vec3& c, double a, double R, double U) {
+  const double a3 = a * a * a, R3 = R * R * R;
+  const double A = -a3 / (R3 - a3), B = -a3 * R3 / (2 * (R3 - a3));
+  const Vec3 d = x - c;
+  const double r2 = d.squaredNorm(), r3 = r2 * std::sqrt(r2);
+  return U * ((A + B / r3) * Vec3::UnitZ() - 3 * B * d.z() / (r3 * r2) * d);
+}
+
+/// The projection's kinetic energy ½ Σ_f ρ A_f d_f ū_f² (with the half cells on the sphere,
+/// δ_f = max(d_f, 0)) of the exact flow's face-mean normal velocities ū_f (edge-midpoint
+/// rule) on the faces inside the container.
+double quadrature_energy(const mesh::TetMesh& m, const Vec3& c, double a, double R, double rho) {
+  double e = 0.0;
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    const mesh::FaceKind k = m.face_kind[f];
+    if (k != mesh::FaceKind::Interior && k != mesh::FaceKind::Solid) continue;
+    if ((m.face_centroids.row(f).transpose() - c).norm() > R) continue;
+    const Vec3 n = m.face_normals.row(f).transpose();
+    double un = 0.0;
+    for (int j = 0; j < 3; ++j) {
+      const Vec3 mid =
+          0.5 * (m.vertices.row(m.faces(f, j)) + m.vertices.row(m.faces(f, (j + 1) % 3)));
+      un += sphere_flow(mid, c, a, R, 1.0).dot(n) / 3.0;
+    }
+    e += 0.5 * rho * m.face_areas[f] * std::max(m.dual_lengths[f], 0.0) * un * un;
+  }
+  return e;
+}
+
+}  // namespace
+
+TEST_CASE(
+    "released sphere: the added mass's error is the projection's kinetic-energy quadrature "
+    "error of the exact flow (within 0.3 points at 0.02 m cells)") {
+  // The solve minimises ½ Σ ρ A_f d_f u_f² over discretely divergence-free fluxes, and the
+  // exact flow's face means are among them: its C_m error is that diagonal quadrature's
+  // error on the exact flow, not a bias of the interface. Measured: C_m +2.27 %, quadrature
+  // +2.30 % (at 0.03 m +5.8 / +6.2 %, at 0.0133 m +1.2 / +1.1 %, label long above).
+  const double rho = 1000, g = 9.81, h = 1e-3, Cm = exact_cm();
+  CoupledRig r = released_sphere(0.5 * rho, k_sphere_a, k_sphere_R, SphereMesh{});
+  r.step(h);
+  const double acc = mean_vz(r.world().bodies[0]) / h;
+  const double cm = g * (0.5 - 1) / -acc - 0.5;
+  const double V = 4.0 / 3.0 * M_PI * std::pow(k_sphere_a, 3);
+  const double quad =
+      quadrature_energy(r.fluid().mesh(), Vec3::Constant(0.5), k_sphere_a, k_sphere_R, rho) /
+      (0.5 * Cm * rho * V);
+  MESSAGE("C_m " << cm << " (" << cm / Cm - 1 << "); quadrature of the exact flow's energy " << quad
+                 << " (" << quad - 1 << ")");
+  CHECK(std::abs((cm / Cm - 1) - (quad - 1)) < 0.003);
+}
+
+namespace {
+
 /// Volume of the cavity of a body, from its boundary triangles whose rest vertices lie on
 /// the sphere of radius r_in about c (they point into the cavity).
 double cavity_volume(const solid::SolidBody& b, const Vec3& c, double r_in) {
