@@ -601,9 +601,70 @@ bool near_surface(const GridCells& gc, Index c) {
   return false;
 }
 
-}  // namespace
+/// The length of [0, len] where f, linear from f0 to f1, is negative.
+double negative_length(double f0, double f1, double len) {
+  if (f0 < 0 && f1 < 0) return len;
+  if (f0 >= 0 && f1 >= 0) return 0.0;
+  return len * (f0 < 0 ? -f0 : -f1) / std::abs(f1 - f0);
+}
 
-LiquidMeasures liquid_measures(const GridCells& gc) {
+/// The axis along which φ changes most from cell c to a neighbour (the surface's normal's
+/// nearest axis; on either side, so that a sheet one cell thick finds its normal).
+int steepest_axis(const GridCells& gc, Index c) {
+  const GridSpec& g = gc.grid;
+  const auto ijk = g.cell_ijk(c);
+  int best = 2;
+  double most = -1;
+  for (int a = 0; a < 3; ++a) {
+    auto lo = ijk, hi = ijk;
+    lo[a] = std::max<Index>(0, ijk[a] - 1);
+    hi[a] = std::min(g.n[a] - 1, ijk[a] + 1);
+    const double f = gc.phi[c];
+    const double d = std::max(std::abs(gc.phi[g.cell(hi[0], hi[1], hi[2])] - f),
+                              std::abs(f - gc.phi[g.cell(lo[0], lo[1], lo[2])])) /
+                     g.h[a];
+    // a clear margin, so that round-off in a shifted φ never flips a tie
+    if (d > most * (1 + 1e-6)) {
+      most = d;
+      best = a;
+    }
+  }
+  return best;
+}
+
+/// φ at the start, middle and end of m × m lines through cell c along the axis nearest the
+/// surface's normal (steepest_axis), 3 m² values into f: φ is linear along an axis on either
+/// side of the cell centre's plane.
+void line_values(const GridCells& gc, Index c, int m, double* f) {
+  const GridSpec& g = gc.grid;
+  const Vec3 lo = g.cell_centre(c) - 0.5 * g.h;
+  const int a = steepest_axis(gc, c), b = (a + 1) % 3, d = (a + 2) % 3;
+  for (int l = 0; l < m * m; ++l) {
+    Vec3 x = lo;
+    x[b] += (l % m + 0.5) / m * g.h[b];
+    x[d] += (l / m + 0.5) / m * g.h[d];
+    for (int k = 0; k < 3; ++k) {
+      f[3 * l + k] = phi_at(gc, x);
+      x[a] += 0.5 * g.h[a];
+    }
+  }
+}
+
+/// The share of cell c where φ, trilinear, is negative: on line_values' m × m lines, each
+/// exactly, so the share moves continuously with the surface.
+double negative_share(const GridCells& gc, Index c, int m) {
+  std::array<double, 3 * 16> f{};
+  TETFSI_CHECK(m <= 4, "negative_share: at most 4 x 4 lines, got {}", m);
+  line_values(gc, c, m, f.data());
+  double len = 0;
+  for (int l = 0; l < m * m; ++l)
+    len += negative_length(f[3 * l], f[3 * l + 1], 1.0) +
+           negative_length(f[3 * l + 1], f[3 * l + 2], 1.0);
+  return len / (2 * m * m);
+}
+
+/// liquid_measures, its area only `with_area` (the volume alone costs a fifth).
+LiquidMeasures measure_liquid(const GridCells& gc, bool with_area) {
   const GridSpec& g = gc.grid;
   LiquidMeasures out;
   if (gc.phi.size() != g.num_cells()) return out;
@@ -617,12 +678,10 @@ LiquidMeasures liquid_measures(const GridCells& gc) {
       return;
     }
     const Vec3 x0 = g.cell_centre(c) - 0.5 * g.h;
-    int in = 0;
-    for (int l = 0; l < m * m * m; ++l) {
+    for (int l = 0; with_area && l < m * m * m; ++l) {
       const Vec3 s((l % m + 0.5) / m, ((l / m) % m + 0.5) / m, (l / (m * m) + 0.5) / m);
       const Vec3 x = x0 + s.cwiseProduct(g.h);
       const double f = phi_at(gc, x);
-      in += f < 0 ? 1 : 0;
       // a sign change to the next sample along axis a: a surface element of projected area
       // ΔA_a = (h_b h_c / m²) there; Σ_a ΔA_a |n_a| over the crossings is the area
       for (int a = 0; a < 3; ++a) {
@@ -640,11 +699,122 @@ LiquidMeasures liquid_measures(const GridCells& gc) {
         if (gn > 0) area[c] += g.cell_volume() / g.h[a] / (m * m) * std::abs(grad[a]) / gn;
       }
     }
-    vol[c] = static_cast<double>(in) / (m * m * m);
+    vol[c] = negative_share(gc, c, m);
   });
   out.volume = vol.sum() * g.cell_volume();
   out.area = area.sum();
   return out;
+}
+
+}  // namespace
+
+LiquidMeasures liquid_measures(const GridCells& gc) {
+  return measure_liquid(gc, true);
+}
+
+namespace {
+
+/// The level set's volume (liquid_measures' rule) as a function of a shift d of φ for |d| ≤
+/// cap, from one pass: the cells of one sign for every such d are counted once, and each cell
+/// the surface may cross keeps φ on its lines (negative_share's), so a shift costs a sum.
+/// (φ trilinear shifted by d is the same trilinear plus d: its weights sum to one.)
+class ShiftedVolume {
+ public:
+  ShiftedVolume(const GridCells& gc, double cap) : m_cell_volume(gc.grid.cell_volume()) {
+    const GridSpec& g = gc.grid;
+    const Index nc = g.num_cells();
+    std::vector<std::array<double, 2>> range(static_cast<size_t>(nc));
+    parallel_for_each(nc, kGrain, [&](Index c) {
+      const auto ijk = g.cell_ijk(c);
+      double lo = gc.phi[c], hi = lo;
+      for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
+        for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
+          for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1);
+               ++i) {
+            lo = std::min(lo, gc.phi[g.cell(i, j, k)]);
+            hi = std::max(hi, gc.phi[g.cell(i, j, k)]);
+          }
+      range[c] = {lo, hi};
+    });
+    for (Index c = 0; c < nc; ++c) {
+      if (!gc.open_cell(c)) continue;
+      if (range[c][0] >= cap) continue;  // air whatever the shift
+      if (range[c][1] < -cap) {          // liquid whatever the shift
+        m_fixed += 1.0;
+        continue;
+      }
+      m_cells.push_back({range[c][0], range[c][1], gc.phi[c], c});
+    }
+    m_f.resize(m_cells.size() * kValues);
+    parallel_for_each(static_cast<Index>(m_cells.size()), 256, [&](Index k) {
+      line_values(gc, m_cells[k].cell, kLines, &m_f[k * kValues]);
+    });
+  }
+
+  double operator()(double d) const {
+    double cells = m_fixed;
+    for (size_t k = 0; k < m_cells.size(); ++k) {
+      const Cell& c = m_cells[k];
+      if (!(c.lo + d < 0 && c.hi + d >= 0)) {  // no sign change in its block
+        cells += c.centre + d < 0 ? 1.0 : 0.0;
+        continue;
+      }
+      const double* f = &m_f[k * kValues];
+      double len = 0;
+      for (int l = 0; l < kLines * kLines; ++l)
+        len += negative_length(f[3 * l] + d, f[3 * l + 1] + d, 1.0) +
+               negative_length(f[3 * l + 1] + d, f[3 * l + 2] + d, 1.0);
+      cells += len / (2 * kLines * kLines);
+    }
+    return cells * m_cell_volume;
+  }
+
+ private:
+  static constexpr int kLines = 4, kValues = 3 * kLines * kLines;
+  struct Cell {
+    double lo, hi, centre;  ///< φ's least and greatest in its 3 × 3 × 3 block, its own
+    Index cell;
+  };
+  double m_cell_volume, m_fixed = 0;
+  std::vector<Cell> m_cells;
+  std::vector<double> m_f;  ///< kValues per cell: per line, φ at its start, middle and end
+};
+
+}  // namespace
+
+double hold_liquid_volume(GridCells& gc, double target, const LiquidSurfaceParams& sp) {
+  const double cap = k_max_volume_shift * sp.radius, tol = 1e-4 * target;
+  const ShiftedVolume volume(gc, cap);
+  const auto excess_at = [&](double d) { return volume(d) - target; };
+  const double f0 = excess_at(0.0);
+  double b = 0.0, fb = f0;
+  if (target > 0 && std::abs(fb) > tol) {
+    // a secant from d = 0 and a tenth of the cap towards the target, then the Illinois false
+    // position: the sampled volume has small steps (lines along a surface), which the
+    // bracket converges through
+    double a = 0.0, fa = fb;
+    b = std::copysign(0.1 * cap, fb);
+    fb = excess_at(b);
+    for (int it = 0; it < 30 && std::abs(fb) > tol && fb != fa; ++it) {
+      const double c = std::clamp(b - fb * (b - a) / (fb - fa), -cap, cap);
+      if (c == b) break;
+      const double fc = excess_at(c);
+      if (fc * fb < 0) {  // the root lies between b and c
+        a = b;
+        fa = fb;
+      } else if (fa * fc < 0) {  // still between a and c: halve a's weight
+        fa *= 0.5;
+      } else {  // no bracket yet: a secant step
+        a = b;
+        fa = fb;
+      }
+      b = c;
+      fb = fc;
+    }
+  }
+  if (b != 0.0) gc.phi.array() += b;
+  set_free_surface(gc, std::move(gc.phi));
+  return b != 0.0 ? f0 - fb : 0.0;
 }
 
 }  // namespace tetfsi::fluid

@@ -127,9 +127,24 @@ struct LiquidMeasures {
   double volume = 0.0;  ///< m³
   double area = 0.0;    ///< m² of the surface (the box's walls not counted)
 };
-/// The region where φ, trilinear between the cell centres, is negative, sampled 4³ per cell
-/// in the cells the surface may cross: its volume, and its surface's area from the sign
-/// changes between samples (each Σ_a ΔA_a |n_a|, n = ∇φ/|∇φ|).
+/// The region where φ, trilinear between the cell centres, is negative, in the cells the
+/// surface may cross: its volume along 4 × 4 vertical lines per cell, each exact (continuous
+/// in φ: a surface moved by δ changes it by δ × area), and its surface's area from the sign
+/// changes between 4³ samples per cell (each Σ_a ΔA_a |n_a|, n = ∇φ/|∇φ|).
 LiquidMeasures liquid_measures(const GridCells& gc);
+
+/// The most a step's volume-holding shift changes the particles' radius r, as a share of r.
+inline constexpr double k_max_volume_shift = 0.25;
+/// Hold the level set's volume at `target` (m³, what the particles carry): φ ← φ + δ for
+/// every cell — the particles' radius r of [ZhuBridson05] becomes r − δ — with δ found by the
+/// Illinois false position until the volume (liquid_measures' rule) is within 1e-4 of the
+/// target (its steps, where a sampling line runs along the surface, can leave a few 1e-4);
+/// |δ| ≤ k_max_volume_shift · r (sp.radius). The air flags are set from the shifted φ.
+/// FLIP's level set reads thin sheets thick (a splash gains) and streams thinner than its
+/// two-cell kernel thin (a pour loses), and the particles, which carry the volume exactly,
+/// cannot tell it; the shift moves the whole surface so that the two agree. Returns the
+/// volume it took away (m³; < 0: added); over the surface's area, the mean distance the
+/// surface moved. A still pool (its level set holds the target) is left exactly as it was.
+double hold_liquid_volume(GridCells& gc, double target, const LiquidSurfaceParams& sp);
 
 }  // namespace tetfsi::fluid

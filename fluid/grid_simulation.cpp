@@ -244,6 +244,11 @@ bool GridFluid::has_liquid() const {
   return m_params.liquid.enabled;
 }
 
+double GridFluid::particle_volume(Index n) const {
+  const int m = m_params.liquid.particles_per_axis;
+  return static_cast<double>(n) * m_grid.cell_volume() / (m * m * m);
+}
+
 int GridFluid::extrapolation_layers(const VecX& u, double h) const {
   const double reach = h * (u.size() ? u.cwiseAbs().maxCoeff() : 0.0) / m_grid.h.minCoeff();
   return 3 + static_cast<int>(std::ceil(std::min(reach, 50.0)));
@@ -259,6 +264,11 @@ void GridFluid::predict_liquid(GridPrediction& pred, double h) const {
   pred.liquid_advect_s = now_seconds() - t0;
   t0 = now_seconds();
   set_free_surface(pred.cells, liquid_level_set(pred.cells, pred.particles.x, m_surface));
+  if (lq.hold_volume)
+    pred.liquid_moved = hold_liquid_volume(
+        pred.cells,
+        m_liquid_expected + particle_volume(pred.particles_added - pred.particles_removed),
+        m_surface);
   if (lq.density_correction > 0)
     pred.cells.volume_source = liquid_volume_source(
         pred.cells, pred.particles.x, lq.particles_per_axis, lq.density_correction, h);
@@ -398,10 +408,9 @@ FluidStepReport GridFluid::commit(GridPrediction pred, VecX u, VecX p_dyn, Fluid
     extrapolate_faces(g, std::move(known), extrapolation_layers(u, pred.h), u);
     faces_to_particles(g, u, pred.u_old, m_params.liquid.flip, pred.particles);
     const LiquidMeasures lm = liquid_measures(gc);
-    const int m = m_params.liquid.particles_per_axis;
-    m_liquid_expected += static_cast<double>(pred.particles_added - pred.particles_removed) *
-                         g.cell_volume() / (m * m * m);
+    m_liquid_expected += particle_volume(pred.particles_added - pred.particles_removed);
     rep.liquid_volume = lm.volume;
+    rep.liquid_shift = lm.area > 0 ? pred.liquid_moved / lm.area : 0.0;
     rep.liquid_volume_drift =
         m_liquid_expected > 0 ? (lm.volume - m_liquid_expected) / m_liquid_expected : 0.0;
     rep.liquid_area = lm.area;
@@ -543,7 +552,10 @@ void GridFluid::load_state(const CheckpointReader& r, const std::string& prefix)
   }
   const double t = r.get_double(prefix + "time");
   m_cells = classify_grid(m_grid, m_domain, std::move(surfaces));
-  if (has_liquid()) set_free_surface(m_cells, liquid_level_set(m_cells, s.particles.x, m_surface));
+  if (has_liquid()) {
+    set_free_surface(m_cells, liquid_level_set(m_cells, s.particles.x, m_surface));
+    if (m_params.liquid.hold_volume) hold_liquid_volume(m_cells, m_liquid_expected, m_surface);
+  }
   m_state = std::move(s);
   m_time = t;
   m_initialized = true;

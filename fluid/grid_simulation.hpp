@@ -46,6 +46,7 @@ struct GridPrediction {
   VecX u_old;                 ///< a free surface: #F the particles' velocity on the faces
   std::vector<std::uint8_t> particle_faces;  ///< a free surface: #F, 1 where particles reached
   Index particles_added = 0, particles_removed = 0;  ///< a free surface: by sources, Open faces
+  double liquid_moved = 0;  ///< a free surface: the volume hold_liquid_volume took (m³)
   double liquid_advect_s = 0, liquid_surface_s = 0, liquid_p2g_s = 0;  ///< FluidStepReport's
 };
 
@@ -117,6 +118,8 @@ class GridFluid {
                                 PhaseTimes& phases) const;
   /// Rings of faces to extrapolate a velocity u into: past the farthest a particle moves in h.
   int extrapolation_layers(const VecX& u, double h) const;
+  /// m³ that n liquid particles carry (each its seeding share of a cell).
+  double particle_volume(Index n) const;
 
   std::unique_ptr<LinearSolver> m_solver;
   Vec3 m_liquid_gravity = Vec3::Zero();  ///< a free surface: gravity on the velocity

@@ -142,6 +142,9 @@ struct LiquidParams {
   /// Share of a deep cell's particle-density error the projection corrects per step
   /// (liquid_volume_source); 0: off.
   double density_correction = 0.0;
+  /// Shift the level set each step so that it holds the volume the particles carry
+  /// (hold_liquid_volume); false: the level set as the particles give it.
+  bool hold_volume = true;
 };
 
 /// The fluid's physics and numerics.

@@ -59,6 +59,9 @@ struct FluidStepReport {
   /// less those gone through Open faces, at their seeding volume (cell / per_axis³)
   double liquid_volume_drift = 0.0;
   double liquid_area = 0.0;
+  /// The shift of the level set that held the volume this step (m, > 0: the surface moved
+  /// into the liquid; fluid.liquid.hold_volume, 0 without it)
+  double liquid_shift = 0.0;
   Index liquid_particles = 0;
   /// Seconds of the step's surface tracking (inside the transfer phase): the particles'
   /// move, separation and sources; the level set, free surface and density correction; the

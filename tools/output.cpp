@@ -781,8 +781,8 @@ std::vector<std::string> StatsWriter::columns(bool fluid, bool coupled,
 
 const std::vector<std::string>& StatsWriter::liquid_columns() {
   static const std::vector<std::string> c = {
-      "liquid_volume",   "liquid_volume_drift", "liquid_area", "liquid_particles",
-      "liquid_advect_s", "liquid_surface_s",    "liquid_p2g_s"};
+      "liquid_volume",    "liquid_volume_drift", "liquid_shift",     "liquid_area",
+      "liquid_particles", "liquid_advect_s",     "liquid_surface_s", "liquid_p2g_s"};
   return c;
 }
 
@@ -911,9 +911,10 @@ void StatsWriter::write(const StepStats& r) {
   if (m_liquid) {
     if (r.fluid)
       line +=
-          fmt::format(",{:.17g},{:.17g},{:.17g},{},{:.6g},{:.6g},{:.6g}", r.fluid->liquid_volume,
-                      r.fluid->liquid_volume_drift, r.fluid->liquid_area, r.fluid->liquid_particles,
-                      r.fluid->liquid_advect_s, r.fluid->liquid_surface_s, r.fluid->liquid_p2g_s);
+          fmt::format(",{:.17g},{:.17g},{:.17g},{:.17g},{},{:.6g},{:.6g},{:.6g}",
+                      r.fluid->liquid_volume, r.fluid->liquid_volume_drift, r.fluid->liquid_shift,
+                      r.fluid->liquid_area, r.fluid->liquid_particles, r.fluid->liquid_advect_s,
+                      r.fluid->liquid_surface_s, r.fluid->liquid_p2g_s);
     else
       for (size_t k = 0; k < liquid_columns().size(); ++k) line += ",nan";
   }

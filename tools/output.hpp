@@ -274,6 +274,7 @@ struct FluidStepStats {
   // ---- a liquid with a free surface (fluid::FluidStepReport) ----
   double liquid_volume = NAN;        ///< m³
   double liquid_volume_drift = NAN;  ///< relative to what the particles carry
+  double liquid_shift = NAN;         ///< m: the level set's volume-holding shift
   double liquid_area = NAN;          ///< m²
   Index liquid_particles = 0;
   double liquid_advect_s = NAN, liquid_surface_s = NAN, liquid_p2g_s = NAN;  ///< seconds
@@ -380,7 +381,8 @@ class StatsWriter {
                                           const std::vector<std::string>& bodies = {},
                                           bool contact = false, bool liquid = false);
   /// liquid_volume (m³), liquid_volume_drift (relative to what the particles carry: the
-  /// first volume plus emitted less drained), liquid_area (m²), liquid_particles, and the
+  /// first volume plus emitted less drained), liquid_shift (m: the level set's shift that
+  /// held that volume, fluid.liquid.hold_volume), liquid_area (m²), liquid_particles, and the
   /// seconds of the surface tracking within `transfer`: liquid_advect_s (particles moved,
   /// separated, emitted), liquid_surface_s (level set, free surface), liquid_p2g_s
   /// (particles to faces, extrapolation).

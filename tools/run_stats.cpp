@@ -95,6 +95,7 @@ void RunRecorder::record_fluid_step(const fluid::FluidStepReport& r, double seco
   s.traces_clamped = r.traces_clamped;
   s.liquid_volume = r.liquid_volume;
   s.liquid_volume_drift = r.liquid_volume_drift;
+  s.liquid_shift = r.liquid_shift;
   s.liquid_area = r.liquid_area;
   s.liquid_particles = r.liquid_particles;
   s.liquid_advect_s = r.liquid_advect_s;

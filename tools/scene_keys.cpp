@@ -1341,6 +1341,11 @@ const Section<fluid::LiquidParams>& liquid_keys() {
                        "projection corrects per step; 0: off (README: when to use it)",
                 .range = between(0, 1)},
                TETFSI_AT(density_correction)),
+       bind<L>({.key = "hold_volume",
+                .type = KeyType::Boolean,
+                .doc = "shift the level set each step so that it holds the volume the particles "
+                       "carry (stats.csv: liquid_shift); false: as the particles give it"},
+               TETFSI_AT(hold_volume)),
        bind<L>({.key = "particles_per_axis",
                 .type = KeyType::Integer,
                 .doc = "particles seeded per cell and axis (2: 8 per cell)",
