@@ -251,6 +251,7 @@ std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOp
       return std::make_unique<EigenIterativeSolver<CgIc>>("cg_ic", opts, true);
     case SolverKind::Amg:
     case SolverKind::AmgGamg:
+    case SolverKind::Mumps:
       return detail::make_petsc_solver(kind, opts);
     case SolverKind::Pfmg:
       return detail::make_pfmg_solver(opts);

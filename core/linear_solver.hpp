@@ -13,6 +13,9 @@
 ///  - `amg_gamg`       the same with PETSc's own smoothed-aggregation GAMG [iterative]
 ///  - `pfmg`           CG preconditioned by hypre's structured-grid multigrid PFMG, for the
 ///                     7-point systems of the grid fluid (needs `set_grid`) [iterative]
+///  - `mumps`          MUMPS through PETSc: LDLᵀ for `symmetric` (checked, as cholmod's;
+///                     indefinite matrices too), else LU; under mpirun the factorisation
+///                     is distributed over the ranks                        [direct]
 ///
 /// Conventions of every backend:
 ///  - `cholmod` and `cg_ic` check symmetry in `setup` (|A − Aᵀ| ≤ 1e-12 max|A|) and throw
@@ -42,8 +45,8 @@
 
 namespace tetfsi {
 
-enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg, Pfmg };
-inline constexpr EnumNames<SolverKind, 7> k_solver_kind_names{
+enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg, Pfmg, Mumps };
+inline constexpr EnumNames<SolverKind, 8> k_solver_kind_names{
     "linear solver",
     {{{SolverKind::Cholmod, "cholmod"},
       {SolverKind::Umfpack, "umfpack"},
@@ -51,7 +54,8 @@ inline constexpr EnumNames<SolverKind, 7> k_solver_kind_names{
       {SolverKind::CgIc, "cg_ic"},
       {SolverKind::Amg, "amg"},
       {SolverKind::AmgGamg, "amg_gamg"},
-      {SolverKind::Pfmg, "pfmg"}}}};
+      {SolverKind::Pfmg, "pfmg"},
+      {SolverKind::Mumps, "mumps"}}}};
 
 /// All backend names in a stable order, e.g. for `--help` and benchmarks.
 const std::vector<std::string>& solver_names();

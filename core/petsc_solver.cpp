@@ -238,13 +238,21 @@ class PetscAmgSolver final : public LinearSolver {
     m_csr.makeCompressed();
     m_mat = make_aij(m_csr);
     if (m_opts.symmetric) {
+      // MUMPS reads one triangle: check, as cholmod does; and no SPD flag, which would make
+      // it an LLᵀ that an indefinite matrix breaks (LDLᵀ takes both)
+      TETFSI_REQUIRE(SolverError, m_kind != SolverKind::Mumps || is_symmetric(A),
+                     "the {} x {} matrix is not symmetric; set symmetric false (LU) or use "
+                     "umfpack",
+                     A.rows(), A.cols());
       TETFSI_PETSC(MatSetOption(m_mat, MAT_SYMMETRIC, PETSC_TRUE));
-      TETFSI_PETSC(MatSetOption(m_mat, MAT_SPD, PETSC_TRUE));  // CG presumes it anyway
+      if (m_kind != SolverKind::Mumps)
+        TETFSI_PETSC(MatSetOption(m_mat, MAT_SPD, PETSC_TRUE));  // CG presumes it anyway
     }
 
     TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
     TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
     TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
+    if (m_kind == SolverKind::Mumps) return build_mumps();
     if (m_opts.symmetric) {
       TETFSI_PETSC(KSPSetType(m_ksp, KSPCG));
     } else {
@@ -275,6 +283,24 @@ class PetscAmgSolver final : public LinearSolver {
     TETFSI_PETSC(PCSetUp(pc));
   }
 
+  /// MUMPS's factorisation as the whole solve (KSPPREONLY): Cholesky — MUMPS's LDLᵀ, which
+  /// takes a symmetric indefinite matrix too — or LU; distributed over the ranks' rows.
+  void build_mumps() {
+    TETFSI_PETSC(KSPSetType(m_ksp, KSPPREONLY));
+    PC pc = nullptr;
+    TETFSI_PETSC(KSPGetPC(m_ksp, &pc));
+    TETFSI_PETSC(PCSetType(pc, m_opts.symmetric ? PCCHOLESKY : PCLU));
+    TETFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    TETFSI_PETSC(KSPSetFromOptions(m_ksp));
+    TETFSI_PETSC(KSPSetUp(m_ksp));
+    TETFSI_PETSC(PCSetUp(pc));
+    PCFailedReason failed = PC_NOERROR;
+    TETFSI_PETSC(PCGetFailedReason(pc, &failed));
+    TETFSI_REQUIRE(SolverError, failed == PC_NOERROR,
+                   "the factorisation failed ({}): the matrix is singular",
+                   PCFailedReasons[failed]);
+  }
+
  public:
   SolveReport solve(const VecX& b, VecX& x) override {
     TETFSI_CHECK(m_ksp != nullptr, "{}: solve() called before setup()", name());
@@ -291,7 +317,10 @@ class PetscAmgSolver final : public LinearSolver {
       return rep;
     }
     try {
-      krylov(b, x, rep);
+      if (m_kind == SolverKind::Mumps)
+        direct(b, x, rep);
+      else
+        krylov(b, x, rep);
     } catch (const SolverError& e) {
       throw SolverError(fmt::format("{}: {}", name(), e.what()));
     }
@@ -306,8 +335,20 @@ class PetscAmgSolver final : public LinearSolver {
                          [&] { return (b - m_csr * x).norm() / b.norm(); });
   }
 
+  /// One solve with the factors (iterations = 1), x every rank's whole solution.
+  void direct(const VecX& b, VecX& x, SolveReport& rep) {
+    const Index n = static_cast<Index>(b.size());
+    WrappedVec vb(n, b.data());
+    WrappedVec vx(n, x.data());
+    TETFSI_PETSC(KSPSolve(m_ksp, vb.v, vx.v));
+    allgather_rows(x.data(), n);
+    rep.iterations = 1;
+    rep.residual = (b - m_csr * x).norm() / b.norm();
+  }
+
   /// Prefix of this solver's options in PETSc's database (see init_petsc_once).
   const char* options_prefix() const {
+    if (m_kind == SolverKind::Mumps) return "tetfsi_mumps_";
     if (m_kind == SolverKind::Amg) return "tetfsi_amg_";
     return m_opts.symmetric ? "tetfsi_gamg_" : "tetfsi_gamg_nonsym_";
   }
@@ -404,7 +445,7 @@ std::string start_petsc() {
 }
 
 std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOptions& opts) {
-  TETFSI_CHECK(kind == SolverKind::Amg || kind == SolverKind::AmgGamg,
+  TETFSI_CHECK(kind == SolverKind::Amg || kind == SolverKind::AmgGamg || kind == SolverKind::Mumps,
                "make_petsc_solver: {} is not a PETSc backend", to_string(kind));
   return std::make_unique<PetscAmgSolver>(kind, opts);
 }

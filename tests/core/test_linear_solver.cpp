@@ -36,7 +36,7 @@ double rel_diff(const VecX& x, const VecX& ref) {
 }
 
 bool is_direct(SolverKind k) {
-  return k == SolverKind::Cholmod || k == SolverKind::Umfpack;
+  return k == SolverKind::Cholmod || k == SolverKind::Umfpack || k == SolverKind::Mumps;
 }
 
 /// Every cell of an nx × ny × nz grid an unknown, in cell order (poisson3d's numbering).
@@ -51,7 +51,7 @@ GridLayout full_grid(Index nx, Index ny, Index nz) {
 TEST_SUITE("unit") {
   TEST_CASE("solver names round-trip and unknown names are rejected") {
     const auto& names = solver_names();
-    REQUIRE(names.size() == 7);
+    REQUIRE(names.size() == 8);
     CHECK(names.front() == "cholmod");
     for (const auto& n : names) CHECK(to_string(parse_solver_kind(n)) == n);
     CHECK_THROWS_AS(parse_solver_kind("superlu"), InputError);
@@ -128,8 +128,8 @@ TEST_SUITE("unit") {
     SolverOptions opts;
     opts.rel_tol = 1e-10;
     opts.symmetric = false;
-    for (const SolverKind kind :
-         {SolverKind::Umfpack, SolverKind::BiCgStabIlut, SolverKind::Amg, SolverKind::AmgGamg}) {
+    for (const SolverKind kind : {SolverKind::Umfpack, SolverKind::BiCgStabIlut, SolverKind::Amg,
+                                  SolverKind::AmgGamg, SolverKind::Mumps}) {
       CAPTURE(to_string(kind));
       auto solver = make_linear_solver(kind, opts);
       solver->setup(A);
@@ -270,6 +270,25 @@ TEST_SUITE("unit") {
     I.setIdentity();
     const SparseMatrix K_indef = K - 4.0 * I;
     CHECK_THROWS_AS(make_linear_solver(SolverKind::Cholmod)->setup(K_indef), SolverError);
+    // mumps's LDLᵀ takes the indefinite matrix (UMFPACK's LU the reference)
+    auto mumps = make_linear_solver(SolverKind::Mumps);
+    mumps->setup(K_indef);
+    VecX x;
+    const SolveReport rep = mumps->solve(b, x);
+    CHECK(rep.converged);
+    CHECK(rep.residual <= 1e-12);
+    auto lu = make_linear_solver(SolverKind::Umfpack);
+    lu->setup(K_indef);
+    VecX y;
+    lu->solve(b, y);
+    CHECK(rel_diff(x, y) <= 1e-10);
+    // a nonsymmetric matrix given as symmetric is refused, naming what to use
+    try {
+      make_linear_solver(SolverKind::Mumps)->setup(convection_diffusion3d(5, 5, 5, 2.0));
+      FAIL("mumps took a nonsymmetric matrix as symmetric");
+    } catch (const SolverError& e) {
+      CHECK(std::string(e.what()).find("not symmetric") != std::string::npos);
+    }
   }
 
   TEST_CASE("setup rejects non-square matrices and solve before setup is a bug") {
