@@ -358,9 +358,13 @@ CoupledSolution solve_grid_coupled(const GridCoupledInput& in, const CoupledOpti
 
 namespace {
 
-/// Whether the step needs the paper's J: its forces, or the hydrostatic pressure's.
-bool needs_paper_J(GridPressureForces forces, const fluid::FluidParams& params) {
-  return forces == GridPressureForces::Paper || params.gravity.squaredNorm() > 0;
+/// The J matrices a step keeps: (V D1 H)ᵀ always; the paper's J when the step needs it — for
+/// its forces, or for the hydrostatic pressure's — else empty.
+void force_matrices(const fluid::GridInterface& iface, GridPressureForces forces,
+                    const fluid::FluidParams& params, SparseMatrix& Jc, SparseMatrix& Jp) {
+  Jc = iface.J_consistent();
+  const bool paper = forces == GridPressureForces::Paper || params.gravity.squaredNorm() > 0;
+  Jp = paper ? iface.J_paper() : SparseMatrix();
 }
 
 }  // namespace
@@ -368,17 +372,14 @@ bool needs_paper_J(GridPressureForces forces, const fluid::FluidParams& params) 
 GridPredicted::GridPredicted(fluid::GridPrediction pred, const fluid::FluidParams& params,
                              const std::vector<BodyInterface>& bodies, GridPressureForces forces)
     : m_pred(std::move(pred)), m_params(params), m_iface(m_pred.cells, bodies), m_forces(forces) {
-  m_Jc = m_iface.J_consistent();
-  if (needs_paper_J(forces, params)) m_Jp = m_iface.J_paper();
+  force_matrices(m_iface, forces, params, m_Jc, m_Jp);
 }
 
 void fill_grid_force_cache(const fluid::GridCells& gc, const std::vector<BodyInterface>& bodies,
                            GridPressureForces forces, const fluid::FluidParams& params, double time,
                            GridForceCache& cache) {
-  const fluid::GridInterface iface(gc, bodies);
   cache.valid = false;
-  cache.Jc = iface.J_consistent();
-  cache.Jp = needs_paper_J(forces, params) ? iface.J_paper() : SparseMatrix();
+  force_matrices(fluid::GridInterface(gc, bodies), forces, params, cache.Jc, cache.Jp);
   cache.time = time;
   cache.valid = true;
 }
