@@ -232,6 +232,11 @@ std::string to_string(SolverKind kind) {
   return k_solver_kind_names.name(kind);
 }
 
+bool is_direct_solver(SolverKind kind) {
+  return kind == SolverKind::Cholmod || kind == SolverKind::Umfpack || kind == SolverKind::Mumps ||
+         kind == SolverKind::SuperluDist;
+}
+
 std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOptions& opts) {
   TETFSI_REQUIRE(InputError, opts.rel_tol > 0.0 && opts.rel_tol < 1.0,
                  "linear solver rel_tol must be in (0, 1), got {}", opts.rel_tol);
@@ -252,6 +257,7 @@ std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOp
     case SolverKind::Amg:
     case SolverKind::AmgGamg:
     case SolverKind::Mumps:
+    case SolverKind::SuperluDist:
       return detail::make_petsc_solver(kind, opts);
     case SolverKind::Pfmg:
       return detail::make_pfmg_solver(opts);

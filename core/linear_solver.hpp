@@ -16,6 +16,8 @@
 ///  - `mumps`          MUMPS through PETSc: LDLᵀ for `symmetric` (checked, as cholmod's;
 ///                     indefinite matrices too), else LU; under mpirun the factorisation
 ///                     is distributed over the ranks                        [direct]
+///  - `superlu_dist`   SuperLU_DIST's LU through PETSc (any nonsingular matrix), distributed
+///                     over the ranks under mpirun                          [direct]
 ///
 /// Conventions of every backend:
 ///  - `cholmod` and `cg_ic` check symmetry in `setup` (|A − Aᵀ| ≤ 1e-12 max|A|) and throw
@@ -45,8 +47,18 @@
 
 namespace tetfsi {
 
-enum class SolverKind { Cholmod, Umfpack, BiCgStabIlut, CgIc, Amg, AmgGamg, Pfmg, Mumps };
-inline constexpr EnumNames<SolverKind, 8> k_solver_kind_names{
+enum class SolverKind {
+  Cholmod,
+  Umfpack,
+  BiCgStabIlut,
+  CgIc,
+  Amg,
+  AmgGamg,
+  Pfmg,
+  Mumps,
+  SuperluDist
+};
+inline constexpr EnumNames<SolverKind, 9> k_solver_kind_names{
     "linear solver",
     {{{SolverKind::Cholmod, "cholmod"},
       {SolverKind::Umfpack, "umfpack"},
@@ -55,7 +67,11 @@ inline constexpr EnumNames<SolverKind, 8> k_solver_kind_names{
       {SolverKind::Amg, "amg"},
       {SolverKind::AmgGamg, "amg_gamg"},
       {SolverKind::Pfmg, "pfmg"},
-      {SolverKind::Mumps, "mumps"}}}};
+      {SolverKind::Mumps, "mumps"},
+      {SolverKind::SuperluDist, "superlu_dist"}}}};
+
+/// Whether `kind` factorises (one solve = one iteration, to round-off).
+bool is_direct_solver(SolverKind kind);
 
 /// All backend names in a stable order, e.g. for `--help` and benchmarks.
 const std::vector<std::string>& solver_names();

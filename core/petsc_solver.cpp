@@ -252,7 +252,7 @@ class PetscAmgSolver final : public LinearSolver {
     TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
     TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
     TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
-    if (m_kind == SolverKind::Mumps) return build_mumps();
+    if (is_direct_solver(m_kind)) return build_direct();
     if (m_opts.symmetric) {
       TETFSI_PETSC(KSPSetType(m_ksp, KSPCG));
     } else {
@@ -283,22 +283,61 @@ class PetscAmgSolver final : public LinearSolver {
     TETFSI_PETSC(PCSetUp(pc));
   }
 
-  /// MUMPS's factorisation as the whole solve (KSPPREONLY): Cholesky — MUMPS's LDLᵀ, which
-  /// takes a symmetric indefinite matrix too — or LU; distributed over the ranks' rows.
-  void build_mumps() {
-    TETFSI_PETSC(KSPSetType(m_ksp, KSPPREONLY));
-    PC pc = nullptr;
-    TETFSI_PETSC(KSPGetPC(m_ksp, &pc));
-    TETFSI_PETSC(PCSetType(pc, m_opts.symmetric ? PCCHOLESKY : PCLU));
-    TETFSI_PETSC(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
-    TETFSI_PETSC(KSPSetFromOptions(m_ksp));
-    TETFSI_PETSC(KSPSetUp(m_ksp));
-    TETFSI_PETSC(PCSetUp(pc));
-    PCFailedReason failed = PC_NOERROR;
-    TETFSI_PETSC(PCGetFailedReason(pc, &failed));
-    TETFSI_REQUIRE(SolverError, failed == PC_NOERROR,
-                   "the factorisation failed ({}): the matrix is singular",
-                   PCFailedReasons[failed]);
+  /// The factorisation as the whole solve (KSPPREONLY), distributed over the ranks' rows:
+  /// MUMPS's Cholesky — its LDLᵀ, which takes a symmetric indefinite matrix too — or LU;
+  /// SuperLU_DIST's LU.
+  ///
+  /// MUMPS's parallel factorisation can outgrow the workspace its analysis estimated (its
+  /// dynamic scheduling varies from run to run: INFOG(1) = −9, seen once in a few runs of a
+  /// 28k-unknown Poisson on 2 ranks): then the estimate's slack, ICNTL(14), is doubled (in
+  /// PETSc's options, so later set-ups keep it) and the factorisation redone, up to 3 times.
+  void build_direct() {
+    const bool mumps = m_kind == SolverKind::Mumps;
+    for (int attempt = 0;; ++attempt) {
+      if (attempt > 0) {  // a fresh KSP on the same matrix
+        KSPDestroy(&m_ksp);
+        TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
+        TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
+        TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
+      }
+      TETFSI_PETSC(KSPSetType(m_ksp, KSPPREONLY));
+      PC pc = nullptr;
+      TETFSI_PETSC(KSPGetPC(m_ksp, &pc));
+      TETFSI_PETSC(PCSetType(pc, mumps && m_opts.symmetric ? PCCHOLESKY : PCLU));
+      TETFSI_PETSC(PCFactorSetMatSolverType(pc, mumps ? MATSOLVERMUMPS : MATSOLVERSUPERLU_DIST));
+      TETFSI_PETSC(KSPSetFromOptions(m_ksp));
+      TETFSI_PETSC(KSPSetUp(m_ksp));
+      TETFSI_PETSC(PCSetUp(pc));
+      PCFailedReason failed = PC_NOERROR;
+      TETFSI_PETSC(PCGetFailedReason(pc, &failed));
+      if (failed == PC_NOERROR) return;
+      if (failed == PC_FACTOR_OUTMEMORY && mumps && attempt < 3) {
+        raise_mumps_workspace();
+        continue;
+      }
+      const bool pivot =
+          failed == PC_FACTOR_STRUCT_ZEROPIVOT || failed == PC_FACTOR_NUMERIC_ZEROPIVOT;
+      throw SolverError(fmt::format(
+          "the factorisation failed ({}): {}", PCFailedReasons[failed],
+          pivot ? "the matrix is singular"
+          : failed == PC_FACTOR_OUTMEMORY
+              ? "out of workspace; raise it with PETSC_OPTIONS='-tetfsi_mumps_mat_mumps_icntl_14 "
+                "<percent>'"
+              : fmt::format("the library's own error; PETSC_OPTIONS='-{}ksp_view' (mumps: "
+                            "'-tetfsi_mumps_mat_mumps_icntl_4 2') prints its diagnostics",
+                            options_prefix())));
+    }
+  }
+
+  /// Double MUMPS's workspace slack ICNTL(14) (percent over its analysis' estimate; at least +20).
+  static void raise_mumps_workspace() {
+    const char* key = "-tetfsi_mumps_mat_mumps_icntl_14";
+    PetscInt now = 20;  // MUMPS's default
+    PetscBool set = PETSC_FALSE;
+    TETFSI_PETSC(PetscOptionsGetInt(nullptr, nullptr, key, &now, &set));
+    const std::string next = std::to_string(std::max<PetscInt>(2 * now, now + 20));
+    logger().debug("mumps: out of workspace; ICNTL(14) {} -> {}", now, next);
+    TETFSI_PETSC(PetscOptionsSetValue(nullptr, key, next.c_str()));
   }
 
  public:
@@ -317,7 +356,7 @@ class PetscAmgSolver final : public LinearSolver {
       return rep;
     }
     try {
-      if (m_kind == SolverKind::Mumps)
+      if (is_direct_solver(m_kind))
         direct(b, x, rep);
       else
         krylov(b, x, rep);
@@ -349,6 +388,7 @@ class PetscAmgSolver final : public LinearSolver {
   /// Prefix of this solver's options in PETSc's database (see init_petsc_once).
   const char* options_prefix() const {
     if (m_kind == SolverKind::Mumps) return "tetfsi_mumps_";
+    if (m_kind == SolverKind::SuperluDist) return "tetfsi_superlu_dist_";
     if (m_kind == SolverKind::Amg) return "tetfsi_amg_";
     return m_opts.symmetric ? "tetfsi_gamg_" : "tetfsi_gamg_nonsym_";
   }
@@ -445,7 +485,8 @@ std::string start_petsc() {
 }
 
 std::unique_ptr<LinearSolver> make_petsc_solver(SolverKind kind, const SolverOptions& opts) {
-  TETFSI_CHECK(kind == SolverKind::Amg || kind == SolverKind::AmgGamg || kind == SolverKind::Mumps,
+  TETFSI_CHECK(kind == SolverKind::Amg || kind == SolverKind::AmgGamg ||
+                   kind == SolverKind::Mumps || kind == SolverKind::SuperluDist,
                "make_petsc_solver: {} is not a PETSc backend", to_string(kind));
   return std::make_unique<PetscAmgSolver>(kind, opts);
 }

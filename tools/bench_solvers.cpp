@@ -68,10 +68,11 @@ int bench_solvers(int n, const std::string& json_path, const std::vector<std::st
   nlohmann::json skipped = nlohmann::json::array(), failed = nlohmann::json::array();
   for (const auto& name : names) {
     const SolverKind kind = parse_solver_kind(name);
-    const long long limit = kind == SolverKind::Cholmod || kind == SolverKind::Mumps
-                                ? k_cholmod_auto_max
-                            : kind == SolverKind::Umfpack ? k_umfpack_auto_max
-                                                          : std::numeric_limits<long long>::max();
+    const long long limit =
+        kind == SolverKind::Cholmod || kind == SolverKind::Mumps || kind == SolverKind::SuperluDist
+            ? k_cholmod_auto_max
+        : kind == SolverKind::Umfpack ? k_umfpack_auto_max
+                                      : std::numeric_limits<long long>::max();
     if (!explicit_list && N > limit) {
       const std::string why = fmt::format(
           "skipped above {} unknowns (would take over ~2 min); name it to run it", limit);

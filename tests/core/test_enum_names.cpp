@@ -54,10 +54,10 @@ TEST_SUITE("unit") {
     CHECK(parse_solver_kind("bicgstab_ilut") == SolverKind::BiCgStabIlut);
     CHECK(to_string(SolverKind::AmgGamg) == "amg_gamg");
     CHECK(solver_names() == k_solver_kind_names.names());
-    CHECK(solver_names().size() == 8);
+    CHECK(solver_names().size() == 9);
     CHECK_THROWS_WITH_AS(parse_solver_kind("cg"),
                          "unknown linear solver 'cg': use cholmod, umfpack, bicgstab_ilut, "
-                         "cg_ic, amg, amg_gamg, pfmg or mumps",
+                         "cg_ic, amg, amg_gamg, pfmg, mumps or superlu_dist",
                          InputError);
     for (IterationMethod m :
          {IterationMethod::Newton, IterationMethod::ModifiedNewton, IterationMethod::Bfgs})

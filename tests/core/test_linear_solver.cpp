@@ -35,10 +35,6 @@ double rel_diff(const VecX& x, const VecX& ref) {
   return (x - ref).norm() / ref.norm();
 }
 
-bool is_direct(SolverKind k) {
-  return k == SolverKind::Cholmod || k == SolverKind::Umfpack || k == SolverKind::Mumps;
-}
-
 /// Every cell of an nx × ny × nz grid an unknown, in cell order (poisson3d's numbering).
 GridLayout full_grid(Index nx, Index ny, Index nz) {
   GridLayout g{{nx, ny, nz}, {}};
@@ -51,7 +47,7 @@ GridLayout full_grid(Index nx, Index ny, Index nz) {
 TEST_SUITE("unit") {
   TEST_CASE("solver names round-trip and unknown names are rejected") {
     const auto& names = solver_names();
-    REQUIRE(names.size() == 8);
+    REQUIRE(names.size() == 9);
     CHECK(names.front() == "cholmod");
     for (const auto& n : names) CHECK(to_string(parse_solver_kind(n)) == n);
     CHECK_THROWS_AS(parse_solver_kind("superlu"), InputError);
@@ -109,7 +105,7 @@ TEST_SUITE("unit") {
       CHECK(rep.setup_s >= 0.0);
       CHECK(rep.solve_s >= 0.0);
       CHECK(rep.residual == doctest::Approx(relative_residual(A, b, x)).epsilon(1e-6));
-      if (is_direct(kind)) {
+      if (is_direct_solver(kind)) {
         CHECK(rep.iterations == 1);
         CHECK(rep.residual <= 1e-12);
       } else {
@@ -128,15 +124,16 @@ TEST_SUITE("unit") {
     SolverOptions opts;
     opts.rel_tol = 1e-10;
     opts.symmetric = false;
-    for (const SolverKind kind : {SolverKind::Umfpack, SolverKind::BiCgStabIlut, SolverKind::Amg,
-                                  SolverKind::AmgGamg, SolverKind::Mumps}) {
+    for (const SolverKind kind :
+         {SolverKind::Umfpack, SolverKind::BiCgStabIlut, SolverKind::Amg, SolverKind::AmgGamg,
+          SolverKind::Mumps, SolverKind::SuperluDist}) {
       CAPTURE(to_string(kind));
       auto solver = make_linear_solver(kind, opts);
       solver->setup(A);
       VecX x = VecX::Zero(A.rows());
       const SolveReport rep = solver->solve(b, x);
       CHECK(rep.converged);
-      CHECK(rep.residual <= (is_direct(kind) ? 1e-12 : 1e-10));
+      CHECK(rep.residual <= (is_direct_solver(kind) ? 1e-12 : 1e-10));
       CHECK(rel_diff(x, ref) <= 1e-6);
     }
   }
@@ -217,7 +214,7 @@ TEST_SUITE("unit") {
       CHECK(rep2.residual <= 1e-8);
       CHECK(rel_diff(x, ref2) <= 1e-6);
       // Solving again from the exact answer needs no iterations.
-      if (!is_direct(parse_solver_kind(name))) {
+      if (!is_direct_solver(parse_solver_kind(name))) {
         VecX x_again = ref2;
         const SolveReport rep3 = solver->solve(b2, x_again);
         CHECK(rep3.converged);
