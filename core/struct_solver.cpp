@@ -61,38 +61,54 @@ int stencil_entry(const std::array<Index, 3>& a, const std::array<Index, 3>& b) 
   return -1;
 }
 
-class PfmgSolver final : public LinearSolver {
+/// The grid fluid's 7-point system on hypre's Struct interface, and PFMG's V-cycle on it:
+/// the unknowns' bounding box (each rank its slab of z-planes), A's stencil, the vectors b
+/// and x. The CG solver and the preconditioner below each hold one.
+class StructSystem {
  public:
-  /// @param preconditioner_only no CG: `apply` runs one V-cycle, and A's entries between
-  ///   cells that are no face neighbours move to the diagonal by their absolute value (a
-  ///   matrix no smaller than A: stays SPD for an SPD A)
-  explicit PfmgSolver(const SolverOptions& opts, bool preconditioner_only = false)
-      : m_opts(opts), m_preconditioner_only(preconditioner_only) {
-    ensure_hypre();
-  }
+  /// @param lump entries between cells that are no face neighbours move to the diagonal by
+  ///   their absolute value (a matrix no smaller than A: stays SPD for an SPD A); without
+  ///   it such an entry is a SolverError
+  explicit StructSystem(bool lump) : m_lump(lump) { ensure_hypre(); }
+  StructSystem(const StructSystem&) = delete;
+  StructSystem& operator=(const StructSystem&) = delete;
+  ~StructSystem() { release(); }
 
-  /// z = one PFMG V-cycle on r from zero (preconditioner_only).
-  void apply(const VecX& r, VecX& z);
-  PfmgSolver(const PfmgSolver&) = delete;
-  PfmgSolver& operator=(const PfmgSolver&) = delete;
-  ~PfmgSolver() override { release(); }
-
-  std::string name() const override { return "pfmg"; }
-
-  void set_grid(const GridLayout& layout) override {
+  void set_grid(const GridLayout& layout) {
     TETFSI_CHECK(layout.dims[0] > 0 && layout.dims[1] > 0 && layout.dims[2] > 0,
                  "pfmg: grid of {} x {} x {} cells", layout.dims[0], layout.dims[1],
                  layout.dims[2]);
     m_layout = layout;
   }
+  /// The unknowns (set_grid's cells).
+  Index size() const { return static_cast<Index>(m_layout.cells.size()); }
 
-  void setup(const SparseMatrix& A) override {
-    m_setup_s = detail::setup_or_release(
-        name(), [&] { build(A); }, [&] { release(); });
+  /// The grid, stencil, matrix and vectors for A, and the V-cycle (not set up).
+  void build(const SparseMatrix& A);
+  void release() {
+    if (m_vcycle) HYPRE_StructPFMGDestroy(m_vcycle);
+    if (m_A) HYPRE_StructMatrixDestroy(m_A);
+    if (m_b) HYPRE_StructVectorDestroy(m_b);
+    if (m_x) HYPRE_StructVectorDestroy(m_x);
+    if (m_stencil) HYPRE_StructStencilDestroy(m_stencil);
+    if (m_grid) HYPRE_StructGridDestroy(m_grid);
+    m_vcycle = nullptr;
+    m_A = nullptr;
+    m_b = m_x = nullptr;
+    m_stencil = nullptr;
+    m_grid = nullptr;
   }
 
-  SolveReport solve(const VecX& b, VecX& x) override;
-  double setup_seconds() const { return m_setup_s; }
+  /// Copy this slab's part of an unknown vector into a grid vector (0 off the unknowns).
+  void to_grid(const VecX& v, HYPRE_StructVector g) const;
+  /// This slab's unknowns of v from a grid vector, then every rank's to every rank.
+  void from_grid(HYPRE_StructVector g, VecX& v) const;
+
+  MPI_Comm comm() const { return rank_count() > 1 ? MPI_COMM_WORLD : MPI_COMM_SELF; }
+  HYPRE_StructMatrix A() const { return m_A; }
+  HYPRE_StructVector b() const { return m_b; }
+  HYPRE_StructVector x() const { return m_x; }
+  HYPRE_StructSolver vcycle() const { return m_vcycle; }
 
  private:
   /// This rank's box of the grid, [lo, hi) per axis: the unknowns' bounding box, its
@@ -119,49 +135,62 @@ class PfmgSolver final : public LinearSolver {
     return {c % d[0], (c / d[0]) % d[1], c / (d[0] * d[1])};
   }
 
-  void build(const SparseMatrix& A);
-  void make_solver();
+  void make_vcycle();
   /// Stencil values of this rank's slab (7 per cell, x fastest) from A.
   std::vector<double> stencil_values(const SparseMatrix& A) const;
-  /// Copy this slab's part of an unknown vector into a grid vector (0 off the unknowns).
-  void to_grid(const VecX& v, HYPRE_StructVector g) const;
-  /// This slab's unknowns of v from a grid vector.
-  void from_grid(HYPRE_StructVector g, VecX& v) const;
 
-  void release() {
-    if (m_solver) HYPRE_StructPCGDestroy(m_solver);
-    if (m_precond) HYPRE_StructPFMGDestroy(m_precond);
-    if (m_A) HYPRE_StructMatrixDestroy(m_A);
-    if (m_b) HYPRE_StructVectorDestroy(m_b);
-    if (m_x) HYPRE_StructVectorDestroy(m_x);
-    if (m_stencil) HYPRE_StructStencilDestroy(m_stencil);
-    if (m_grid) HYPRE_StructGridDestroy(m_grid);
-    m_solver = m_precond = nullptr;
-    m_A = nullptr;
-    m_b = m_x = nullptr;
-    m_stencil = nullptr;
-    m_grid = nullptr;
-    m_matrix = nullptr;
-  }
-
-  MPI_Comm comm() const { return rank_count() > 1 ? MPI_COMM_WORLD : MPI_COMM_SELF; }
-
-  SolverOptions m_opts;
-  bool m_preconditioner_only = false;
+  bool m_lump;
   GridLayout m_layout;
-  std::vector<Index> m_unknown_of_cell;  ///< per grid cell: its unknown, −1 if none
   Slab m_slab;
   std::vector<Index> m_slab_begin;  ///< per rank: the first unknown of its slab (+ the end)
-  const SparseMatrix* m_matrix = nullptr;
   HYPRE_StructGrid m_grid = nullptr;
   HYPRE_StructStencil m_stencil = nullptr;
   HYPRE_StructMatrix m_A = nullptr;
   HYPRE_StructVector m_b = nullptr, m_x = nullptr;
-  HYPRE_StructSolver m_solver = nullptr, m_precond = nullptr;
+  HYPRE_StructSolver m_vcycle = nullptr;
+};
+
+/// `pfmg`: hypre's CG preconditioned by one V-cycle.
+class PfmgSolver final : public LinearSolver {
+ public:
+  explicit PfmgSolver(const SolverOptions& opts) : m_opts(opts), m_sys(false) {}
+  PfmgSolver(const PfmgSolver&) = delete;
+  PfmgSolver& operator=(const PfmgSolver&) = delete;
+  ~PfmgSolver() override { release(); }
+
+  std::string name() const override { return "pfmg"; }
+  void set_grid(const GridLayout& layout) override { m_sys.set_grid(layout); }
+
+  void setup(const SparseMatrix& A) override {
+    m_setup_s = detail::setup_or_release(
+        name(),
+        [&] {
+          m_sys.build(A);
+          m_matrix = &A;
+          make_cg();
+        },
+        [&] { release(); });
+  }
+
+  SolveReport solve(const VecX& b, VecX& x) override;
+
+ private:
+  void make_cg();
+  void release() {
+    if (m_cg) HYPRE_StructPCGDestroy(m_cg);
+    m_cg = nullptr;
+    m_matrix = nullptr;
+    m_sys.release();
+  }
+
+  SolverOptions m_opts;
+  StructSystem m_sys;
+  const SparseMatrix* m_matrix = nullptr;
+  HYPRE_StructSolver m_cg = nullptr;
   double m_setup_s = 0.0;
 };
 
-std::vector<double> PfmgSolver::stencil_values(const SparseMatrix& A) const {
+std::vector<double> StructSystem::stencil_values(const SparseMatrix& A) const {
   std::vector<double> v(7 * static_cast<std::size_t>(m_slab.cells()), 0.0);
   for (Index c = 0; c < m_slab.cells(); ++c) v[7 * c] = 1.0;  // identity off the unknowns
   // A is symmetric: column i holds row i's entries.
@@ -174,7 +203,7 @@ std::vector<double> PfmgSolver::stencil_values(const SparseMatrix& A) const {
       for (SparseMatrix::InnerIterator it(A, i); it; ++it) {
         const Index c2 = m_layout.cells[it.row()];
         const int e = stencil_entry(a, ijk(c2));
-        if (e < 0 && m_preconditioner_only) {
+        if (e < 0 && m_lump) {
           row[0] += std::abs(it.value());
           continue;
         }
@@ -188,7 +217,7 @@ std::vector<double> PfmgSolver::stencil_values(const SparseMatrix& A) const {
   return v;
 }
 
-void PfmgSolver::build(const SparseMatrix& A) {
+void StructSystem::build(const SparseMatrix& A) {
   const auto& d = m_layout.dims;
   const Index n = static_cast<Index>(m_layout.cells.size());
   TETFSI_REQUIRE(SolverError, n > 0 && A.rows() == n && A.cols() == n,
@@ -196,7 +225,6 @@ void PfmgSolver::build(const SparseMatrix& A) {
                  "matrix over them: {} cells for a {} x {} matrix; pfmg serves the grid fluid "
                  "(fluid.discretization \"grid\") only",
                  n, A.rows(), A.cols());
-  m_matrix = &A;
   // The unknowns' bounding box (a liquid fills part of the grid), each rank its z-planes of
   // it; the unknowns of a rank's planes follow one another in cell order.
   std::array<Index, 3> lo = ijk(m_layout.cells.front()), hi = lo;
@@ -245,70 +273,76 @@ void PfmgSolver::build(const SparseMatrix& A) {
     TETFSI_HYPRE(HYPRE_StructVectorInitialize(*v));
     TETFSI_HYPRE(HYPRE_StructVectorAssemble(*v));
   }
-  make_solver();
+  make_vcycle();
 }
 
-void PfmgSolver::make_solver() {
+void StructSystem::make_vcycle() {
   // One V-cycle per CG iteration, symmetric red–black Gauss–Seidel (1 sweep each way), the
   // Galerkin coarse operators (the masked cells and the pins make the coefficients jump).
-  TETFSI_HYPRE(HYPRE_StructPFMGCreate(comm(), &m_precond));
-  TETFSI_HYPRE(HYPRE_StructPFMGSetMaxIter(m_precond, 1));
-  TETFSI_HYPRE(HYPRE_StructPFMGSetTol(m_precond, 0.0));
-  TETFSI_HYPRE(HYPRE_StructPFMGSetZeroGuess(m_precond));
+  TETFSI_HYPRE(HYPRE_StructPFMGCreate(comm(), &m_vcycle));
+  TETFSI_HYPRE(HYPRE_StructPFMGSetMaxIter(m_vcycle, 1));
+  TETFSI_HYPRE(HYPRE_StructPFMGSetTol(m_vcycle, 0.0));
+  TETFSI_HYPRE(HYPRE_StructPFMGSetZeroGuess(m_vcycle));
   // Measured on dam_break at 249,600 cells: 12 iterations; weighted Jacobi 16 (1.4x the
   // time), no skipped relaxation 10 (1.2x), 2 + 2 sweeps 9 (the same time), non-Galerkin
   // coarse stencils the same.
-  TETFSI_HYPRE(HYPRE_StructPFMGSetRelaxType(m_precond, 2));
-  TETFSI_HYPRE(HYPRE_StructPFMGSetRAPType(m_precond, 0));
-  TETFSI_HYPRE(HYPRE_StructPFMGSetNumPreRelax(m_precond, 1));
-  TETFSI_HYPRE(HYPRE_StructPFMGSetNumPostRelax(m_precond, 1));
-  if (m_preconditioner_only) {
-    TETFSI_HYPRE(HYPRE_StructPFMGSetup(m_precond, m_A, m_b, m_x));
-    return;
-  }
+  TETFSI_HYPRE(HYPRE_StructPFMGSetRelaxType(m_vcycle, 2));
+  TETFSI_HYPRE(HYPRE_StructPFMGSetRAPType(m_vcycle, 0));
+  TETFSI_HYPRE(HYPRE_StructPFMGSetNumPreRelax(m_vcycle, 1));
+  TETFSI_HYPRE(HYPRE_StructPFMGSetNumPostRelax(m_vcycle, 1));
+}
+
+void PfmgSolver::make_cg() {
   // CG on the true 2-norm: stop on ||r|| ≤ rel_tol ||b||, as the other backends.
-  TETFSI_HYPRE(HYPRE_StructPCGCreate(comm(), &m_solver));
-  TETFSI_HYPRE(HYPRE_StructPCGSetTol(m_solver, m_opts.rel_tol));
-  TETFSI_HYPRE(HYPRE_StructPCGSetAbsoluteTol(m_solver, 0.0));
-  TETFSI_HYPRE(HYPRE_StructPCGSetTwoNorm(m_solver, 1));
-  TETFSI_HYPRE(HYPRE_StructPCGSetRelChange(m_solver, 0));
-  TETFSI_HYPRE(HYPRE_StructPCGSetMaxIter(m_solver, m_opts.max_iterations));
-  TETFSI_HYPRE(
-      HYPRE_StructPCGSetPrecond(m_solver, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup, m_precond));
-  TETFSI_HYPRE(HYPRE_StructPCGSetup(m_solver, m_A, m_b, m_x));
+  TETFSI_HYPRE(HYPRE_StructPCGCreate(m_sys.comm(), &m_cg));
+  TETFSI_HYPRE(HYPRE_StructPCGSetTol(m_cg, m_opts.rel_tol));
+  TETFSI_HYPRE(HYPRE_StructPCGSetAbsoluteTol(m_cg, 0.0));
+  TETFSI_HYPRE(HYPRE_StructPCGSetTwoNorm(m_cg, 1));
+  TETFSI_HYPRE(HYPRE_StructPCGSetRelChange(m_cg, 0));
+  TETFSI_HYPRE(HYPRE_StructPCGSetMaxIter(m_cg, m_opts.max_iterations));
+  TETFSI_HYPRE(HYPRE_StructPCGSetPrecond(m_cg, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup,
+                                         m_sys.vcycle()));
+  TETFSI_HYPRE(HYPRE_StructPCGSetup(m_cg, m_sys.A(), m_sys.b(), m_sys.x()));
 }
 
-void PfmgSolver::apply(const VecX& r, VecX& z) {
-  const Index n = static_cast<Index>(m_layout.cells.size());
-  TETFSI_CHECK(m_precond != nullptr && m_preconditioner_only && r.size() == n,
-               "pfmg preconditioner: apply before setup or wrong size ({} for {})", r.size(), n);
-  z = VecX::Zero(n);
-  try {
-    to_grid(r, m_b);
-    TETFSI_HYPRE(HYPRE_StructVectorSetConstantValues(m_x, 0.0));
-    TETFSI_HYPRE(HYPRE_StructPFMGSolve(m_precond, m_A, m_b, m_x));
-    from_grid(m_x, z);
-  } catch (const SolverError& e) {
-    throw SolverError(fmt::format("pfmg preconditioner: {}", e.what()));
-  }
-  allgather_blocks(z.data(), m_slab_begin);
-}
-
-/// PfmgSolver as the coupled Schur-CG's preconditioner (see make_pfmg_preconditioner).
+/// One V-cycle as the coupled Schur-CG's preconditioner (see make_pfmg_preconditioner).
 class PfmgPreconditioner final : public AmgPreconditioner {
  public:
-  explicit PfmgPreconditioner(const GridLayout& layout) : m_pfmg(SolverOptions{}, true) {
-    m_pfmg.set_grid(layout);
+  explicit PfmgPreconditioner(const GridLayout& layout) : m_sys(true) { m_sys.set_grid(layout); }
+
+  void setup(const SparseMatrix& P) override {
+    m_setup_s = detail::setup_or_release(
+        "pfmg",
+        [&] {
+          m_sys.build(P);
+          TETFSI_HYPRE(HYPRE_StructPFMGSetup(m_sys.vcycle(), m_sys.A(), m_sys.b(), m_sys.x()));
+        },
+        [&] { m_sys.release(); });
   }
-  void setup(const SparseMatrix& P) override { m_pfmg.setup(P); }
-  void apply(const VecX& r, VecX& z) override { m_pfmg.apply(r, z); }
-  double setup_seconds() const override { return m_pfmg.setup_seconds(); }
+
+  /// z = one V-cycle on r from zero.
+  void apply(const VecX& r, VecX& z) override {
+    const Index n = m_sys.size();
+    TETFSI_CHECK(m_sys.vcycle() != nullptr && r.size() == n,
+                 "pfmg preconditioner: apply before setup or wrong size ({} for {})", r.size(), n);
+    z = VecX::Zero(n);
+    try {
+      m_sys.to_grid(r, m_sys.b());
+      TETFSI_HYPRE(HYPRE_StructVectorSetConstantValues(m_sys.x(), 0.0));
+      TETFSI_HYPRE(HYPRE_StructPFMGSolve(m_sys.vcycle(), m_sys.A(), m_sys.b(), m_sys.x()));
+      m_sys.from_grid(m_sys.x(), z);
+    } catch (const SolverError& e) {
+      throw SolverError(fmt::format("pfmg preconditioner: {}", e.what()));
+    }
+  }
+  double setup_seconds() const override { return m_setup_s; }
 
  private:
-  PfmgSolver m_pfmg;
+  StructSystem m_sys;
+  double m_setup_s = 0.0;
 };
 
-void PfmgSolver::to_grid(const VecX& v, HYPRE_StructVector g) const {
+void StructSystem::to_grid(const VecX& v, HYPRE_StructVector g) const {
   if (m_slab.empty()) return;
   std::vector<double> values(static_cast<std::size_t>(m_slab.cells()), 0.0);
   for (Index i = m_slab.u0; i < m_slab.u1; ++i) values[m_slab.at(ijk(m_layout.cells[i]))] = v[i];
@@ -317,18 +351,20 @@ void PfmgSolver::to_grid(const VecX& v, HYPRE_StructVector g) const {
   TETFSI_HYPRE(HYPRE_StructVectorSetBoxValues(g, lo, hi, values.data()));
 }
 
-void PfmgSolver::from_grid(HYPRE_StructVector g, VecX& v) const {
-  if (m_slab.empty()) return;
-  std::vector<double> values(static_cast<std::size_t>(m_slab.cells()));
-  HYPRE_Int lo[3], hi[3];
-  m_slab.extents(lo, hi);
-  TETFSI_HYPRE(HYPRE_StructVectorGetBoxValues(g, lo, hi, values.data()));
-  for (Index i = m_slab.u0; i < m_slab.u1; ++i) v[i] = values[m_slab.at(ijk(m_layout.cells[i]))];
+void StructSystem::from_grid(HYPRE_StructVector g, VecX& v) const {
+  if (!m_slab.empty()) {
+    std::vector<double> values(static_cast<std::size_t>(m_slab.cells()));
+    HYPRE_Int lo[3], hi[3];
+    m_slab.extents(lo, hi);
+    TETFSI_HYPRE(HYPRE_StructVectorGetBoxValues(g, lo, hi, values.data()));
+    for (Index i = m_slab.u0; i < m_slab.u1; ++i) v[i] = values[m_slab.at(ijk(m_layout.cells[i]))];
+  }
+  allgather_blocks(v.data(), m_slab_begin);
 }
 
 SolveReport PfmgSolver::solve(const VecX& b, VecX& x) {
-  TETFSI_CHECK(m_solver != nullptr, "pfmg: solve() called before setup()");
-  const Index n = static_cast<Index>(m_layout.cells.size());
+  TETFSI_CHECK(m_cg != nullptr, "pfmg: solve() called before setup()");
+  const Index n = m_sys.size();
   TETFSI_CHECK(b.size() == n, "pfmg: right-hand side has length {} for {} unknowns", b.size(), n);
   const double t0 = now_seconds();
   SolveReport rep{name(), true, 0, 0.0, m_setup_s, 0.0};
@@ -347,18 +383,17 @@ SolveReport PfmgSolver::solve(const VecX& b, VecX& x) {
     const int left = m_opts.max_iterations - rep.iterations;
     if (rep.residual <= m_opts.rel_tol || left <= 0) break;
     try {
-      TETFSI_HYPRE(HYPRE_StructPCGSetMaxIter(m_solver, left));
-      to_grid(b, m_b);
-      to_grid(x, m_x);
+      TETFSI_HYPRE(HYPRE_StructPCGSetMaxIter(m_cg, left));
+      m_sys.to_grid(b, m_sys.b());
+      m_sys.to_grid(x, m_sys.x());
       const VecX x_before = x;
       // A breakdown (e.g. an indefinite matrix) comes back as a hypre error flag: keep x.
-      const HYPRE_Int err = HYPRE_StructPCGSolve(m_solver, m_A, m_b, m_x);
+      const HYPRE_Int err = HYPRE_StructPCGSolve(m_cg, m_sys.A(), m_sys.b(), m_sys.x());
       HYPRE_ClearAllErrors();
       HYPRE_Int its = 0;
-      HYPRE_StructPCGGetNumIterations(m_solver, &its);
+      HYPRE_StructPCGGetNumIterations(m_cg, &its);
       rep.iterations += static_cast<int>(its);
-      from_grid(m_x, x);
-      allgather_blocks(x.data(), m_slab_begin);
+      m_sys.from_grid(m_sys.x(), x);
       rep.residual = true_residual();
       if (!std::isfinite(rep.residual)) {
         x = x_before;
