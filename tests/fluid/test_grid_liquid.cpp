@@ -305,7 +305,7 @@ TEST_CASE("liquid dam break: the surge front against Martin and Moyce (1952) at 
   check_dam_break(24, true, 0.002, 0.1);  // measured: drift 0.010 %, shift 0.030 cell
 }
 
-TEST_CASE("liquid dam break: without the volume held, the level set's own drift" *
+TEST_CASE("liquid dam break: without the volume held - the level set's own drift" *
           doctest::test_suite("long")) {
   check_dam_break(16, false, 0.015, 0.0);  // measured 0.78 %
 }
