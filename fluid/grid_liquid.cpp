@@ -589,16 +589,29 @@ double phi_at(const GridCells& gc, const Vec3& x) {
   return v;
 }
 
-/// Whether cell c's φ changes sign within its 3 × 3 × 3 block (the surface may cross it).
-bool near_surface(const GridCells& gc, Index c) {
+/// φ's least and greatest over cell c's 3 × 3 × 3 block (clipped to the grid).
+std::array<double, 2> block_range(const GridCells& gc, Index c) {
   const GridSpec& g = gc.grid;
   const auto ijk = g.cell_ijk(c);
-  const bool neg = gc.phi[c] < 0;
+  double lo = gc.phi[c], hi = lo;
   for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
     for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
-      for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1); ++i)
-        if ((gc.phi[g.cell(i, j, k)] < 0) != neg) return true;
-  return false;
+      for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1); ++i) {
+        lo = std::min(lo, gc.phi[g.cell(i, j, k)]);
+        hi = std::max(hi, gc.phi[g.cell(i, j, k)]);
+      }
+  return {lo, hi};
+}
+
+/// Whether φ, shifted by d, changes sign within a block of range r (the surface may cross
+/// its cell).
+bool sign_change(const std::array<double, 2>& r, double d = 0.0) {
+  return r[0] + d < 0 && r[1] + d >= 0;
+}
+
+/// Whether cell c's φ changes sign within its 3 × 3 × 3 block (the surface may cross it).
+bool near_surface(const GridCells& gc, Index c) {
+  return sign_change(block_range(gc, c));
 }
 
 /// The length of [0, len] where f, linear from f0 to f1, is negative.
@@ -650,17 +663,23 @@ void line_values(const GridCells& gc, Index c, int m, double* f) {
   }
 }
 
+/// The share of a cell where φ + d is negative, from line_values' values f on its m × m
+/// lines, each exactly.
+double lines_share(const double* f, int m, double d) {
+  double len = 0;
+  for (int l = 0; l < m * m; ++l)
+    len += negative_length(f[3 * l] + d, f[3 * l + 1] + d, 1.0) +
+           negative_length(f[3 * l + 1] + d, f[3 * l + 2] + d, 1.0);
+  return len / (2 * m * m);
+}
+
 /// The share of cell c where φ, trilinear, is negative: on line_values' m × m lines, each
 /// exactly, so the share moves continuously with the surface.
 double negative_share(const GridCells& gc, Index c, int m) {
   std::array<double, 3 * 16> f{};
   TETFSI_CHECK(m <= 4, "negative_share: at most 4 x 4 lines, got {}", m);
   line_values(gc, c, m, f.data());
-  double len = 0;
-  for (int l = 0; l < m * m; ++l)
-    len += negative_length(f[3 * l], f[3 * l + 1], 1.0) +
-           negative_length(f[3 * l + 1], f[3 * l + 2], 1.0);
-  return len / (2 * m * m);
+  return lines_share(f.data(), m, 0.0);
 }
 
 /// liquid_measures, its area only `with_area` (the volume alone costs a fifth).
@@ -724,18 +743,7 @@ class ShiftedVolume {
     const GridSpec& g = gc.grid;
     const Index nc = g.num_cells();
     std::vector<std::array<double, 2>> range(static_cast<size_t>(nc));
-    parallel_for_each(nc, kGrain, [&](Index c) {
-      const auto ijk = g.cell_ijk(c);
-      double lo = gc.phi[c], hi = lo;
-      for (Index k = std::max<Index>(0, ijk[2] - 1); k <= std::min(g.n[2] - 1, ijk[2] + 1); ++k)
-        for (Index j = std::max<Index>(0, ijk[1] - 1); j <= std::min(g.n[1] - 1, ijk[1] + 1); ++j)
-          for (Index i = std::max<Index>(0, ijk[0] - 1); i <= std::min(g.n[0] - 1, ijk[0] + 1);
-               ++i) {
-            lo = std::min(lo, gc.phi[g.cell(i, j, k)]);
-            hi = std::max(hi, gc.phi[g.cell(i, j, k)]);
-          }
-      range[c] = {lo, hi};
-    });
+    parallel_for_each(nc, kGrain, [&](Index c) { range[c] = block_range(gc, c); });
     for (Index c = 0; c < nc; ++c) {
       if (!gc.open_cell(c)) continue;
       if (range[c][0] >= cap) continue;  // air whatever the shift
@@ -743,7 +751,7 @@ class ShiftedVolume {
         m_fixed += 1.0;
         continue;
       }
-      m_cells.push_back({range[c][0], range[c][1], gc.phi[c], c});
+      m_cells.push_back({range[c], gc.phi[c], c});
     }
     m_f.resize(m_cells.size() * kValues);
     parallel_for_each(static_cast<Index>(m_cells.size()), 256, [&](Index k) {
@@ -755,16 +763,8 @@ class ShiftedVolume {
     double cells = m_fixed;
     for (size_t k = 0; k < m_cells.size(); ++k) {
       const Cell& c = m_cells[k];
-      if (!(c.lo + d < 0 && c.hi + d >= 0)) {  // no sign change in its block
-        cells += c.centre + d < 0 ? 1.0 : 0.0;
-        continue;
-      }
-      const double* f = &m_f[k * kValues];
-      double len = 0;
-      for (int l = 0; l < kLines * kLines; ++l)
-        len += negative_length(f[3 * l] + d, f[3 * l + 1] + d, 1.0) +
-               negative_length(f[3 * l + 1] + d, f[3 * l + 2] + d, 1.0);
-      cells += len / (2 * kLines * kLines);
+      cells += sign_change(c.range, d) ? lines_share(&m_f[k * kValues], kLines, d)
+                                       : (c.centre + d < 0 ? 1.0 : 0.0);
     }
     return cells * m_cell_volume;
   }
@@ -772,7 +772,8 @@ class ShiftedVolume {
  private:
   static constexpr int kLines = 4, kValues = 3 * kLines * kLines;
   struct Cell {
-    double lo, hi, centre;  ///< φ's least and greatest in its 3 × 3 × 3 block, its own
+    std::array<double, 2> range;  ///< block_range
+    double centre;                ///< its own φ
     Index cell;
   };
   double m_cell_volume, m_fixed = 0;
