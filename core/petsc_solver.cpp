@@ -249,9 +249,7 @@ class PetscAmgSolver final : public LinearSolver {
         TETFSI_PETSC(MatSetOption(m_mat, MAT_SPD, PETSC_TRUE));  // CG presumes it anyway
     }
 
-    TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
-    TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
-    TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
+    new_ksp();
     if (is_direct_solver(m_kind)) return build_direct();
     if (m_opts.symmetric) {
       TETFSI_PETSC(KSPSetType(m_ksp, KSPCG));
@@ -283,6 +281,14 @@ class PetscAmgSolver final : public LinearSolver {
     TETFSI_PETSC(PCSetUp(pc));
   }
 
+  /// m_ksp, a new KSP with this solver's options prefix on m_mat (any earlier one destroyed).
+  void new_ksp() {
+    if (m_ksp) KSPDestroy(&m_ksp);
+    TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
+    TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
+    TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
+  }
+
   /// The factorisation as the whole solve (KSPPREONLY), distributed over the ranks' rows:
   /// MUMPS's Cholesky — its LDLᵀ, which takes a symmetric indefinite matrix too — or LU;
   /// SuperLU_DIST's LU.
@@ -294,12 +300,7 @@ class PetscAmgSolver final : public LinearSolver {
   void build_direct() {
     const bool mumps = m_kind == SolverKind::Mumps;
     for (int attempt = 0;; ++attempt) {
-      if (attempt > 0) {  // a fresh KSP on the same matrix
-        KSPDestroy(&m_ksp);
-        TETFSI_PETSC(KSPCreate(solve_comm(), &m_ksp));
-        TETFSI_PETSC(KSPSetOptionsPrefix(m_ksp, options_prefix()));
-        TETFSI_PETSC(KSPSetOperators(m_ksp, m_mat, m_mat));
-      }
+      if (attempt > 0) new_ksp();  // a fresh KSP on the same matrix
       TETFSI_PETSC(KSPSetType(m_ksp, KSPPREONLY));
       PC pc = nullptr;
       TETFSI_PETSC(KSPGetPC(m_ksp, &pc));
@@ -370,8 +371,7 @@ class PetscAmgSolver final : public LinearSolver {
 
  private:
   void krylov(const VecX& b, VecX& x, SolveReport& rep) {
-    krylov_with_restarts(m_ksp, b, x, m_opts, name(), rep,
-                         [&] { return (b - m_csr * x).norm() / b.norm(); });
+    krylov_with_restarts(m_ksp, b, x, m_opts, name(), rep, [&] { return residual(b, x); });
   }
 
   /// One solve with the factors (iterations = 1), x every rank's whole solution.
@@ -382,8 +382,11 @@ class PetscAmgSolver final : public LinearSolver {
     TETFSI_PETSC(KSPSolve(m_ksp, vb.v, vx.v));
     allgather_rows(x.data(), n);
     rep.iterations = 1;
-    rep.residual = (b - m_csr * x).norm() / b.norm();
+    rep.residual = residual(b, x);
   }
+
+  /// ||b − A x|| / ||b||.
+  double residual(const VecX& b, const VecX& x) const { return (b - m_csr * x).norm() / b.norm(); }
 
   /// Prefix of this solver's options in PETSc's database (see init_petsc_once).
   const char* options_prefix() const {
