@@ -21,6 +21,7 @@
 #include <boost/unordered_map.hpp>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 
 namespace tetfsi::mesh {
 namespace {
@@ -291,21 +292,31 @@ Index Delaunay::num_finite_cells() const {
 
 void Delaunay::extract(MatX4i& tets, MatX4i& neighbours) const {
   DT& dt = m_impl->dt;
-  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) c->info() = -1;
-  int n = 0;
-  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) c->info() = n++;
-  tets.resize(n, 4);
-  neighbours.resize(n, 4);
-  int t = 0;
-  // Cells of Triangulation_3 are positively oriented; neighbor(k) is opposite vertex(k).
-  std::array<int, 4> p;
-  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c, ++t) {
-    const std::array<int, 4> ids = canonical_ids(c, &p);
-    for (int k = 0; k < 4; ++k) {
-      tets(t, k) = ids[k];
-      neighbours(t, k) = c->neighbor(p[k])->info();
+  // One serial pass numbers the finite cells (the container's order; infinite ones −1) and
+  // keeps their handles, then the rows are filled in parallel (each writes its own row).
+  std::vector<DT::Cell_handle> cells;
+  cells.reserve(dt.number_of_finite_cells());
+  const DT::Vertex_handle inf = dt.infinite_vertex();
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
+    if (c->has_vertex(inf)) {
+      c->info() = -1;
+    } else {
+      c->info() = static_cast<int>(cells.size());
+      cells.push_back(c);
     }
   }
+  const Index n = static_cast<Index>(cells.size());
+  tets.resize(n, 4);
+  neighbours.resize(n, 4);
+  // Cells of Triangulation_3 are positively oriented; neighbor(k) is opposite vertex(k).
+  parallel_for_each(n, 16384, [&](Index t) {
+    std::array<int, 4> p;
+    const std::array<int, 4> ids = canonical_ids(cells[t], &p);
+    for (int k = 0; k < 4; ++k) {
+      tets(t, k) = ids[k];
+      neighbours(t, k) = cells[t]->neighbor(p[k])->info();
+    }
+  });
 }
 
 void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
@@ -353,7 +364,8 @@ void Delaunay::cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) 
   tets = Eigen::Map<MatX4i>(out.data(), static_cast<Index>(out.size() / 4), 4);
 }
 
-void Delaunay::cells_touching(int min_id, MatX4i& tets) const {
+void Delaunay::cells_touching(int min_id, MatX4i& tets, int min_count,
+                              const std::vector<char>* marked) const {
   // One pass over the cells (walking the incident cells of each surface vertex and sorting
   // the handles measured slower).
   // In the container's order, which depends on the history of insertions and removals: the
@@ -362,9 +374,12 @@ void Delaunay::cells_touching(int min_id, MatX4i& tets) const {
   const DT& dt = m_impl->dt;
   std::vector<int> ids;
   for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
-    const int a = c->vertex(0)->info(), b = c->vertex(1)->info(), e = c->vertex(2)->info(),
-              f = c->vertex(3)->info();
-    if (std::max(std::max(a, b), std::max(e, f)) < min_id) continue;
+    const int v[4] = {c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(),
+                      c->vertex(3)->info()};
+    const int count = (v[0] >= min_id) + (v[1] >= min_id) + (v[2] >= min_id) + (v[3] >= min_id);
+    if (count < min_count) continue;
+    if (marked && !((*marked)[v[0]] && (*marked)[v[1]] && (*marked)[v[2]] && (*marked)[v[3]]))
+      continue;
     const std::array<int, 4> k = canonical_ids(c);
     ids.insert(ids.end(), k.begin(), k.end());
   }

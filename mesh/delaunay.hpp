@@ -76,10 +76,13 @@ class Delaunay {
   /// vertex ids): cheaper when the caller does not depend on the order.
   void cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) const;
 
-  /// The finite cells (as ids, positively oriented) with at least one vertex of id ≥ min_id,
-  /// each once: every face whose three vertices have such ids is a face of one of them.
-  /// Cheaper than `extract` (one pass, no neighbours) when few ids are that large.
-  void cells_touching(int min_id, MatX4i& tets) const;
+  /// The finite cells (as ids, positively oriented, canonical order) with at least
+  /// `min_count` vertices of id ≥ min_id and, if `marked` is given, every vertex v marked
+  /// ((*marked)[v] != 0), each once, in the container's order: with min_count 3, every face
+  /// whose three vertices have such ids is a face of one of them. One pass, no neighbours:
+  /// cheaper than `extract`.
+  void cells_touching(int min_id, MatX4i& tets, int min_count = 1,
+                      const std::vector<char>* marked = nullptr) const;
 
  private:
   struct Impl;

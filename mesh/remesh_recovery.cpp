@@ -174,7 +174,7 @@ void RemeshContext::recover_conformity() {
       // co-circular quad of a rotated box face) would leave fluid faces straddling both:
       // split the sub-triangles under it instead (their shared edge, by LEPP), within the
       // round budget.
-      split = flat_cell_subs(all_surface_cells());
+      split = flat_cell_subs(flat_cells());
       report.seconds_recovery_check += now_seconds() - t0;
       if (split.empty() || round >= options.max_recovery_rounds) {
         // Slivers are removed by deleting a lattice vertex of each, then conformity is
@@ -207,8 +207,17 @@ void RemeshContext::recover_conformity() {
 
 void RemeshContext::sort_cells() {
   // The vertices are in canonical order (Delaunay), the smallest first: a counting sort by it,
-  // then each (short) bucket by the other three.
+  // then each (short) bucket by the other three, sorted once per cell (`rest`). Buckets,
+  // keys and the permutation are independent per item: parallel, the same at any thread
+  // count.
   const Index n = tets.rows();
+  constexpr Index kGrain = 16384;
+  std::vector<std::array<int, 3>> rest(static_cast<std::size_t>(n));
+  parallel_for_each(n, kGrain, [&](Index t) {
+    std::array<int, 3> k = {tets(t, 1), tets(t, 2), tets(t, 3)};
+    sort3(k[0], k[1], k[2]);
+    rest[t] = k;
+  });
   std::vector<Index> start(pts.size() + 1, 0);
   for (Index t = 0; t < n; ++t) ++start[tets(t, 0) + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
@@ -217,25 +226,21 @@ void RemeshContext::sort_cells() {
     std::vector<Index> next(start.begin(), start.end() - 1);
     for (Index t = 0; t < n; ++t) order[next[tets(t, 0)]++] = t;
   }
-  const auto rest = [&](Index t) {
-    std::array<int, 3> k = {tets(t, 1), tets(t, 2), tets(t, 3)};
-    std::sort(k.begin(), k.end());
-    return k;
-  };
-  for (std::size_t v = 0; v + 1 < start.size(); ++v)
+  parallel_for_each(static_cast<Index>(pts.size()), kGrain, [&](Index v) {
     if (start[v + 1] - start[v] > 1)
       std::sort(order.begin() + start[v], order.begin() + start[v + 1],
-                [&](Index a, Index b) { return rest(a) < rest(b); });
+                [&](Index a, Index b) { return rest[a] < rest[b]; });
+  });
   std::vector<int> rank(static_cast<std::size_t>(n));
-  for (Index i = 0; i < n; ++i) rank[order[i]] = static_cast<int>(i);
+  parallel_for_each(n, kGrain, [&](Index i) { rank[order[i]] = static_cast<int>(i); });
   MatX4i T(n, 4), N(n, 4);
-  for (Index i = 0; i < n; ++i) {
+  parallel_for_each(n, kGrain, [&](Index i) {
     T.row(i) = tets.row(order[i]);
     for (int k = 0; k < 4; ++k) {
       const int o = nbrs(order[i], k);
       N(i, k) = o < 0 ? -1 : rank[o];
     }
-  }
+  });
   tets.swap(T);
   nbrs.swap(N);
 }
@@ -263,10 +268,11 @@ void RemeshContext::sync_surface_cells(bool full) {
   tri_dirty.resize(set.corners.size(), 0);
   if (full) {
     for (auto& list : surface_cells) list.clear();
+    flat_surface_cells.clear();
     facet_tri.clear();
     covered.assign(set.corners.size(), 0.0);
     MatX4i cells;
-    dt.cells_touching(nL, cells);
+    dt.cells_touching(nL, cells, 3);
     for (Index t = 0; t < cells.rows(); ++t)
       add_surface_cell({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
     dirty_tris.resize(set.corners.size());
@@ -289,13 +295,6 @@ void RemeshContext::sync_surface_cells(bool full) {
       changed_mark[v] = 2;
       around.push_back(v);
     }
-  // Past a third of the surface (the first round's Steiner points and lattice removals
-  // touch most of it), one pass over every cell costs less than the stars (measured: 0.09 s
-  // against 0.24 s at 1M cells).
-  if (3 * around.size() > surface_cells.size()) {
-    for (int v : changed) changed_mark[v] = 0;
-    return sync_surface_cells(true);
-  }
   std::sort(around.begin(), around.end());
   for (int v : around) {
     auto& list = surface_cells[v - nL];
@@ -305,12 +304,23 @@ void RemeshContext::sync_surface_cells(bool full) {
         continue;
       }
       remove_surface_facets(list[i]);
+      flat_surface_cells.erase(list[i]);
       list[i] = list.back();
       list.pop_back();
     }
   }
+  // The current cells with every vertex changed and three on the surface: from the stars of
+  // the changed surface vertices, or, past a tenth of the surface (the first round's Steiner
+  // points and lattice removals touch most of it), from one pass over every cell, which then
+  // costs less than the stars (at 1M cells: 0.02-0.03 s for the pass, 0.24 s for the stars
+  // of the whole surface). Only the cells that changed are removed and added either way
+  // (before 2026-12-06 a large change rebuilt every facet: 0.06-0.08 s). The same cells
+  // either way, in another order (only the facets' area sums depend on it, in round-off).
   MatX4i cells;
-  dt.cells_around_unsorted(around, cells);  // the order does not matter here
+  if (10 * around.size() > surface_cells.size())
+    dt.cells_touching(nL, cells, 3, &changed_mark);
+  else
+    dt.cells_around_unsorted(around, cells);
   for (Index t = 0; t < cells.rows(); ++t) {
     const std::array<int, 4> c = {cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)};
     if (all_changed(c)) add_surface_cell(c);
@@ -324,6 +334,7 @@ void RemeshContext::add_surface_cell(const std::array<int, 4>& c) {
     if (v >= nL) lowest = std::min(lowest, v), ++n;
   if (n < 3) return;
   surface_cells[lowest - nL].push_back(c);
+  if (n == 4 && is_flat_cell(c[0], c[1], c[2], c[3])) flat_surface_cells.insert(c);
   for (int k = 0; k < 4; ++k) {
     const int a = c[(k + 1) % 4], b = c[(k + 2) % 4], e = c[(k + 3) % 4];
     if (a < nL || b < nL || e < nL) continue;
@@ -360,13 +371,11 @@ void RemeshContext::mark_triangle_dirty(int g) {
   dirty_tris.push_back(g);
 }
 
-MatX4i RemeshContext::all_surface_cells() const {
-  std::vector<int> ids;
-  for (const auto& list : surface_cells)
-    for (const auto& c : list)
-      if (c[0] >= nL && c[1] >= nL && c[2] >= nL && c[3] >= nL)
-        ids.insert(ids.end(), c.begin(), c.end());
-  return Eigen::Map<MatX4i>(ids.data(), static_cast<Index>(ids.size() / 4), 4);
+MatX4i RemeshContext::flat_cells() const {
+  MatX4i out(static_cast<Index>(flat_surface_cells.size()), 4);
+  Index t = 0;
+  for (const auto& c : flat_surface_cells) out.row(t++) << c[0], c[1], c[2], c[3];
+  return out;
 }
 
 // A triangle is recovered if each of its sub-triangles is a Delaunay face, or if other
@@ -460,13 +469,7 @@ void RemeshContext::insert_steiner_points(const std::vector<int>& split, double 
 // (splitting both sides alike keeps the mirror symmetry, and the trapezoids come back); if
 // it has no such edge, the sub-triangles at its points.
 std::vector<int> RemeshContext::flat_cell_subs(const MatX4i& cells) const {
-  std::unordered_map<TripleKey, int, TripleHash> sub_of;
-  std::unordered_map<std::uint64_t, std::vector<int>> subs_on_edge;
-  std::unordered_map<int, std::vector<int>> subs_at_point;
-  const auto alive_subs = [&](auto&& f) {
-    for (std::size_t sub = 0; sub < surf->subs.size(); ++sub)
-      if (surf->subs[sub].alive) f(surf->subs[sub], static_cast<int>(sub));
-  };
+  std::unordered_map<int, std::vector<int>> subs_at_point;  // built only if needed
   std::vector<int> out;
   for (Index t = 0; t < cells.rows(); ++t) {
     const int v0 = cells(t, 0), v1 = cells(t, 1), v2 = cells(t, 2), v3 = cells(t, 3);
@@ -476,25 +479,23 @@ std::vector<int> RemeshContext::flat_cell_subs(const MatX4i& cells) const {
       // a triangle holding one of its edges, else the winding number.
       const int c[4] = {v0, v1, v2, v3};
       if (flat_cell_side(c) < 0) continue;
-      if (subs_on_edge.empty())
-        alive_subs([&](const SubTri& st, int sub) {
-          for (int k = 0; k < 3; ++k) {
-            subs_on_edge[edge_key(st.v[k] + nL, st.v[(k + 1) % 3] + nL)].push_back(sub);
-            subs_at_point[st.v[k] + nL].push_back(sub);
-          }
-        });
       int best_g = std::numeric_limits<int>::max();
-      std::uint64_t best_e = 0;
+      std::array<int, 2> best_on{-1, -1};
       for (int i = 0; i < 4; ++i)
         for (int j = i + 1; j < 4; ++j) {
-          const std::uint64_t e = edge_key(cells(t, i), cells(t, j));
+          const std::array<int, 2> on = surf->subs_on_edge(cells(t, i) - nL, cells(t, j) - nL);
           const int g = common_triangle(cells(t, i), cells(t, j), cells(t, j));
-          if (g >= 0 && g < best_g && subs_on_edge.count(e)) best_g = g, best_e = e;
+          if (g >= 0 && g < best_g && (on[0] >= 0 || on[1] >= 0)) best_g = g, best_on = on;
         }
       if (best_g != std::numeric_limits<int>::max()) {
-        const auto& on = subs_on_edge.at(best_e);
-        out.insert(out.end(), on.begin(), on.end());
+        for (int s : best_on)
+          if (s >= 0) out.push_back(s);
       } else {
+        if (subs_at_point.empty())
+          for (std::size_t sub = 0; sub < surf->subs.size(); ++sub)
+            if (surf->subs[sub].alive)
+              for (int k = 0; k < 3; ++k)
+                subs_at_point[surf->subs[sub].v[k] + nL].push_back(static_cast<int>(sub));
         for (int k = 0; k < 4; ++k) {
           const auto& at = subs_at_point[cells(t, k)];
           out.insert(out.end(), at.begin(), at.end());
@@ -507,14 +508,10 @@ std::vector<int> RemeshContext::flat_cell_subs(const MatX4i& cells) const {
     if (g >= 0)
       for (const auto& e : surf->points[surface_id(v3)].on) common |= e.first == g;
     if (common) continue;  // flat on one triangle: handled by classification, no straddle
-    if (sub_of.empty())
-      alive_subs([&](const SubTri& st, int sub) {
-        sub_of.emplace(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL), sub);
-      });
     for (int k = 0; k < 4; ++k) {
-      auto it = sub_of.find(
-          sorted_key(cells(t, (k + 1) % 4), cells(t, (k + 2) % 4), cells(t, (k + 3) % 4)));
-      if (it != sub_of.end()) out.push_back(it->second);
+      const int s = surf->sub_with(cells(t, (k + 1) % 4) - nL, cells(t, (k + 2) % 4) - nL,
+                                   cells(t, (k + 3) % 4) - nL);
+      if (s >= 0) out.push_back(s);
     }
   }
   // In the order of the subs' ids, each once: the same list whatever the cells' order.

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <set>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -199,6 +200,17 @@ class RefinedSurface {
   /// the number of points added.
   int refine_subs(const std::vector<int>& list, std::vector<int>* new_subs = nullptr,
                   double at = 0.5);
+  /// The alive sub-triangles on the edge between points a and b (−1 for none).
+  std::array<int, 2> subs_on_edge(int a, int b) const {
+    auto it = m_edges.find(edge_key(a, b));
+    return it == m_edges.end() ? std::array<int, 2>{-1, -1} : it->second;
+  }
+  /// The alive sub-triangle with points a, b, c, or −1.
+  int sub_with(int a, int b, int c) const {
+    for (int s : subs_on_edge(a, b))
+      if (s >= 0 && (subs[s].v[0] == c || subs[s].v[1] == c || subs[s].v[2] == c)) return s;
+    return -1;
+  }
   /// The alive sub-triangles of global triangle g, in increasing order.
   const std::vector<int>& subs_of(int g) const { return m_by_tri[g]; }
 
@@ -293,6 +305,9 @@ struct RemeshContext {
   /// surface vertices is a face of one of them. Kept up to date from the Delaunay's changes
   /// (sync_surface_cells), so a recovery round costs what changed, not a pass over every cell.
   std::vector<std::vector<std::array<int, 4>>> surface_cells;
+  /// The surface_cells that are flat (is_flat_cell: four surface vertices of one body,
+  /// coplanar up to round-off), kept with them: what flat_cell_subs looks at.
+  std::set<std::array<int, 4>> flat_surface_cells;
   /// A surface facet of the Delaunay: the global triangle holding it, −2 if it lies in the
   /// surface across coplanar triangles (in_surface), −1 if it is not on the surface; and the
   /// number of surface_cells holding it (1 or 2).
@@ -374,8 +389,8 @@ struct RemeshContext {
   void mark_dirty(int a, int b, int c);
   /// Mark global triangle g dirty (tri_dirty, dirty_tris), once.
   void mark_triangle_dirty(int g);
-  /// The surface_cells with four surface vertices (any order).
-  MatX4i all_surface_cells() const;
+  /// The flat_surface_cells, in increasing order.
+  MatX4i flat_cells() const;
   /// Of the dirty triangles and the last missing ones (every triangle if !local_recovery),
   /// in increasing order, those neither tiled by faces (area covered) nor with every sub-triangle a
   /// face.
