@@ -101,6 +101,31 @@ std::string format_histogram(const Histogram& h, const char* title, int precisio
 
 }  // namespace
 
+std::pair<double, double> dihedral_range_deg(const Vec3& a, const Vec3& b, const Vec3& c,
+                                             const Vec3& d) {
+  const Vec3* x[4] = {&a, &b, &c, &d};
+  // Outward unit normals; the dihedral angle at the edge shared by faces i and j is
+  // π − ∠(n_i, n_j), i.e. the angle between n_i and −n_j.
+  std::array<Vec3, 4> nrm;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3& p = *x[kOutwardFace[k][0]];
+    const Vec3& q = *x[kOutwardFace[k][1]];
+    const Vec3& r = *x[kOutwardFace[k][2]];
+    nrm[static_cast<std::size_t>(k)] = (q - p).cross(r - p).normalized();
+  }
+  double dmin = kInf, dmax = -kInf;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = i + 1; j < 4; ++j) {
+      // atan2 instead of acos: accurate near 0° and 180° (slivers), where acos of a
+      // cosine near ±1 loses half the digits.
+      const double e = std::atan2(nrm[i].cross(nrm[j]).norm(), -nrm[i].dot(nrm[j])) * kRadToDeg;
+      dmin = std::min(dmin, e);
+      dmax = std::max(dmax, e);
+    }
+  }
+  return {dmin, dmax};
+}
+
 TetQuality tet_quality(const MatX3& vertices, const MatX4i& tets) {
   const Index n = static_cast<Index>(tets.rows());
   TetQuality q;
@@ -117,25 +142,7 @@ TetQuality tet_quality(const MatX3& vertices, const MatX4i& tets) {
   parallel_for_each(n, 4096, [&](Index t) {  // each tet writes its own entries
     std::array<Vec3, 4> x;
     for (int k = 0; k < 4; ++k) x[static_cast<std::size_t>(k)] = vertices.row(tets(t, k));
-    // Outward unit normals; the dihedral angle at the edge shared by faces i and j is
-    // π − ∠(n_i, n_j), i.e. the angle between n_i and −n_j.
-    std::array<Vec3, 4> nrm;
-    for (int k = 0; k < 4; ++k) {
-      const Vec3& a = x[kOutwardFace[k][0]];
-      const Vec3& b = x[kOutwardFace[k][1]];
-      const Vec3& c = x[kOutwardFace[k][2]];
-      nrm[static_cast<std::size_t>(k)] = (b - a).cross(c - a).normalized();
-    }
-    double dmin = kInf, dmax = -kInf;
-    for (int i = 0; i < 4; ++i) {
-      for (int j = i + 1; j < 4; ++j) {
-        // atan2 instead of acos: accurate near 0° and 180° (slivers), where acos of a
-        // cosine near ±1 loses half the digits.
-        const double d = std::atan2(nrm[i].cross(nrm[j]).norm(), -nrm[i].dot(nrm[j])) * kRadToDeg;
-        dmin = std::min(dmin, d);
-        dmax = std::max(dmax, d);
-      }
-    }
+    const auto [dmin, dmax] = dihedral_range_deg(x[0], x[1], x[2], x[3]);
     double l2_min = kInf, l2_sum = 0.0;
     for (int i = 0; i < 4; ++i) {
       for (int j = i + 1; j < 4; ++j) {

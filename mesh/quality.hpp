@@ -8,6 +8,7 @@
 /// Reference values: a regular tet has every dihedral angle acos(1/3) = 70.529°,
 /// radius–edge ratio R / l_min = sqrt(6)/4 = 0.6124 and shape measure 1.
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/types.hpp"
@@ -23,6 +24,11 @@ struct TetQuality {
   VecX shape;   ///< 6√2 V / l_rms³ (1 for a regular tet, → 0 for flat ones; < 0 if inverted)
   VecX volume;  ///< signed volume (m³)
 };
+
+/// The smallest and largest of the six dihedral angles (degrees) of the tet (a, b, c, d),
+/// as tet_quality computes them.
+std::pair<double, double> dihedral_range_deg(const Vec3& a, const Vec3& b, const Vec3& c,
+                                             const Vec3& d);
 
 /// Per-cell figures of any tet mesh (no connectivity needed).
 /// @param vertices #V × 3, @param tets #T × 4

@@ -27,6 +27,28 @@ constexpr double kProtection = 0.5;
 /// their faces co-spherical (d_f = 0 up to round-off) and no sliver.
 constexpr double kWallJitter = 0.1;
 
+/// Sort items by their 64-bit `key` (LSD radix sort, 16-bit digits; digits that every key
+/// shares are skipped): several times faster than std::sort on the octree's ~10⁶ items.
+/// Items with equal keys keep their relative order (stable).
+template <class Item>
+void radix_sort_by_key(std::vector<Item>& items) {
+  std::vector<Item> tmp(items.size());
+  std::vector<std::size_t> count(1 << 16);
+  for (int shift = 0; shift < 64; shift += 16) {
+    std::fill(count.begin(), count.end(), 0);
+    for (const Item& it : items) ++count[(it.key >> shift) & 0xFFFF];
+    if (!items.empty() && count[(items[0].key >> shift) & 0xFFFF] == items.size()) continue;
+    std::size_t sum = 0;
+    for (std::size_t& c : count) {
+      const std::size_t n = c;
+      c = sum;
+      sum += n;
+    }
+    for (const Item& it : items) tmp[count[(it.key >> shift) & 0xFFFF]++] = it;
+    items.swap(tmp);
+  }
+}
+
 /// The graded lattice: the leaves of an octree over the box (root cubes of at most
 /// far_size), split while larger than the size field at their centre, 2:1-balanced.
 class Octree {
@@ -276,9 +298,14 @@ class Octree {
     // Points on the box faces are jittered within them (kWallJitter); 'fixed' holds the axes
     // they may not move along (the normals of the faces they lie on).
     std::unordered_map<std::uint64_t, std::uint8_t> fixed = box_face_axes(fine);
-    std::sort(items.begin(), items.end(), [](const Item& a, const Item& b) {
-      return a.key < b.key || (a.key == b.key && a.size < b.size);
-    });
+    // By key, then (a point shared by leaves of several levels) the smallest size first.
+    radix_sort_by_key(items);
+    for (std::size_t n = 0, m = 0; n < items.size(); n = m) {
+      std::size_t best = n;
+      for (m = n + 1; m < items.size() && items[m].key == items[n].key; ++m)
+        if (items[m].size < items[best].size) best = m;
+      std::swap(items[n], items[best]);
+    }
     Lattice out;
     out.isotropic = m_isotropic;
     out.unit = m_root(0) / static_cast<double>(1ULL << fine);

@@ -643,16 +643,17 @@ std::vector<int> RemeshContext::away_sliver_targets(const MatX4i& T, MatX3& P) c
 }
 
 double RemeshContext::worst_around(const std::vector<int>& ring, MatX3& P) const {
+  // A minimum over the cells: their order does not matter (no cell's angle is NaN).
   MatX4i around;
-  dt.cells_around(ring, around);
+  dt.cells_around_unsorted(ring, around);
   for (const int v : ring) P.row(v) = pts[v].transpose();
-  MatX4i away(around.rows(), 4);  // the cells with no solid vertex
-  Index n = 0;
+  double worst = kInf;
   for (Index t = 0; t < around.rows(); ++t)
-    if (around.row(t).maxCoeff() < nL) away.row(n++) = around.row(t);
-  away.conservativeResize(n, 4);
-  const TetQuality q = tet_quality(P, away);
-  return n > 0 ? q.min_dihedral_deg.minCoeff() : kInf;
+    if (around.row(t).maxCoeff() < nL)  // the cells with no solid vertex
+      worst = std::min(worst, dihedral_range_deg(P.row(around(t, 0)), P.row(around(t, 1)),
+                                                 P.row(around(t, 2)), P.row(around(t, 3)))
+                                  .first);
+  return worst;
 }
 
 bool RemeshContext::perturb_vertex(int v, MatX3& P) {
