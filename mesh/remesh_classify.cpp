@@ -52,8 +52,8 @@ bool RemeshContext::is_barrier(Index t, int k) const {
   const int a = tets(t, (k + 1) % 4), b = tets(t, (k + 2) % 4), c = tets(t, (k + 3) % 4);
   if (a < nL || b < nL || c < nL) return false;
   if (flat[t] || (nbrs(t, k) >= 0 && flat[nbrs(t, k)])) return true;
-  auto it = facet_tri.find(sorted_key(a, b, c));
-  return it != facet_tri.end() && it->second.tri != -1;
+  const SurfaceFacet* f = facet_tri.find(sorted_key(a, b, c));
+  return f && f->tri != -1;
 }
 
 bool RemeshContext::region_is_fluid(Index seed) {

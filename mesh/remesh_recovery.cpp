@@ -351,11 +351,11 @@ void RemeshContext::remove_surface_facets(const std::array<int, 4>& c) {
   for (int k = 0; k < 4; ++k) {
     const int a = c[(k + 1) % 4], b = c[(k + 2) % 4], e = c[(k + 3) % 4];
     if (a < nL || b < nL || e < nL) continue;
-    auto f = facet_tri.find(sorted_key(a, b, e));
-    if (--f->second.cells > 0) continue;
-    if (f->second.tri >= 0)
-      covered[f->second.tri] -= 0.5 * (pts[b] - pts[a]).cross(pts[e] - pts[a]).norm();
-    facet_tri.erase(f);
+    const TripleKey key = sorted_key(a, b, e);
+    SurfaceFacet* f = facet_tri.find(key);
+    if (--f->cells > 0) continue;
+    if (f->tri >= 0) covered[f->tri] -= 0.5 * (pts[b] - pts[a]).cross(pts[e] - pts[a]).norm();
+    facet_tri.erase(key);
     mark_dirty(a, b, e);
   }
 }
@@ -400,7 +400,7 @@ std::vector<int> RemeshContext::missing_triangles() {
     bool all = true;
     for (int sub : surf->subs_of(g)) {
       const SubTri& st = surf->subs[sub];
-      all &= facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)) > 0;
+      all &= facet_tri.contains(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL));
     }
     if (!all) missing.push_back(g);
   }
@@ -413,7 +413,7 @@ std::vector<int> RemeshContext::unrecovered_subs(const std::vector<int>& missing
   for (int g : missing)
     for (int s : surf->subs_of(g)) {
       const SubTri& st = surf->subs[s];
-      if (!facet_tri.count(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)))
+      if (!facet_tri.contains(sorted_key(st.v[0] + nL, st.v[1] + nL, st.v[2] + nL)))
         split.push_back(s);
     }
   return split;
