@@ -364,6 +364,21 @@ void Delaunay::cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) 
   tets = Eigen::Map<MatX4i>(out.data(), static_cast<Index>(out.size() / 4), 4);
 }
 
+void Delaunay::cells_around_any_order(const std::vector<int>& ids, MatX4i& tets) const {
+  const Impl& d = *m_impl;
+  std::vector<DT::Cell_handle> cells;
+  for (int id : ids)
+    if (const DT::Vertex_handle v = d.handle(id); v != DT::Vertex_handle())
+      d.dt.finite_incident_cells(v, std::back_inserter(cells));
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  tets.resize(static_cast<Index>(cells.size()), 4);
+  for (std::size_t t = 0; t < cells.size(); ++t) {
+    const std::array<int, 4> k = canonical_ids(cells[t]);
+    for (int j = 0; j < 4; ++j) tets(static_cast<Index>(t), j) = k[j];
+  }
+}
+
 void Delaunay::cells_touching(int min_id, MatX4i& tets, int min_count,
                               const std::vector<char>* marked) const {
   // One pass over the cells (walking the incident cells of each surface vertex and sorting

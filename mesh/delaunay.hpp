@@ -76,6 +76,11 @@ class Delaunay {
   /// vertex ids): cheaper when the caller does not depend on the order.
   void cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) const;
 
+  /// As cells_around, in an order that varies from run to run (the cells' addresses): only
+  /// for what does not depend on the order at all, such as a minimum over the cells. The
+  /// cheapest of the three.
+  void cells_around_any_order(const std::vector<int>& ids, MatX4i& tets) const;
+
   /// The finite cells (as ids, positively oriented, canonical order) with at least
   /// `min_count` vertices of id ≥ min_id and, if `marked` is given, every vertex v marked
   /// ((*marked)[v] != 0), each once, in the container's order: with min_count 3, every face

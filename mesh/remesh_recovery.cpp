@@ -645,7 +645,7 @@ std::vector<int> RemeshContext::away_sliver_targets(const MatX4i& T, MatX3& P) c
 double RemeshContext::worst_around(const std::vector<int>& ring, MatX3& P) const {
   // A minimum over the cells: their order does not matter (no cell's angle is NaN).
   MatX4i around;
-  dt.cells_around_unsorted(ring, around);
+  dt.cells_around_any_order(ring, around);
   for (const int v : ring) P.row(v) = pts[v].transpose();
   double worst = kInf;
   for (Index t = 0; t < around.rows(); ++t)
