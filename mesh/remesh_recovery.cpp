@@ -200,6 +200,7 @@ void RemeshContext::recover_conformity() {
     insert_steiner_points(split, missing.empty() ? kStraddleSplitAt : 0.5);
     report.seconds_recovery_insert += now_seconds() - t0;
   }
+  dt.extract(tets, nbrs);
   sort_cells();
   report.steiner_points = static_cast<Index>(surf->points.size()) - report.surface_points;
   report.cells_delaunay = static_cast<Index>(tets.rows());
@@ -283,6 +284,12 @@ void RemeshContext::sync_surface_cells(bool full) {
   }
   const std::vector<int> changed = dt.take_changed();
   changed_mark.resize(pts.size(), 0);  // all 0 between calls: reset below, not refilled
+  changed_since_cleanup.resize(pts.size(), 0);
+  for (int v : changed)
+    if (!changed_since_cleanup[v]) {
+      changed_since_cleanup[v] = 1;
+      changed_since_cleanup_ids.push_back(v);
+    }
   for (int v : changed) changed_mark[v] = 1;
   // Every cell created or destroyed since the last call has all four vertices changed, so
   // its smallest surface vertex too.
@@ -545,21 +552,61 @@ int RemeshContext::flat_cell_side(const int c[4]) const {
   return side;
 }
 
+MatX4i RemeshContext::screen_sliver_candidates() {
+  std::vector<std::array<int, 4>> next;
+  const auto keep_flat = [&](const MatX4i& cells, auto&& also) {
+    const std::vector<Index> rows =
+        filter_cells(cells, [&](Index t) { return also(t) && maybe_flat(cells, t, 0.5); });
+    for (Index t : rows) next.push_back({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
+  };
+  MatX4i cells;
+  if (!sizing.local_recovery || !candidates_valid) {
+    dt.cells_touching(0, cells, 0);  // every finite cell
+    keep_flat(cells, [](Index) { return true; });
+  } else {
+    // A cell created or destroyed since the last pass has all four vertices changed: the
+    // other candidates are still cells, with the same points.
+    const std::vector<char>& mark = changed_since_cleanup;
+    const auto all_changed = [&](const std::array<int, 4>& c) {
+      return mark[c[0]] && mark[c[1]] && mark[c[2]] && mark[c[3]];
+    };
+    for (const auto& c : sliver_candidates)
+      if (!all_changed(c)) next.push_back(c);
+    if (10 * changed_since_cleanup_ids.size() > pts.size())
+      dt.cells_touching(0, cells, 0, &changed_since_cleanup);
+    else
+      dt.cells_around_any_order(changed_since_cleanup_ids, cells);
+    keep_flat(cells, [&](Index t) {
+      return all_changed({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
+    });
+  }
+  std::sort(next.begin(), next.end());  // the same list whatever order the cells came in
+  for (int v : changed_since_cleanup_ids) changed_since_cleanup[v] = 0;
+  changed_since_cleanup_ids.clear();
+  sliver_candidates = std::move(next);
+  candidates_valid = true;
+  MatX4i out(static_cast<Index>(sliver_candidates.size()), 4);
+  for (std::size_t t = 0; t < sliver_candidates.size(); ++t)
+    for (int k = 0; k < 4; ++k) out(static_cast<Index>(t), k) = sliver_candidates[t][k];
+  return out;
+}
+
 bool RemeshContext::clean_up_slivers() {
-  dt.extract(tets, nbrs);
+  // Both screens below look only at cells that may be flat (maybe_flat at 0.3 or 0.5).
+  const MatX4i cand = screen_sliver_candidates();
   bool changed = false;
   if (perturb_rounds < kPerturbRounds) {
     ++perturb_rounds;
-    const int moved = perturb_away_slivers(tets);
+    const int moved = perturb_away_slivers(cand);
     report.sliver_points_moved += moved;
     changed |= moved > 0;
   }
   // After the sliver rounds, degenerate cells (is_degenerate) still lose a vertex, once
-  // no vertex was moved in this pass (`tets` is then the current triangulation).
+  // no vertex was moved in this pass (`cand` then holds the current triangulation's).
   const bool degenerate_only = cleanup_rounds >= kSliverRounds;
   if (cleanup_rounds < kSliverRounds + kDegenerateRounds && !(degenerate_only && changed)) {
     ++cleanup_rounds;
-    const std::vector<int> drop = sliver_vertices(tets, degenerate_only);
+    const std::vector<int> drop = sliver_vertices(cand, degenerate_only);
     for (int v : drop) {  // one by one: scattered vertices (remove_many measured slower)
       lattice_removed[v] = 1;
       dt.remove(v);

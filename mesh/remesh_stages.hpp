@@ -402,6 +402,14 @@ struct RemeshContext {
   std::vector<int> last_missing;  ///< missing_triangles' last answer
   int cleanup_rounds = 0;         ///< sliver / degenerate-cell deletion passes done
   int perturb_rounds = 0;         ///< sliver perturbation passes done
+  /// The cells that may be slivers (maybe_flat at 0.5, ids in canonical order, sorted) at the
+  /// last cleanup pass, and per vertex id whether its star changed since (filled from the
+  /// Delaunay's changes by sync_surface_cells; the list of those ids): a later pass screens
+  /// only the cells with every vertex changed (local_recovery).
+  std::vector<std::array<int, 4>> sliver_candidates;
+  bool candidates_valid = false;
+  std::vector<char> changed_since_cleanup;
+  std::vector<int> changed_since_cleanup_ids;
 
   // ---- stage 5: classification ----
   std::vector<char> flat;          ///< per cell: is_flat_surface_cell (belongs to the solid)
@@ -482,6 +490,11 @@ struct RemeshContext {
   /// sliver at them (kSliverRounds) and then of each degenerate cell (kDegenerateRounds).
   /// Returns whether the triangulation changed (conformity must be checked again).
   bool clean_up_slivers();
+  /// The cells of the triangulation now that may be slivers (maybe_flat at 0.5): from one
+  /// pass over every cell, or (local_recovery, after a first pass) the last candidates whose
+  /// vertices did not all change and the cells whose vertices all did. Updates
+  /// sliver_candidates and resets the changes.
+  MatX4i screen_sliver_candidates();
   /// Lattice vertices to delete, one per sliver (min dihedral < kSliverDeg; only degenerate
   /// cells if `degenerate_only`) that has one: the lattice vertex nearest to the sliver's
   /// surface vertices (or its first), never a box point.
