@@ -703,6 +703,26 @@ double RemeshContext::worst_around(const std::vector<int>& ring, MatX3& P) const
   return worst;
 }
 
+bool RemeshContext::raises_worst_around(const std::vector<int>& ring, int v, double above,
+                                        MatX3& P) const {
+  for (const int w : ring) P.row(w) = pts[w].transpose();
+  if (!(above < kInf)) return false;  // nothing is above +inf (worst_around's empty minimum)
+  MatX4i around;
+  const auto all_above = [&]() {
+    for (Index t = 0; t < around.rows(); ++t)
+      if (around.row(t).maxCoeff() < nL &&  // the cells with no solid vertex
+          !(dihedral_range_deg(P.row(around(t, 0)), P.row(around(t, 1)), P.row(around(t, 2)),
+                               P.row(around(t, 3)))
+                .first > above))
+        return false;
+    return true;
+  };
+  dt.cells_around_any_order({v}, around);
+  if (!all_above()) return false;
+  dt.cells_around_any_order(ring, around);
+  return all_above();
+}
+
 bool RemeshContext::perturb_vertex(int v, MatX3& P) {
   MatX4i star;
   dt.cells_around({v}, star);
@@ -731,7 +751,7 @@ bool RemeshContext::perturb_vertex(int v, MatX3& P) {
     dt_pts[v] = to_dt(x);
     dt.insert(dt_pts[v], v);
     displaced = true;
-    ok = worst_around(ring, P) > before;
+    ok = raises_worst_around(ring, v, before, P);
   }
   if (displaced && !ok) {
     dt.remove(v);

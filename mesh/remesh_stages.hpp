@@ -508,6 +508,10 @@ struct RemeshContext {
   /// The smallest min dihedral angle (degrees) of the cells with no solid vertex around the
   /// vertices `ring`; updates their rows of P.
   double worst_around(const std::vector<int>& ring, MatX3& P) const;
+  /// Whether worst_around(ring, P) > above, v a vertex of the ring: v's cells first, stopping
+  /// at the first cell at or below `above` (the same answer; most trial moves fail at v's
+  /// own cells). Updates the ring's rows of P.
+  bool raises_worst_around(const std::vector<int>& ring, int v, double above, MatX3& P) const;
   /// Try up to 12 moves of lattice vertex v; keep the first that raises worst_around of its
   /// star's vertices. Returns whether it moved.
   bool perturb_vertex(int v, MatX3& P);
