@@ -179,7 +179,9 @@ class Octree {
   /// The leaf containing cube (level, i, j, k)'s region, as its level, or −1 if that cube
   /// is itself subdivided.
   int leaf_level_containing(int level, int i, int j, int k) const {
-    for (int l = 0; l <= level; ++l) {
+    // The leaves tile the box, so at most one level holds the cube's region; looked for from
+    // the cube's own level down (the neighbours of a leaf are mostly within a level of it).
+    for (int l = level; l >= 0; --l) {
       const int sh = level - l;
       if (m_leaves[l].count(pack3(i >> sh, j >> sh, k >> sh))) return l;
     }
@@ -231,12 +233,12 @@ class Octree {
         inside &= p[a] >= 0 && p[a] < (static_cast<std::int64_t>(m_n[a]) << fine);
       }
       if (!inside) continue;
-      int l = 0;
-      for (; l <= m_levels; ++l) {
+      int l = m_levels;  // the one leaf holding p, finest levels first
+      for (; l >= 0; --l) {
         const int sh = fine - l;
         if (m_leaves[l].count(pack3(p[0] >> sh, p[1] >> sh, p[2] >> sh))) break;
       }
-      if (l > m_levels || (level >= 0 && l != level)) return false;
+      if (l < 0 || (level >= 0 && l != level)) return false;
       level = l;
     }
     const std::uint64_t step = 1ULL << (fine - level);
