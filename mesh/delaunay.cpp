@@ -144,6 +144,15 @@ struct Delaunay::Impl {
     dt.finite_adjacent_vertices(v, boost::iterators::make_function_output_iterator(
                                        [&](DT::Vertex_handle w) { changed.push_back(w->info()); }));
   }
+  /// The finite cells incident to the vertices with these ids (absent ids skipped), star
+  /// after star: a cell shared by several stars comes once per star.
+  std::vector<DT::Cell_handle> stars(const std::vector<int>& ids) const {
+    std::vector<DT::Cell_handle> cells;
+    for (int id : ids)
+      if (const DT::Vertex_handle v = handle(id); v != DT::Vertex_handle())
+        dt.finite_incident_cells(v, std::back_inserter(cells));
+    return cells;
+  }
   /// The vertex with this id, null if absent.
   DT::Vertex_handle handle(int id) const {
     return id >= 0 && static_cast<std::size_t>(id) < handles.size() ? handles[id]
@@ -320,11 +329,7 @@ void Delaunay::extract(MatX4i& tets, MatX4i& neighbours) const {
 }
 
 void Delaunay::cells_around(const std::vector<int>& ids, MatX4i& tets) const {
-  const Impl& d = *m_impl;
-  std::vector<DT::Cell_handle> cells;
-  for (int id : ids)
-    if (const DT::Vertex_handle v = d.handle(id); v != DT::Vertex_handle())
-      d.dt.finite_incident_cells(v, std::back_inserter(cells));
+  std::vector<DT::Cell_handle> cells = m_impl->stars(ids);
   // Order by the cells' sorted vertex ids, not by handle (an address): the remesher acts on
   // these cells in this order, and the same input must give the same mesh in every run.
   std::vector<std::pair<std::array<int, 4>, std::array<int, 4>>> keyed;  // sorted, canonical
@@ -365,11 +370,7 @@ void Delaunay::cells_around_unsorted(const std::vector<int>& ids, MatX4i& tets) 
 }
 
 void Delaunay::cells_around_any_order(const std::vector<int>& ids, MatX4i& tets) const {
-  const Impl& d = *m_impl;
-  std::vector<DT::Cell_handle> cells;
-  for (int id : ids)
-    if (const DT::Vertex_handle v = d.handle(id); v != DT::Vertex_handle())
-      d.dt.finite_incident_cells(v, std::back_inserter(cells));
+  std::vector<DT::Cell_handle> cells = m_impl->stars(ids);
   std::sort(cells.begin(), cells.end());
   cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
   tets.resize(static_cast<Index>(cells.size()), 4);
