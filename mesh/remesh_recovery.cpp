@@ -285,12 +285,13 @@ void RemeshContext::sync_surface_cells(bool full) {
   const std::vector<int> changed = dt.take_changed();
   changed_mark.resize(pts.size(), 0);  // all 0 between calls: reset below, not refilled
   changed_since_cleanup.resize(pts.size(), 0);
-  for (int v : changed)
+  for (int v : changed) {
+    changed_mark[v] = 1;
     if (!changed_since_cleanup[v]) {
       changed_since_cleanup[v] = 1;
       changed_since_cleanup_ids.push_back(v);
     }
-  for (int v : changed) changed_mark[v] = 1;
+  }
   // Every cell created or destroyed since the last call has all four vertices changed, so
   // its smallest surface vertex too.
   const auto all_changed = [&](const std::array<int, 4>& c) {
@@ -689,6 +690,13 @@ std::vector<int> RemeshContext::away_sliver_targets(const MatX4i& T, MatX3& P) c
   return targets;
 }
 
+double RemeshContext::away_min_dihedral(const MatX4i& cells, Index t, const MatX3& P) const {
+  if (cells.row(t).maxCoeff() >= nL) return kInf;  // a cell at a solid: not measured
+  return dihedral_range_deg(P.row(cells(t, 0)), P.row(cells(t, 1)), P.row(cells(t, 2)),
+                            P.row(cells(t, 3)))
+      .first;
+}
+
 double RemeshContext::worst_around(const std::vector<int>& ring, MatX3& P) const {
   // A minimum over the cells: their order does not matter (no cell's angle is NaN).
   MatX4i around;
@@ -696,10 +704,7 @@ double RemeshContext::worst_around(const std::vector<int>& ring, MatX3& P) const
   for (const int v : ring) P.row(v) = pts[v].transpose();
   double worst = kInf;
   for (Index t = 0; t < around.rows(); ++t)
-    if (around.row(t).maxCoeff() < nL)  // the cells with no solid vertex
-      worst = std::min(worst, dihedral_range_deg(P.row(around(t, 0)), P.row(around(t, 1)),
-                                                 P.row(around(t, 2)), P.row(around(t, 3)))
-                                  .first);
+    worst = std::min(worst, away_min_dihedral(around, t, P));
   return worst;
 }
 
@@ -710,11 +715,7 @@ bool RemeshContext::raises_worst_around(const std::vector<int>& ring, int v, dou
   MatX4i around;
   const auto all_above = [&]() {
     for (Index t = 0; t < around.rows(); ++t)
-      if (around.row(t).maxCoeff() < nL &&  // the cells with no solid vertex
-          !(dihedral_range_deg(P.row(around(t, 0)), P.row(around(t, 1)), P.row(around(t, 2)),
-                               P.row(around(t, 3)))
-                .first > above))
-        return false;
+      if (!(away_min_dihedral(around, t, P) > above)) return false;
     return true;
   };
   dt.cells_around_any_order({v}, around);

@@ -508,6 +508,9 @@ struct RemeshContext {
   /// The smallest min dihedral angle (degrees) of the cells with no solid vertex around the
   /// vertices `ring`; updates their rows of P.
   double worst_around(const std::vector<int>& ring, MatX3& P) const;
+  /// The smallest dihedral angle (degrees) of cell t of `cells` from the positions P, +inf
+  /// for a cell with a solid vertex (worst_around and raises_worst_around leave those out).
+  double away_min_dihedral(const MatX4i& cells, Index t, const MatX3& P) const;
   /// Whether worst_around(ring, P) > above, v a vertex of the ring: v's cells first, stopping
   /// at the first cell at or below `above` (the same answer; most trial moves fail at v's
   /// own cells). Updates the ring's rows of P.
