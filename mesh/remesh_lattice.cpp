@@ -118,12 +118,18 @@ class Octree {
                   .push_back(static_cast<int>(g));
           }
     }
-    for (int k = 0; k < m_n[2]; ++k)
-      for (int j = 0; j < m_n[1]; ++j)
-        for (int i = 0; i < m_n[0]; ++i)
-          subdivide(0, i, j, k,
-                    cand[i + static_cast<std::size_t>(m_n[0]) *
-                                 (j + static_cast<std::size_t>(m_n[1]) * k)]);
+    // Each root cube's subtree on its own (in parallel), its leaves gathered per level; the
+    // sets then hold the same leaves whatever the order (and balance's closure is unique).
+    std::vector<std::vector<std::vector<std::uint64_t>>> found(nroots);
+    parallel_for_each(static_cast<Index>(nroots), 1, [&](Index r) {
+      const int i = static_cast<int>(r % m_n[0]);
+      const int j = static_cast<int>((r / m_n[0]) % m_n[1]);
+      const int k = static_cast<int>(r / (static_cast<Index>(m_n[0]) * m_n[1]));
+      found[r].resize(m_levels + 1);
+      subdivide(0, i, j, k, cand[r], found[r]);
+    });
+    for (const auto& per_root : found)
+      for (int l = 0; l <= m_levels; ++l) m_leaves[l].insert(per_root[l].begin(), per_root[l].end());
     balance();
     return points();
   }
@@ -135,7 +141,10 @@ class Octree {
   }
   double cube_size(int level) const { return m_root.maxCoeff() / static_cast<double>(1 << level); }
 
-  void subdivide(int level, int i, int j, int k, const std::vector<int>& cand) {
+  /// Splits cube (level, i, j, k) while it is larger than the size field; its leaves go to
+  /// leaves[level] (one vector per level).
+  void subdivide(int level, int i, int j, int k, const std::vector<int>& cand,
+                 std::vector<std::vector<std::uint64_t>>& leaves) const {
     const Vec3 c = centre(level, i, j, k);
     const double s = cube_size(level);
     // Split iff s > size(c) = min(far, surface + grading · dist, refine): the distance only
@@ -154,7 +163,7 @@ class Octree {
     }
     const bool split = level < m_levels && s > m_size.at(c, dist) * (1.0 + 1e-9);
     if (!split) {
-      m_leaves[level].insert(pack3(i, j, k));
+      leaves[level].push_back(pack3(i, j, k));
       return;
     }
     const int cl = level + 1;
@@ -172,7 +181,7 @@ class Octree {
             const Vec3 d = (m_set.box_lo[g] - cc).cwiseMax(cc - m_set.box_hi[g]).cwiseMax(0.0);
             if (d.norm() < keep) sub.push_back(g);
           }
-          subdivide(cl, ci, cj, ck, sub);
+          subdivide(cl, ci, cj, ck, sub, leaves);
         }
   }
 
@@ -424,9 +433,13 @@ std::vector<char> exclude_near_surface(const Lattice& lat, const RefinedSurface&
 void RemeshContext::place_vertices() {
   double last_estimate = -1.0;
   for (int attempt = 0;; ++attempt) {
-    surf = std::make_unique<RefinedSurface>(set);
-    refine_surface(*surf, size, 40);
-    lat = Octree(domain, set, size).build();
+    // The surface's refinement and the lattice are independent: side by side.
+    run_alongside(
+        [&] {
+          surf = std::make_unique<RefinedSurface>(set);
+          refine_surface(*surf, size, 40);
+        },
+        [&] { lat = Octree(domain, set, size).build(); });
     keep = exclude_near_surface(lat, *surf, size);
     const Index kept = static_cast<Index>(std::count(keep.begin(), keep.end(), 1));
     // A BCC lattice has 6 tets per vertex; near surfaces a little more.
