@@ -42,17 +42,19 @@ class Delaunay {
   /// `inserted` count the vertices the update removes and inserts (also when it rebuilt).
   /// @throws MeshError naming both ids if two points coincide.
   bool update(const std::vector<Vec3>& points, double max_cost, Index& removed, Index& inserted);
-  /// A vertex removal costs about this many insertions (remove_cluster against the range
-  /// insertion of `build`; measured on remesh_sheet's moving sheet: 16 µs against 3.8 µs).
-  static constexpr Index kRemovalCost = 4;
+  /// A vertex removal costs about this many insertions (remove_many against the range
+  /// insertion of `build`, measured on remesh_sheet's moving sheet; 4 with CGAL's
+  /// remove_cluster).
+  static constexpr Index kRemovalCost = 2;
   /// Insert one point with the given id (incremental, hinted by the last insertion).
   /// @throws MeshError if it coincides with an existing vertex.
   void insert(const Vec3& p, int id);
   /// Remove the vertex with this id (no-op if absent).
   void remove(int id);
   /// Remove the vertices with these ids (absent ones skipped), all at once: each connected
-  /// cluster's hole is refilled once (CGAL remove_cluster), cheaper than one by one. The same
-  /// triangulation as removing them one by one.
+  /// cluster's hole is refilled once (as CGAL's remove_cluster, with hashed ids for its
+  /// ordered maps of addresses), cheaper than one by one. The same triangulation as removing
+  /// them one by one.
   void remove_many(const std::vector<int>& ids);
   /// From now on (or no longer), record the ids of the vertices whose star an insert or a
   /// remove changes: the vertex inserted or removed and its neighbours. Every cell created or

@@ -84,10 +84,10 @@ struct Sizing {
   /// are not in the new vertex set and inserting the new ones, instead of a new Delaunay
   /// (false: always a full rebuild). The same mesh either way, bit for bit.
   bool incremental = true;
-  /// The incremental path is taken while its estimated cost, (4 × removed + inserted) /
-  /// vertices (a removal costs about 4 insertions, Delaunay::kRemovalCost), is at most this;
+  /// The incremental path is taken while its estimated cost, (2 × removed + inserted) /
+  /// vertices (a removal costs about 2 insertions, Delaunay::kRemovalCost), is at most this;
   /// a full rebuild costs 1 (it inserts every vertex).
-  double incremental_max_cost = 0.8;
+  double incremental_max_cost = 1.0;
 };
 
 struct RemeshOptions {

@@ -129,7 +129,8 @@ class Octree {
       subdivide(0, i, j, k, cand[r], found[r]);
     });
     for (const auto& per_root : found)
-      for (int l = 0; l <= m_levels; ++l) m_leaves[l].insert(per_root[l].begin(), per_root[l].end());
+      for (int l = 0; l <= m_levels; ++l)
+        m_leaves[l].insert(per_root[l].begin(), per_root[l].end());
     balance();
     return points();
   }

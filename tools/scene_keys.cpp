@@ -1160,11 +1160,11 @@ const Section<mesh::Sizing>& fluid_mesh_keys() {
                TETFSI_AT(incremental)),
        bind<Z>({.key = "incremental_max_cost",
                 .type = KeyType::Number,
-                .doc = "the incremental path is taken while its estimated cost, (4 x "
+                .doc = "the incremental path is taken while its estimated cost, (2 x "
                        "vertices removed + vertices inserted) / vertices, is at most this; a "
                        "full rebuild costs 1",
                 .range = k_non_negative,
-                .note = "a removal costs about 4 insertions (measured)"},
+                .note = "a removal costs about 2 insertions (measured)"},
                TETFSI_AT(incremental_max_cost))}};
   return s;
 }
