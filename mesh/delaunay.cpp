@@ -599,23 +599,37 @@ void Delaunay::cells_around_any_order(const std::vector<int>& ids, MatX4i& tets)
 void Delaunay::cells_touching(int min_id, MatX4i& tets, int min_count,
                               const std::vector<char>* marked) const {
   // One pass over the cells (walking the incident cells of each surface vertex and sorting
-  // the handles measured slower).
-  // In the container's order, which depends on the history of insertions and removals: the
-  // caller's sums of facet areas may differ in the last bit, far below its 1e-9 tolerance
-  // (sorting cost 3 % of a remesh).
+  // the handles measured slower): a serial one gathers the handles (the container allows
+  // nothing else), then the cells' vertices are read and tested in parallel chunks, joined
+  // in chunk order. In the container's order, which depends on the history of insertions
+  // and removals: the caller's sums of facet areas may differ in the last bit, far below its
+  // 1e-9 tolerance (sorting cost 3 % of a remesh).
   const DT& dt = m_impl->dt;
-  std::vector<int> ids;
-  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
-    const int v[4] = {c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(),
-                      c->vertex(3)->info()};
-    const int count = (v[0] >= min_id) + (v[1] >= min_id) + (v[2] >= min_id) + (v[3] >= min_id);
-    if (count < min_count) continue;
-    if (marked && !((*marked)[v[0]] && (*marked)[v[1]] && (*marked)[v[2]] && (*marked)[v[3]]))
-      continue;
-    const std::array<int, 4> k = canonical_ids(c);
-    ids.insert(ids.end(), k.begin(), k.end());
-  }
-  tets = Eigen::Map<MatX4i>(ids.data(), static_cast<Index>(ids.size() / 4), 4);
+  std::vector<DT::Cell_handle> all;
+  all.reserve(dt.tds().number_of_cells());
+  for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) all.push_back(c);
+  constexpr Index kGrain = 16384;
+  const Index n = static_cast<Index>(all.size());
+  std::vector<std::vector<int>> parts(static_cast<std::size_t>(num_chunks(n, kGrain)));
+  parallel_for_chunks(n, kGrain, [&](Index begin, Index end) {
+    std::vector<int>& ids = parts[static_cast<std::size_t>(begin / kGrain)];
+    for (Index t = begin; t < end; ++t) {
+      const DT::Cell_handle& c = all[t];
+      const int v[4] = {c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(),
+                        c->vertex(3)->info()};
+      const int count = (v[0] >= min_id) + (v[1] >= min_id) + (v[2] >= min_id) + (v[3] >= min_id);
+      if (count < min_count) continue;
+      if (marked && !((*marked)[v[0]] && (*marked)[v[1]] && (*marked)[v[2]] && (*marked)[v[3]]))
+        continue;
+      const std::array<int, 4> k = canonical_ids(c);
+      ids.insert(ids.end(), k.begin(), k.end());
+    }
+  });
+  std::size_t total = 0;
+  for (const auto& part : parts) total += part.size();
+  tets.resize(static_cast<Index>(total / 4), 4);
+  int* out = tets.data();  // row-major: the parts' quadruples back to back
+  for (const auto& part : parts) out = std::copy(part.begin(), part.end(), out);
 }
 
 MatX4i delaunay_of(const std::vector<Vec3>& points) {
