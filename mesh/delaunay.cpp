@@ -597,7 +597,8 @@ void Delaunay::cells_around_any_order(const std::vector<int>& ids, MatX4i& tets)
 }
 
 void Delaunay::cells_touching(int min_id, MatX4i& tets, int min_count,
-                              const std::vector<char>* marked) const {
+                              const std::vector<char>* marked,
+                              const std::function<bool(const std::array<int, 4>&)>* keep) const {
   // One pass over the cells (walking the incident cells of each surface vertex and sorting
   // the handles measured slower): a serial one gathers the handles (the container allows
   // nothing else), then the cells' vertices are read and tested in parallel chunks, joined
@@ -622,6 +623,7 @@ void Delaunay::cells_touching(int min_id, MatX4i& tets, int min_count,
       if (marked && !((*marked)[v[0]] && (*marked)[v[1]] && (*marked)[v[2]] && (*marked)[v[3]]))
         continue;
       const std::array<int, 4> k = canonical_ids(c);
+      if (keep && !(*keep)(k)) continue;
       ids.insert(ids.end(), k.begin(), k.end());
     }
   });

@@ -5,6 +5,7 @@
 /// triangle–triangle intersection search used to reject bad solid geometry. Internal to
 /// tetfsi::mesh (remesh.cpp, the benchmark); the public entry point is remesh.hpp.
 #include <array>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -87,9 +88,10 @@ class Delaunay {
   /// `min_count` vertices of id ≥ min_id and, if `marked` is given, every vertex v marked
   /// ((*marked)[v] != 0), each once, in the container's order: with min_count 3, every face
   /// whose three vertices have such ids is a face of one of them. One pass, no neighbours:
-  /// cheaper than `extract`.
+  /// cheaper than `extract`. `keep`, if given, must accept a cell too (called in parallel).
   void cells_touching(int min_id, MatX4i& tets, int min_count = 1,
-                      const std::vector<char>* marked = nullptr) const;
+                      const std::vector<char>* marked = nullptr,
+                      const std::function<bool(const std::array<int, 4>&)>* keep = nullptr) const;
 
  private:
   struct Impl;

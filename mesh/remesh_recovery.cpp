@@ -78,9 +78,9 @@ bool RemeshContext::on_box(const Vec3& x) const {
 // Cheap screen for small dihedral angles: the shape measure 6√2 V / l_rms³ below `shape`
 // (a small dihedral angle θ makes the tet flat, V ≤ c sin θ l³; 0.3 for 5°, 0.5 for 10°),
 // before the exact test by dihedral angles.
-bool RemeshContext::maybe_flat(const MatX4i& T, Index t, double shape) const {
-  const Vec3& a = pts[T(t, 0)];
-  const Vec3 e1 = pts[T(t, 1)] - a, e2 = pts[T(t, 2)] - a, e3 = pts[T(t, 3)] - a;
+bool RemeshContext::maybe_flat(const std::array<int, 4>& c, double shape) const {
+  const Vec3& a = pts[c[0]];
+  const Vec3 e1 = pts[c[1]] - a, e2 = pts[c[2]] - a, e3 = pts[c[3]] - a;
   const double l2 = e1.squaredNorm() + e2.squaredNorm() + e3.squaredNorm() +
                     (e2 - e1).squaredNorm() + (e3 - e1).squaredNorm() + (e3 - e2).squaredNorm();
   const double v6 = e1.dot(e2.cross(e3));  // √2 v6 < shape (l2/6)^1.5, without pow
@@ -274,8 +274,7 @@ void RemeshContext::sync_surface_cells(bool full) {
     covered.assign(set.corners.size(), 0.0);
     MatX4i cells;
     dt.cells_touching(nL, cells, 3);
-    for (Index t = 0; t < cells.rows(); ++t)
-      add_surface_cell({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
+    add_surface_cells(cells, [](const std::array<int, 4>&) { return true; });
     dirty_tris.resize(set.corners.size());
     std::iota(dirty_tris.begin(), dirty_tris.end(), 0);
     tri_dirty.assign(set.corners.size(), 1);
@@ -329,30 +328,54 @@ void RemeshContext::sync_surface_cells(bool full) {
     dt.cells_touching(nL, cells, 3, &changed_mark);
   else
     dt.cells_around_unsorted(around, cells);
-  for (Index t = 0; t < cells.rows(); ++t) {
-    const std::array<int, 4> c = {cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)};
-    if (all_changed(c)) add_surface_cell(c);
-  }
+  add_surface_cells(cells, all_changed);
   for (int v : changed) changed_mark[v] = 0;
 }
 
-void RemeshContext::add_surface_cell(const std::array<int, 4>& c) {
-  int lowest = std::numeric_limits<int>::max(), n = 0;
-  for (int v : c)
-    if (v >= nL) lowest = std::min(lowest, v), ++n;
-  if (n < 3) return;
-  surface_cells[lowest - nL].push_back(c);
-  if (n == 4 && is_flat_cell(c[0], c[1], c[2], c[3])) flat_surface_cells.insert(c);
-  for (int k = 0; k < 4; ++k) {
-    const int a = c[(k + 1) % 4], b = c[(k + 2) % 4], e = c[(k + 3) % 4];
-    if (a < nL || b < nL || e < nL) continue;
-    SurfaceFacet& f = facet_tri[sorted_key(a, b, e)];
-    if (++f.cells > 1) continue;
-    const int g = common_triangle(a, b, e);
-    f.tri = g >= 0 ? g : (in_surface(a, b, e) ? -2 : -1);
-    if (g >= 0) covered[g] += 0.5 * (pts[b] - pts[a]).cross(pts[e] - pts[a]).norm();
-    mark_dirty(a, b, e);
+void RemeshContext::add_surface_cells(const MatX4i& cells,
+                                      const std::function<bool(const std::array<int, 4>&)>& use) {
+  // In cell order: the lists, the facets' cell counts, and the facets seen for the first
+  // time (their triangle and area come next, in parallel: pure functions of the points).
+  struct Fresh {
+    int a, b, e;
+    int tri = -1;
+    double area = 0.0;
+  };
+  std::vector<Fresh> fresh;
+  std::vector<std::array<int, 4>> quads;  // cells with four surface vertices
+  for (Index t = 0; t < cells.rows(); ++t) {
+    const std::array<int, 4> c = {cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)};
+    if (!use(c)) continue;
+    int lowest = std::numeric_limits<int>::max(), n = 0;
+    for (int v : c)
+      if (v >= nL) lowest = std::min(lowest, v), ++n;
+    if (n < 3) continue;
+    surface_cells[lowest - nL].push_back(c);
+    if (n == 4) quads.push_back(c);
+    for (int k = 0; k < 4; ++k) {
+      const int a = c[(k + 1) % 4], b = c[(k + 2) % 4], e = c[(k + 3) % 4];
+      if (a < nL || b < nL || e < nL) continue;
+      if (++facet_tri[sorted_key(a, b, e)].cells == 1) fresh.push_back({a, b, e});
+    }
   }
+  parallel_for_each(static_cast<Index>(fresh.size()), 2048, [&](Index i) {
+    Fresh& f = fresh[i];
+    const int g = common_triangle(f.a, f.b, f.e);
+    f.tri = g >= 0 ? g : (in_surface(f.a, f.b, f.e) ? -2 : -1);
+    if (g >= 0) f.area = 0.5 * (pts[f.b] - pts[f.a]).cross(pts[f.e] - pts[f.a]).norm();
+  });
+  std::vector<char> flat(quads.size());
+  parallel_for_each(static_cast<Index>(quads.size()), 2048, [&](Index i) {
+    flat[i] = is_flat_cell(quads[i][0], quads[i][1], quads[i][2], quads[i][3]);
+  });
+  // In the same order again: the areas summed as one cell at a time would.
+  for (const Fresh& f : fresh) {
+    facet_tri.find(sorted_key(f.a, f.b, f.e))->tri = f.tri;
+    if (f.tri >= 0) covered[f.tri] += f.area;
+    mark_dirty(f.a, f.b, f.e);
+  }
+  for (std::size_t i = 0; i < quads.size(); ++i)
+    if (flat[i]) flat_surface_cells.insert(quads[i]);
 }
 
 void RemeshContext::remove_surface_facets(const std::array<int, 4>& c) {
@@ -561,9 +584,16 @@ MatX4i RemeshContext::screen_sliver_candidates() {
     for (Index t : rows) next.push_back({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
   };
   MatX4i cells;
+  // In the passes over every cell the screen runs inside the pass (in parallel).
+  const std::function<bool(const std::array<int, 4>&)> flat_enough =
+      [&](const std::array<int, 4>& c) { return maybe_flat(c, 0.5); };
+  const auto take_all = [&] {
+    for (Index t = 0; t < cells.rows(); ++t)
+      next.push_back({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
+  };
   if (!sizing.local_recovery || !candidates_valid) {
-    dt.cells_touching(0, cells, 0);  // every finite cell
-    keep_flat(cells, [](Index) { return true; });
+    dt.cells_touching(0, cells, 0, nullptr, &flat_enough);  // every finite cell
+    take_all();
   } else {
     // A cell created or destroyed since the last pass has all four vertices changed: the
     // other candidates are still cells, with the same points.
@@ -573,13 +603,15 @@ MatX4i RemeshContext::screen_sliver_candidates() {
     };
     for (const auto& c : sliver_candidates)
       if (!all_changed(c)) next.push_back(c);
-    if (10 * changed_since_cleanup_ids.size() > pts.size())
-      dt.cells_touching(0, cells, 0, &changed_since_cleanup);
-    else
+    if (10 * changed_since_cleanup_ids.size() > pts.size()) {
+      dt.cells_touching(0, cells, 0, &changed_since_cleanup, &flat_enough);  // all changed
+      take_all();
+    } else {
       dt.cells_around_any_order(changed_since_cleanup_ids, cells);
-    keep_flat(cells, [&](Index t) {
-      return all_changed({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
-    });
+      keep_flat(cells, [&](Index t) {
+        return all_changed({cells(t, 0), cells(t, 1), cells(t, 2), cells(t, 3)});
+      });
+    }
   }
   std::sort(next.begin(), next.end());  // the same list whatever order the cells came in
   for (int v : changed_since_cleanup_ids) changed_since_cleanup[v] = 0;
@@ -608,10 +640,8 @@ bool RemeshContext::clean_up_slivers() {
   if (cleanup_rounds < kSliverRounds + kDegenerateRounds && !(degenerate_only && changed)) {
     ++cleanup_rounds;
     const std::vector<int> drop = sliver_vertices(cand, degenerate_only);
-    for (int v : drop) {  // one by one: scattered vertices (remove_many measured slower)
-      lattice_removed[v] = 1;
-      dt.remove(v);
-    }
+    for (int v : drop) lattice_removed[v] = 1;
+    dt.remove_many(drop);
     report.sliver_points_removed += static_cast<Index>(drop.size());
     changed |= !drop.empty();
   }

@@ -15,6 +15,7 @@
 #include <array>
 #include <bit>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <set>
@@ -465,8 +466,11 @@ struct RemeshContext {
   /// (Delaunay::take_changed): the cells all of whose vertices changed are dropped and the
   /// current cells around the changed surface vertices with every vertex changed added.
   void sync_surface_cells(bool full);
-  /// Add cell c (ids) to surface_cells and its surface facets to facet_tri and covered.
-  void add_surface_cell(const std::array<int, 4>& c);
+  /// Adds the cells (rows) that `use` accepts and that have three or more surface vertices:
+  /// surface_cells, flat_surface_cells, facet_tri (each facet's triangle on its first
+  /// cell), covered and the dirty triangles.
+  void add_surface_cells(const MatX4i& cells,
+                         const std::function<bool(const std::array<int, 4>&)>& use);
   /// Remove cell c's surface facets that no other cell holds (c leaves surface_cells).
   void remove_surface_facets(const std::array<int, 4>& c);
   /// Mark the triangles the surface points of facet (a, b, c) lie on dirty.
@@ -529,7 +533,10 @@ struct RemeshContext {
   int common_triangle(int a, int b, int c) const;
   bool on_box(const Vec3& x) const;
   /// Cheap screen for small dihedral angles of cell t of T (shape measure below `shape`).
-  bool maybe_flat(const MatX4i& T, Index t, double shape) const;
+  bool maybe_flat(const MatX4i& T, Index t, double shape) const {
+    return maybe_flat({T(t, 0), T(t, 1), T(t, 2), T(t, 3)}, shape);
+  }
+  bool maybe_flat(const std::array<int, 4>& c, double shape) const;
   /// Cell t of T has a signed volume (m³) of at most kFlat × (longest edge)³.
   bool is_degenerate(const MatX4i& T, Index t) const;
   /// A face of surface vertices with no common triangle that lies in the surface.
