@@ -213,7 +213,7 @@ TEST_CASE("tetfsi resume: stopped by --steps and resumed equals the continuous r
   CHECK(fs::exists(dir.path / "o" / "beam" / "beam_000003.vtu"));
   r = cli(dir.path, "resume o --steps 8 --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
   CHECK_FALSE(fs::exists(dir.path / "o" / "beam" / "beam_000003.vtu"));  // not a frame of 8 steps
   const json s = summary_of(dir.path / "o");
   CHECK(s["completed"] == true);
@@ -258,7 +258,7 @@ TEST_CASE(
   CHECK(fs::exists(tetfsi::tools::checkpoint_path(dir.path / "o", stopped)));
   const Result r = cli(dir.path, "resume o --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
 }
 
 TEST_CASE("tetfsi resume --end-time - and output.checkpoint_every from the scene") {
@@ -276,7 +276,7 @@ TEST_CASE("tetfsi resume --end-time - and output.checkpoint_every from the scene
   CHECK(files[1].step == 5);
   r = cli(dir.path, "resume o --end-time 0.08 --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
   CHECK(json::parse(read_text(dir.path / "o" / "scene.resolved.json"))["time"]["end_time"] == 0.08);
 }
 
@@ -296,7 +296,7 @@ TEST_CASE("tetfsi resume: a STOP file ends the run with exit code 0 and a resume
   CHECK(s["interrupted"] == true);
   const Result r = cli(dir.path, "resume o --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
 }
 
 TEST_CASE(
@@ -310,7 +310,7 @@ TEST_CASE(
   fs::remove(tetfsi::tools::checkpoint_path(dir.path / "o", 10));
   r = cli(dir.path, "resume o --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
 }
 
 TEST_CASE("tetfsi resume: SIGKILL during a checkpoint write leaves the previous one valid") {
@@ -334,7 +334,7 @@ TEST_CASE("tetfsi resume: SIGKILL during a checkpoint write leaves the previous 
   REQUIRE_MESSAGE(r.code == 0, r.err);
   CHECK(contains(r.err, "falling back to"));
   CHECK(summary_of(dir.path / "o")["resumed_from_step"] == 4);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
   CHECK_FALSE(fs::exists(newest.string() + ".tmp"));  // pruned with the next checkpoint
 }
 
@@ -484,7 +484,7 @@ TEST_CASE("tetfsi resume: a two-way fluid run - collections and summaries carry 
   fs::remove(tetfsi::tools::checkpoint_path(dir.path / "o", 3));
   r = cli(dir.path, "resume o --progress off");
   REQUIRE_MESSAGE(r.code == 0, r.err);
-  check_same_runs(dir.path / "straight", dir.path / "o");
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
   CHECK(fs::exists(dir.path / "o" / "fluid.pvd"));
   CHECK(summary_without_timing(dir.path / "o") == summary_without_timing(dir.path / "straight"));
   CHECK(summary_of(dir.path / "o")["resumed_from_step"] == 2);
