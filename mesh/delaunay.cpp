@@ -290,7 +290,7 @@ struct Delaunay::Impl {
 };
 
 /// Removes the vertices `gone` (finite, distinct, ids in [0, id_bound)) as CGAL's
-/// remove_cluster does [Devillers & Teillaud 2003]: the cells with a removed vertex,
+/// remove_cluster does [DevillersTeillaud03]: the cells with a removed vertex,
 /// connected through their facets, make a hole, and the Delaunay of the hole's other
 /// vertices, where it lies within the hole's boundary, refills it. CGAL's version keeps its
 /// vertex states and facet maps in ordered trees keyed by addresses (most of its time); this

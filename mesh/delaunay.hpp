@@ -36,11 +36,11 @@ class Delaunay {
   /// Make this the triangulation of `points` with ids 0..n−1 from the current one: a vertex at
   /// one of the points (exactly) takes its index as id, the other vertices are removed and the
   /// points not present inserted (spatially sorted). The result is the triangulation `build`
-  /// gives: CGAL's Delaunay is unique under its symbolic perturbation [Devillers & Teillaud
-  /// 2003], whatever the order of insertions and removals. If the update's estimated cost,
-  /// kRemovalCost × removed + inserted, passes `max_cost` × n (a rebuild inserts n), it
-  /// rebuilds instead. Returns true if it updated, false if it rebuilt; `removed` and
-  /// `inserted` count the vertices the update removes and inserts (also when it rebuilt).
+  /// gives: CGAL's Delaunay is unique under its symbolic perturbation [DevillersTeillaud03],
+  /// whatever the order of insertions and removals. If the update's estimated cost, kRemovalCost ×
+  /// removed + inserted, passes `max_cost` × n (a rebuild inserts n), it rebuilds instead. Returns
+  /// true if it updated, false if it rebuilt; `removed` and `inserted` count the vertices the
+  /// update removes and inserts (also when it rebuilt).
   /// @throws MeshError naming both ids if two points coincide.
   bool update(const std::vector<Vec3>& points, double max_cost, Index& removed, Index& inserted);
   /// A vertex removal costs about this many insertions (remove_many against the range
