@@ -229,13 +229,14 @@ struct Delaunay::Impl {
     std::vector<std::pair<DT::Cell_handle, int>> boundary;
     std::vector<DT::Vertex_handle> cluster, link;
   };
-  /// The hole around v: every cell with a vertex to remove (st: kRemove, or kDone once
-  /// reached), connected through facets (CGAL's _make_big_hole_3D); its cells are marked
-  /// processed. False if it holds an infinite cell.
   /// remove_clusters' vertex states, by id + 1 (the infinite vertex has id −1); all kClear
-  /// between calls.
+  /// between calls. kLink: a vertex of the current hole's cells that stays.
   enum : std::uint8_t { kClear, kRemove, kDone, kLink };
   std::vector<std::uint8_t> vstate;
+  /// The hole around v: every cell with a vertex to remove (st: kRemove, or kDone once
+  /// reached), connected through facets (CGAL's _make_big_hole_3D); its cells are marked
+  /// processed, its removed vertices kDone, the others kLink. False if it holds an infinite
+  /// cell (the whole hole is gathered anyway, so its cluster is deferred as one).
   template <class State>
   bool collect_hole(const DT::Vertex_handle& v, const State& st, Hole& h) {
     bool finite = true;
