@@ -96,12 +96,12 @@ void RemeshContext::collect_fluid_cells() {
     ++row;
   }
   fnbrs.resize(nF, 4);
-  for (Index t = 0; t < nT; ++t) {
+  parallel_for_each(nT, 16384, [&](Index t) {  // each fluid cell writes its own row
     const Index r = row_of[static_cast<std::size_t>(t)];
-    if (r < 0) continue;
+    if (r < 0) return;
     for (int k = 0; k < 4; ++k)
       fnbrs(r, k) = nbrs(t, k) < 0 ? -1 : row_of[static_cast<std::size_t>(nbrs(t, k))];
-  }
+  });
   report.cells_removed = nT - nF;
   TETFSI_REQUIRE(MeshError, nF > 0, "remesh: no fluid cell is left: the solids fill the domain");
 }
@@ -117,15 +117,28 @@ void RemeshContext::check_fluid_volume() const {
                       .dot(Vec3(sol.vertices.row(sol.triangles(t, 1)))
                                .cross(Vec3(sol.vertices.row(sol.triangles(t, 2))))) /
                   6.0;
-  Index degenerate = -1;  // a fluid cell of no volume that the sliver rounds left
-  for (Index t = 0; t < nT; ++t)
-    if (region_fluid[region[t]]) {
-      fluid +=
+  // Per chunk (in parallel): its fluid volume and its first degenerate fluid cell (one of no
+  // volume that the sliver rounds left); summed and picked in chunk order.
+  constexpr Index kGrain = 16384;
+  const std::size_t nc = static_cast<std::size_t>(num_chunks(nT, kGrain));
+  std::vector<double> part(nc, 0.0);
+  std::vector<Index> first(nc, -1);
+  parallel_for_chunks(nT, kGrain, [&](Index begin, Index end) {
+    const std::size_t c = static_cast<std::size_t>(begin / kGrain);
+    for (Index t = begin; t < end; ++t) {
+      if (!region_fluid[region[t]]) continue;
+      part[c] +=
           (pts[tets(t, 1)] - pts[tets(t, 0)])
               .dot((pts[tets(t, 2)] - pts[tets(t, 0)]).cross(pts[tets(t, 3)] - pts[tets(t, 0)])) /
           6.0;
-      if (degenerate < 0 && is_degenerate(tets, t)) degenerate = t;
+      if (first[c] < 0 && is_degenerate(tets, t)) first[c] = t;
     }
+  });
+  Index degenerate = -1;
+  for (std::size_t c = 0; c < nc; ++c) {
+    fluid += part[c];
+    if (degenerate < 0) degenerate = first[c];
+  }
   if (degenerate >= 0) {
     const Vec3 x = 0.25 * (pts[tets(degenerate, 0)] + pts[tets(degenerate, 1)] +
                            pts[tets(degenerate, 2)] + pts[tets(degenerate, 3)]);
