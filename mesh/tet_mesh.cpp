@@ -123,8 +123,26 @@ TetMesh start_tet_mesh(MatX3 vertices, MatX4i tets) {
                  "build_tet_mesh: {} tets is more than the 2^29 the face table can index; use a "
                  "coarser mesh",
                  nt);
-  // Indices in range and positive orientation first: everything below relies on both.
-  for (Index t = 0; t < nt; ++t) {
+  // Indices in range and positive orientation first: everything below relies on both. The
+  // chunks look in parallel; the first bad tet (in index order) is checked again below for
+  // its message.
+  const auto bad = [&](Index t) {
+    const auto r = m.tets.row(t);
+    for (int k = 0; k < 4; ++k)
+      if (!(r(k) >= 0 && r(k) < nv)) return true;
+    const Vec3 a = m.vertices.row(r(0));
+    return !((Vec3(m.vertices.row(r(1))) - a)
+                 .dot((Vec3(m.vertices.row(r(2))) - a).cross(Vec3(m.vertices.row(r(3))) - a)) >
+             0.0);
+  };
+  constexpr Index kGrain = 16384;
+  std::vector<Index> first(static_cast<std::size_t>(num_chunks(nt, kGrain)), -1);
+  parallel_for_chunks(nt, kGrain, [&](Index begin, Index end) {
+    for (Index t = begin; t < end && first[begin / kGrain] < 0; ++t)
+      if (bad(t)) first[begin / kGrain] = t;
+  });
+  for (const Index t : first) {
+    if (t < 0) continue;
     const auto r = m.tets.row(t);
     for (int k = 0; k < 4; ++k) {
       TETFSI_REQUIRE(MeshError, r(k) >= 0 && r(k) < nv,
@@ -141,7 +159,6 @@ TetMesh start_tet_mesh(MatX3 vertices, MatX4i tets) {
                    "(signed volume {:.3g} m^3); swap two of its vertices or remesh",
                    t, r(0), r(1), r(2), r(3), vol6 / 6.0);
   }
-
   return m;
 }
 
@@ -153,7 +170,8 @@ void finish_tet_mesh(TetMesh& m, int nf) {
   const Index nt = m.num_tets();
   m.faces.resize(nf, 3);
   m.face_tets.resize(nf, 2);
-  for (Index t = 0; t < nt; ++t) {
+  constexpr Index kGrain = 16384;
+  parallel_for_each(nt, kGrain, [&](Index t) {  // each face is written by its first tet only
     for (int k = 0; k < 4; ++k) {
       const Index f = m.tet_faces(t, k);
       if (m.tet_face_signs(t, k) > 0) {
@@ -162,18 +180,21 @@ void finish_tet_mesh(TetMesh& m, int nf) {
         m.face_tets.row(f) << t, m.neighbours(t, k);
       }
     }
-  }
+  });
 
   // Tags and provenance: everything on the boundary is a wall until the remesher says more.
+  // Filled in parallel (a million cells' face arrays are first touched here: page faults).
   m.face_kind.resize(static_cast<std::size_t>(nf));
-  for (Index f = 0; f < nf; ++f) {
+  m.face_patch.resize(nf);
+  m.face_body.resize(nf);
+  m.face_triangle.resize(nf);
+  m.face_bary.resize(nf, 3);
+  parallel_for_each(nf, kGrain, [&](Index f) {
     m.face_kind[static_cast<std::size_t>(f)] =
         m.face_tets(f, 1) < 0 ? FaceKind::Wall : FaceKind::Interior;
-  }
-  m.face_patch.setConstant(nf, -1);
-  m.face_body.setConstant(nf, -1);
-  m.face_triangle.setConstant(nf, -1);
-  m.face_bary.setZero(nf, 3);
+    m.face_patch(f) = m.face_body(f) = m.face_triangle(f) = -1;
+    m.face_bary.row(f).setZero();
+  });
   m.vertex_body.setConstant(nv, -1);
   m.vertex_triangle.setConstant(nv, -1);
   m.vertex_bary.setZero(nv, 3);
