@@ -7,7 +7,6 @@
 #include <array>
 #include <bit>
 #include <cstdint>
-#include <limits>
 #include <numeric>
 #include <unordered_set>
 
@@ -23,6 +22,7 @@
 
 #include "core/error.hpp"
 #include "core/parallel.hpp"
+#include "mesh/triple_map.hpp"
 
 namespace tetfsi::mesh {
 namespace {
@@ -87,61 +87,15 @@ using HoleCb = CGAL::Triangulation_cell_base_with_info_3<int, K>;
 using HoleDT =
     CGAL::Delaunay_triangulation_3<K, CGAL::Triangulation_data_structure_3<HoleVb, HoleCb>>;
 
-/// Oriented vertex triples (ids) to an int, built once and then only looked up (open
-/// addressing): the hole boundary's facets in remove_clusters.
-class FacetTable {
- public:
-  using Key = std::array<int, 3>;
-  explicit FacetTable(std::size_t n) {
-    const std::size_t cap = std::bit_ceil(std::max<std::size_t>(16, 2 * n));
-    m_keys.assign(cap, Key{kEmpty, 0, 0});
-    m_values.resize(cap);
-    m_mask = cap - 1;
-  }
-  /// Inserts k -> v; false if k was there already.
-  bool insert(const Key& k, int v) {
-    for (std::size_t i = slot(k);; i = (i + 1) & m_mask) {
-      if (m_keys[i] == k) return false;
-      if (m_keys[i][0] == kEmpty) {
-        m_keys[i] = k;
-        m_values[i] = v;
-        return true;
-      }
-    }
-  }
-  /// The value of k, or −1.
-  int find(const Key& k) const {
-    for (std::size_t i = slot(k);; i = (i + 1) & m_mask) {
-      if (m_keys[i] == k) return m_values[i];
-      if (m_keys[i][0] == kEmpty) return -1;
-    }
-  }
-
- private:
-  static constexpr int kEmpty = std::numeric_limits<int>::min();
-  std::size_t slot(const Key& k) const {
-    std::uint64_t h = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(k[0])) << 32) ^
-                      static_cast<std::uint32_t>(k[1]);
-    h = h * 0x9E3779B97F4A7C15ULL ^ static_cast<std::uint32_t>(k[2]);
-    h ^= h >> 33;
-    h *= 0xFF51AFD7ED558CCDULL;
-    h ^= h >> 33;
-    return static_cast<std::size_t>(h) & m_mask;
-  }
-  std::vector<Key> m_keys;
-  std::vector<int> m_values;
-  std::size_t m_mask = 0;
-};
-
 /// The ids (id_of(vertex)) of facet (c, k), oriented as CGAL's make_vertex_triple (seen from
 /// c) and rotated to start at the smallest; `flip` reverses the orientation.
 template <class Cell, class IdOf>
-std::array<int, 3> oriented_ids(const Cell& c, int k, bool flip, IdOf id_of) {
+detail::TripleKey oriented_ids(const Cell& c, int k, bool flip, IdOf id_of) {
   std::array<int, 3> t;
   for (int j = 0; j < 3; ++j) t[j] = id_of(c->vertex(DT::vertex_triple_index(k, j)));
   if (flip) std::swap(t[1], t[2]);
   std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
-  return t;
+  return {t[0], t[1], t[2]};
 }
 
 inline Point to_point(const Vec3& p) {
@@ -337,11 +291,12 @@ bool Delaunay::Impl::refill_hole(const Hole& h) {
   if (tmp.dimension() < 3) return false;
   const auto id = [](const DT::Vertex_handle& w) { return w->info(); };
   const auto hole_id = [](const HoleDT::Vertex_handle& w) { return w->info()->info(); };
-  FacetTable outer(h.boundary.size());
-  for (std::size_t b = 0; b < h.boundary.size(); ++b)
-    if (!outer.insert(oriented_ids(h.boundary[b].first, h.boundary[b].second, false, id),
-                      static_cast<int>(b)))
-      return false;
+  detail::TripleMap<int> outer;  // boundary facet (seen from outside) -> its index
+  for (std::size_t b = 0; b < h.boundary.size(); ++b) {
+    const detail::TripleKey k = oriented_ids(h.boundary[b].first, h.boundary[b].second, false, id);
+    if (outer.contains(k)) return false;
+    outer[k] = static_cast<int>(b);
+  }
   // Number the finite cells; a facet seen from inside the hole names its boundary facet.
   std::vector<HoleDT::Cell_handle> cells;
   std::vector<std::array<int, 4>> bnd;  // per cell and facet: the boundary facet, or −1
@@ -349,7 +304,10 @@ bool Delaunay::Impl::refill_hole(const Hole& h) {
   std::size_t matched = 0;
   for (auto c = tmp.finite_cells_begin(); c != tmp.finite_cells_end(); ++c) {
     std::array<int, 4> f;
-    for (int j = 0; j < 4; ++j) f[j] = outer.find(oriented_ids(c, j, true, hole_id));
+    for (int j = 0; j < 4; ++j) {
+      const int* b = outer.find(oriented_ids(c, j, true, hole_id));
+      f[j] = b ? *b : -1;
+    }
     const bool seed = f[0] >= 0 || f[1] >= 0 || f[2] >= 0 || f[3] >= 0;
     matched += (f[0] >= 0) + (f[1] >= 0) + (f[2] >= 0) + (f[3] >= 0);
     c->info() = static_cast<int>(cells.size());
