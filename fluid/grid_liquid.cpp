@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Geometry>
 
@@ -72,17 +73,20 @@ Index lattice_size(const GridSpec& g, int a, int face_axis) {
   return g.n[a] + (a == face_axis ? 1 : 0);
 }
 
-/// The trilinear stencil of point x (clamped to the box) on the lattice of axis-a faces, or
-/// of the cell centres for a = −1: base index and fractions.
-void lattice_stencil(const GridSpec& g, int a, const Vec3& x, std::array<Index, 3>& base,
-                     Vec3& frac) {
-  for (int b = 0; b < 3; ++b) {
-    const double s = (x[b] - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
-    const Index top = lattice_size(g, b, a) - 1;
-    const double sc = std::clamp(s, 0.0, static_cast<double>(top));
-    base[b] = std::min<Index>(static_cast<Index>(std::floor(sc)), std::max<Index>(top - 1, 0));
-    frac[b] = top > 0 ? sc - static_cast<double>(base[b]) : 0.0;
-  }
+/// Along axis b, the two lattice indices around coordinate xb on the lattice of axis-a faces
+/// (a = −1: the cell centres), clamped to the box, and their linear weights (1 − frac, frac).
+struct AxisWeights {
+  std::array<Index, 2> index{};
+  std::array<double, 2> w{};
+};
+inline AxisWeights axis_weights(const GridSpec& g, int a, int b, double xb) {
+  const double s = (xb - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
+  const Index top = lattice_size(g, b, a) - 1;
+  const double sc = std::clamp(s, 0.0, static_cast<double>(top));
+  const Index base =
+      std::min<Index>(static_cast<Index>(std::floor(sc)), std::max<Index>(top - 1, 0));
+  const double frac = top > 0 ? sc - static_cast<double>(base) : 0.0;
+  return {{base, std::min(base + 1, top)}, {1.0 - frac, frac}};
 }
 
 /// Whether one of cell c's six faces is a Solid face (a body's surface crosses it).
@@ -98,31 +102,43 @@ bool touches_body(const GridCells& gc, Index c) {
   return false;
 }
 
-/// fn(ijk, w) for the 8 lattice points of lattice_stencil(g, a, x) and their trilinear
-/// weights (corner order).
+/// fn(ijk, w) for the 8 lattice points around the point whose per-axis weights are s and
+/// their trilinear weights (corner order; w = ((1 · w_0) · w_1) · w_2).
 template <class F>
-void for_each_lattice_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
-  std::array<Index, 3> base{};
-  Vec3 frac;
-  lattice_stencil(g, a, x, base, frac);
+void for_each_corner(const std::array<AxisWeights, 3>& s, F&& fn) {
   for (int corner = 0; corner < 8; ++corner) {
     std::array<Index, 3> ijk{};
     double w = 1;
     for (int b = 0; b < 3; ++b) {
       const int up = (corner >> b) & 1;
-      ijk[b] = std::min(base[b] + up, lattice_size(g, b, a) - 1);
-      w *= up ? frac[b] : 1.0 - frac[b];
+      ijk[b] = s[b].index[up];
+      w *= s[b].w[up];
     }
     fn(ijk, w);
   }
 }
 
-/// fn(face, w) for the 8 faces of axis a around x and their trilinear weights (corner order).
+/// Σ over the 8 lattice points around a point of w · value(i, j, k), w the trilinear weights
+/// from its per-axis weights s (for_each_corner's, in its order). No branch on w = 0: a zero
+/// weight adds a zero term (the sum starts at +0 and is never −0), so for finite values the
+/// sum is the one that leaves those terms out.
+template <class V>
+double trilinear(const std::array<AxisWeights, 3>& s, V&& value) {
+  double sum = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const int u0 = corner & 1, u1 = (corner >> 1) & 1, u2 = corner >> 2;
+    const double w = s[0].w[u0] * s[1].w[u1] * s[2].w[u2];
+    sum += w * value(s[0].index[u0], s[1].index[u1], s[2].index[u2]);
+  }
+  return sum;
+}
+
+/// fn(ijk, w) for the 8 points of the lattice of axis-a faces (a = −1: the cell centres)
+/// around x (clamped to the box) and their trilinear weights (corner order).
 template <class F>
-void for_each_face_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
-  for_each_lattice_weight(g, a, x, [&](const std::array<Index, 3>& ijk, double w) {
-    fn(g.face(a, ijk[0], ijk[1], ijk[2]), w);
-  });
+void for_each_lattice_weight(const GridSpec& g, int a, const Vec3& x, F&& fn) {
+  for_each_corner(
+      {axis_weights(g, a, 0, x[0]), axis_weights(g, a, 1, x[1]), axis_weights(g, a, 2, x[2])}, fn);
 }
 
 /// The particles that may touch each z-slab of `size` lattice indices, listed in particle
@@ -167,10 +183,8 @@ ParticleBuckets bucket_particles(const GridSpec& g, const MatX3& x) {
   ParticleBuckets b;
   b.start.assign(static_cast<size_t>(nc) + 1, 0);
   std::vector<Index> cell(static_cast<size_t>(np));
-  for (Index p = 0; p < np; ++p) {
-    cell[p] = g.cell_at(x.row(p).transpose());
-    ++b.start[cell[p] + 1];
-  }
+  parallel_for_each(np, 4 * kGrain, [&](Index p) { cell[p] = g.cell_at(x.row(p).transpose()); });
+  for (Index p = 0; p < np; ++p) ++b.start[cell[p] + 1];
   for (Index c = 0; c < nc; ++c) b.start[c + 1] += b.start[c];
   b.order.resize(static_cast<size_t>(np));
   std::vector<Index> fill(b.start.begin(), b.start.end() - 1);
@@ -260,72 +274,259 @@ Index emit_liquid(const GridCells& gc, const LiquidParams& p, double t, LiquidPa
   return added;
 }
 
+namespace {
+
+/// Calls fn(first, stride, len) for every line of cells along axis a (first: its first
+/// cell), in parallel.
+template <class F>
+void for_each_line(const GridSpec& g, int a, F&& fn) {
+  const Index len = g.n[a], stride = a == 0 ? 1 : (a == 1 ? g.n[0] : g.n[0] * g.n[1]);
+  parallel_for_each(g.num_cells() / len, 64, [&](Index line) {
+    const Index first = a == 0   ? line * g.n[0]
+                        : a == 1 ? line % g.n[0] + g.n[0] * g.n[1] * (line / g.n[0])
+                                 : line;
+    fn(first, stride, len);
+  });
+}
+
+/// Per cell, the sum of `count` over its block within `reach` along each axis (clipped to
+/// the grid): running sums along each axis, one after another. T must hold the block's sum.
+template <class T>
+std::vector<T> block_counts(const GridSpec& g, std::vector<T> count,
+                            const std::array<Index, 3>& reach) {
+  std::vector<T> next(count.size());
+  for (int a = 0; a < 3; ++a) {
+    for_each_line(g, a, [&](Index first, Index stride, Index len) {
+      int s = 0;  // over the window [i − reach, i + reach] ∩ [0, len)
+      for (Index m = 0; m < std::min(len, reach[a]); ++m) s += count[first + m * stride];
+      for (Index i = 0; i < len; ++i) {
+        if (const Index in = i + reach[a]; in < len) s += count[first + in * stride];
+        if (const Index gone = i - reach[a] - 1; gone >= 0) s -= count[first + gone * stride];
+        next[first + i * stride] = static_cast<T>(s);
+      }
+    });
+    std::swap(count, next);
+  }
+  return count;
+}
+
+/// The number of cells of cell c's block within `reach` along each axis, clipped to the grid.
+Index block_size(const GridSpec& g, const std::array<Index, 3>& ijk,
+                 const std::array<Index, 3>& reach) {
+  Index size = 1;
+  for (int a = 0; a < 3; ++a)
+    size *= std::min(g.n[a] - 1, ijk[a] + reach[a]) - std::max<Index>(0, ijk[a] - reach[a]) + 1;
+  return size;
+}
+
+/// The images of the particles that φ at a cell centre xc sums [ZhuBridson05]: each
+/// particle itself (image 0) and, per axis with a wall within R of xc, its mirror in that
+/// wall (a free-slip wall is a symmetry plane), in the order m = Σ_a im_a Π_{b<a} n_b.
+struct ParticleImages {
+  int count = 1;
+  /// per image and axis: 0 the particle's coordinate, 1 mirrored in the low wall, 2 the high
+  std::array<std::array<std::uint8_t, 3>, 27> mirror{};
+  /// per image: the image of the axis-aligned box [lo, hi]
+  void box(int m, const Vec3& box_lo, const Vec3& box_hi, const Vec3& lo, const Vec3& hi,
+           Vec3& out_lo, Vec3& out_hi) const {
+    for (int a = 0; a < 3; ++a) {
+      const int k = mirror[m][a];
+      const double plane = k == 1 ? box_lo[a] : box_hi[a];
+      out_lo[a] = k == 0 ? lo[a] : 2 * plane - hi[a];
+      out_hi[a] = k == 0 ? hi[a] : 2 * plane - lo[a];
+    }
+  }
+};
+
+ParticleImages particle_images(const Vec3& xc, const Vec3& box_lo, const Vec3& box_hi, double R) {
+  std::array<int, 3> images{};
+  for (int a = 0; a < 3; ++a) images[a] = 1 + (xc[a] - box_lo[a] < R) + (box_hi[a] - xc[a] < R);
+  ParticleImages pi;
+  pi.count = images[0] * images[1] * images[2];
+  for (int m = 0; m < pi.count; ++m) {
+    int rest = m;
+    for (int a = 0; a < 3; ++a) {
+      const int im = rest % images[a];
+      rest /= images[a];
+      if (im == 0) continue;  // the particle itself
+      pi.mirror[m][a] = xc[a] - box_lo[a] < R && im == 1 ? 1 : 2;
+    }
+  }
+  return pi;
+}
+
+/// The kernel-weighted sums Σ w p and Σ w of φ at a cell centre [ZhuBridson05].
+struct KernelSums {
+  Vec3 mean = Vec3::Zero();
+  double wsum = 0;
+};
+/// The kernel-weighted sums held in registers: s += the kernel term of point p at xc
+/// (nothing where the kernel is 0: a zero term). Component by component, as KernelSums'
+/// Vec3 sums.
+struct KernelAccumulator {
+  double mx = 0, my = 0, mz = 0, wsum = 0;
+  void add(const Vec3& xc, const Vec3& p, double R2) {
+    const double dx = xc[0] - p[0], dy = xc[1] - p[1], dz = xc[2] - p[2];
+    const double d2 = dx * dx + dy * dy + dz * dz;  // squaredNorm()
+    if (d2 > R2 * (1 + 1e-12)) return;              // beyond R: d2 / R2 ≥ 1 whatever its rounding
+    const double t = 1.0 - d2 / R2;
+    if (!(t > 0)) return;  // kernel() is 0
+    const double w = t * t * t;
+    mx += w * p[0];
+    my += w * p[1];
+    mz += w * p[2];
+    wsum += w;
+  }
+  KernelSums sums() const { return {Vec3(mx, my, mz), wsum}; }
+};
+
+/// The cells within `reach` of a cell whose boxes come within R of its centre (widened for
+/// round-off), by offset: the others hold no particle within R of it.
+struct ReachMask {
+  std::array<Index, 3> reach{};
+  std::vector<std::uint8_t> near;  ///< by (o_x + r_x) + (2 r_x + 1)((o_y + r_y) + ...)
+  ReachMask(const GridSpec& g, const std::array<Index, 3>& r, double R) : reach(r) {
+    const std::array<Index, 3> w{2 * r[0] + 1, 2 * r[1] + 1, 2 * r[2] + 1};
+    near.resize(static_cast<size_t>(w[0] * w[1] * w[2]));
+    for (Index o = 0; o < w[0] * w[1] * w[2]; ++o) {
+      const std::array<Index, 3> off{o % w[0] - r[0], (o / w[0]) % w[1] - r[1],
+                                     o / (w[0] * w[1]) - r[2]};
+      double gap2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double gap =
+            std::max(0.0, static_cast<double>(std::abs(off[a])) - 0.5 - 1e-6) * g.h[a];
+        gap2 += gap * gap;
+      }
+      near[o] = gap2 < R * R * (1 + 1e-9);
+    }
+  }
+  bool operator()(Index oi, Index oj, Index ok) const {
+    return near[(oi + reach[0]) +
+                (2 * reach[0] + 1) * ((oj + reach[1]) + (2 * reach[1] + 1) * (ok + reach[2]))];
+  }
+};
+
+/// kernel_sums where no wall lies within R of cell c's centre: the particles themselves, in
+/// the cells whose boxes come within R of it (a cell on the grid's boundary always: the
+/// bucketing clamps to it).
+KernelSums kernel_sums_inner(const GridSpec& g, Index c, const ReachMask& mask,
+                             const ParticleBuckets& b, const std::vector<Vec3>& xs, double R) {
+  const auto ijk = g.cell_ijk(c);
+  const auto& reach = mask.reach;
+  const Vec3 xc = g.cell_centre(c);
+  const double R2 = R * R;
+  KernelAccumulator s;
+  for (Index k = std::max<Index>(0, ijk[2] - reach[2]);
+       k <= std::min(g.n[2] - 1, ijk[2] + reach[2]); ++k)
+    for (Index j = std::max<Index>(0, ijk[1] - reach[1]);
+         j <= std::min(g.n[1] - 1, ijk[1] + reach[1]); ++j) {
+      const bool edge = k == 0 || k == g.n[2] - 1 || j == 0 || j == g.n[1] - 1;
+      for (Index i = std::max<Index>(0, ijk[0] - reach[0]);
+           i <= std::min(g.n[0] - 1, ijk[0] + reach[0]); ++i) {
+        if (!(edge || i == 0 || i == g.n[0] - 1) && !mask(i - ijk[0], j - ijk[1], k - ijk[2]))
+          continue;
+        const Index d = g.cell(i, j, k);
+        for (Index e = b.start[d]; e < b.start[d + 1]; ++e) s.add(xc, xs[e], R2);
+      }
+    }
+  return s.sums();
+}
+
+/// The kernel-weighted sums over the images of the particles of the cells within `reach` of
+/// cell c [ZhuBridson05], in the order cells (k, j, i), particles (bucket order), images. A
+/// (cell, image) pair whose box lies beyond R of the centre is skipped, as is every term of
+/// zero weight: the sums are the full sums' bit for bit (the terms left out are zeros).
+KernelSums kernel_sums(const GridSpec& g, Index c, const ReachMask& mask, const ParticleBuckets& b,
+                       const std::vector<Vec3>& xs, double R) {
+  const auto ijk = g.cell_ijk(c);
+  const auto& reach = mask.reach;
+  const Vec3 xc = g.cell_centre(c), box_lo = g.lo, box_hi = g.hi();
+  const ParticleImages pi = particle_images(xc, box_lo, box_hi, R);
+  if (pi.count == 1) return kernel_sums_inner(g, c, mask, b, xs, R);
+  const double R2 = R * R, prune = R2 * (1 + 1e-9);
+  const double inf = std::numeric_limits<double>::infinity();
+  KernelAccumulator s;
+  std::array<std::uint8_t, 27> active{};
+  for (Index k = std::max<Index>(0, ijk[2] - reach[2]);
+       k <= std::min(g.n[2] - 1, ijk[2] + reach[2]); ++k)
+    for (Index j = std::max<Index>(0, ijk[1] - reach[1]);
+         j <= std::min(g.n[1] - 1, ijk[1] + reach[1]); ++j)
+      for (Index i = std::max<Index>(0, ijk[0] - reach[0]);
+           i <= std::min(g.n[0] - 1, ijk[0] + reach[0]); ++i) {
+        const Index d = g.cell(i, j, k);
+        const Index e0 = b.start[d], e1 = b.start[d + 1];
+        if (e0 == e1) continue;
+        // the cell's box (open where bucketing clamps to the grid), widened for round-off
+        const std::array<Index, 3> dijk{i, j, k};
+        Vec3 lo, hi;
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = dijk[a] == 0 ? -inf : box_lo[a] + (dijk[a] - 1e-6) * g.h[a];
+          hi[a] = dijk[a] == g.n[a] - 1 ? inf : box_lo[a] + (dijk[a] + 1 + 1e-6) * g.h[a];
+        }
+        bool any = false;
+        for (int m = 0; m < pi.count; ++m) {
+          Vec3 ilo, ihi;
+          pi.box(m, box_lo, box_hi, lo, hi, ilo, ihi);
+          const Vec3 gap = (ilo - xc).cwiseMax(xc - ihi).cwiseMax(0.0);
+          active[m] = gap.squaredNorm() < prune;
+          any = any || active[m];
+        }
+        if (!any) continue;
+        for (Index e = e0; e < e1; ++e) {
+          const Vec3& p0 = xs[e];
+          for (int m = 0; m < pi.count; ++m) {
+            if (!active[m]) continue;
+            Vec3 p = p0;
+            for (int a = 0; a < 3; ++a)
+              if (pi.mirror[m][a] != 0)
+                p[a] = pi.mirror[m][a] == 1 ? 2 * box_lo[a] - p0[a] : 2 * box_hi[a] - p0[a];
+            s.add(xc, p, R2);
+          }
+        }
+      }
+  return s.sums();
+}
+
+}  // namespace
+
 VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfaceParams& sp) {
   const GridSpec& g = gc.grid;
   const double R = kernel_radius(g);
-  const Vec3 box_lo = g.lo, box_hi = g.hi();
   const ParticleBuckets b = bucket_particles(g, x);
+  // the particles' positions in bucket order (each cell's together)
+  std::vector<Vec3> xs(b.order.size());
+  parallel_for_each(static_cast<Index>(xs.size()), 4 * kGrain,
+                    [&](Index e) { xs[e] = x.row(b.order[e]).transpose(); });
   const Index full = sp.per_axis * sp.per_axis * sp.per_axis;
   std::array<Index, 3> reach{};
   for (int a = 0; a < 3; ++a) reach[a] = static_cast<Index>(std::ceil(R / g.h[a]));
   // A cell whose block of cells within the kernel radius all hold particles is deep inside
   // the liquid: its mean is itself to within the particles' spacing, φ = −r (the sum over
   // its ~1000 neighbours is what φ costs; only cells near the surface need it). Beside a wall
-  // the block is clipped to the box: the walls' mirror images fill the rest alike.
+  // the block is clipped to the box: the walls' mirror images fill the rest alike. A cell
+  // whose block holds no particle has no term: φ = R.
   std::vector<std::uint8_t> occupied(static_cast<size_t>(g.num_cells()));
-  for (Index c = 0; c < g.num_cells(); ++c) occupied[c] = b.start[c + 1] > b.start[c];
-  const auto deep = [&](const std::array<Index, 3>& ijk) {
-    std::array<Index, 3> lo{}, hi{};
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::max<Index>(0, ijk[a] - reach[a]);
-      hi[a] = std::min<Index>(g.n[a] - 1, ijk[a] + reach[a]);
-    }
-    for (Index k = lo[2]; k <= hi[2]; ++k)
-      for (Index j = lo[1]; j <= hi[1]; ++j)
-        for (Index i = lo[0]; i <= hi[0]; ++i)
-          if (!occupied[g.cell(i, j, k)]) return false;
-    return true;
-  };
+  parallel_for_each(g.num_cells(), 4 * kGrain,
+                    [&](Index c) { occupied[c] = b.start[c + 1] > b.start[c]; });
+  TETFSI_CHECK((2 * reach[0] + 1) * (2 * reach[1] + 1) * (2 * reach[2] + 1) <= 255,
+               "liquid_level_set: a kernel block of {} {} {} cells each way has over 255 cells",
+               reach[0], reach[1], reach[2]);
+  const std::vector<std::uint8_t> occupied_near = block_counts(g, std::move(occupied), reach);
+  const ReachMask mask(g, reach, R);
   VecX phi(g.num_cells());
   parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
-    const auto ijk = g.cell_ijk(c);
-    const Vec3 xc = g.cell_centre(c);
-    if (gc.open_cell(c) && deep(ijk)) {
+    if (occupied_near[c] == 0) {
+      phi[c] = R;
+      return;
+    }
+    if (gc.open_cell(c) && occupied_near[c] == block_size(g, g.cell_ijk(c), reach)) {  // deep
       phi[c] = -sp.radius;
       return;
     }
-    // per axis, the particle's images: itself, and its mirrors in the walls within R
-    std::array<int, 3> images{};
-    for (int a = 0; a < 3; ++a) images[a] = 1 + (xc[a] - box_lo[a] < R) + (box_hi[a] - xc[a] < R);
-    Vec3 mean = Vec3::Zero();
-    double wsum = 0;
-    for (Index k = std::max<Index>(0, ijk[2] - reach[2]);
-         k <= std::min(g.n[2] - 1, ijk[2] + reach[2]); ++k)
-      for (Index j = std::max<Index>(0, ijk[1] - reach[1]);
-           j <= std::min(g.n[1] - 1, ijk[1] + reach[1]); ++j)
-        for (Index i = std::max<Index>(0, ijk[0] - reach[0]);
-             i <= std::min(g.n[0] - 1, ijk[0] + reach[0]); ++i) {
-          const Index d = g.cell(i, j, k);
-          for (Index e = b.start[d]; e < b.start[d + 1]; ++e) {
-            const Vec3 p0 = x.row(b.order[e]).transpose();
-            for (int m = 0; m < images[0] * images[1] * images[2]; ++m) {
-              Vec3 p = p0;
-              int rest = m;
-              for (int a = 0; a < 3; ++a) {
-                const int im = rest % images[a];
-                rest /= images[a];
-                if (im == 0) continue;  // the particle itself
-                const bool lo_wall = xc[a] - box_lo[a] < R && im == 1;
-                p[a] = lo_wall ? 2 * box_lo[a] - p0[a] : 2 * box_hi[a] - p0[a];
-              }
-              const double w = kernel((xc - p).squaredNorm() / (R * R));
-              mean += w * p;
-              wsum += w;
-            }
-          }
-        }
+    const KernelSums s = kernel_sums(g, c, mask, b, xs, R);
     // see [ZhuBridson05]: φ(x) = |x − x̄| − r, x̄ the kernel-weighted mean of the particles
-    phi[c] = wsum > 0 ? std::min((xc - mean / wsum).norm() - sp.radius, R) : R;
+    const Vec3 xc = g.cell_centre(c);
+    phi[c] = s.wsum > 0 ? std::min((xc - s.mean / s.wsum).norm() - sp.radius, R) : R;
     if (gc.open_cell(c) && 2 * (b.start[c + 1] - b.start[c]) >= full && touches_body(gc, c))
       phi[c] = std::min(phi[c], -sp.face_phi);
   });
@@ -335,21 +536,44 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
 void set_free_surface(GridCells& gc, VecX phi) {
   const Index nc = gc.grid.num_cells();
   TETFSI_CHECK(phi.size() == nc, "φ has {} entries for {} cells", phi.size(), nc);
-  gc.air.assign(static_cast<size_t>(nc), 0);
-  for (Index c = 0; c < nc; ++c) gc.air[c] = gc.cell_body[c] < 0 && phi[c] >= 0 ? 1 : 0;
+  gc.air.resize(static_cast<size_t>(nc));
+  parallel_for_each(nc, 4 * kGrain,
+                    [&](Index c) { gc.air[c] = gc.cell_body[c] < 0 && phi[c] >= 0 ? 1 : 0; });
   gc.phi = std::move(phi);
 }
 
-Vec3 face_velocity_at(const GridSpec& g, const VecX& u, const Vec3& x) {
+namespace {
+
+/// The per-axis weights of a point x for face_velocity_at: along each axis b, those of the
+/// cell centres' lattice (which the faces of the other two axes share) and of the axis-b
+/// faces' lattice.
+struct FaceStencil {
+  std::array<AxisWeights, 3> centre, face;
+};
+FaceStencil face_stencil(const GridSpec& g, const Vec3& x) {
+  FaceStencil s;
+  for (int b = 0; b < 3; ++b) {
+    s.centre[b] = axis_weights(g, -1, b, x[b]);
+    s.face[b] = axis_weights(g, b, b, x[b]);
+  }
+  return s;
+}
+
+/// face_velocity_at from the point's stencil.
+Vec3 face_velocity_from(const GridSpec& g, const VecX& u, const FaceStencil& st) {
   Vec3 v;
   for (int a = 0; a < 3; ++a) {
-    double s = 0;
-    for_each_face_weight(g, a, x, [&](Index f, double w) {
-      if (w != 0) s += w * u[f];
-    });
-    v[a] = s;
+    std::array<AxisWeights, 3> s = st.centre;
+    s[a] = st.face[a];
+    v[a] = trilinear(s, [&](Index i, Index j, Index k) { return u[g.face(a, i, j, k)]; });
   }
   return v;
+}
+
+}  // namespace
+
+Vec3 face_velocity_at(const GridSpec& g, const VecX& u, const Vec3& x) {
+  return face_velocity_from(g, u, face_stencil(g, x));
 }
 
 VecX particles_to_faces(const GridSpec& g, const LiquidParticles& lp,
@@ -402,38 +626,85 @@ std::vector<std::uint8_t> liquid_faces(const GridCells& gc) {
   return known;
 }
 
+namespace {
+
+/// The faces of face f's axis beside it (−1 where the lattice ends), in the order (axis b,
+/// direction) = (0, −1), (0, +1), (1, −1), (1, +1), (2, −1), (2, +1).
+std::array<Index, 6> face_neighbours(const GridSpec& g, Index f) {
+  const int a = g.face_axis(f);
+  const auto ijk = g.face_ijk(f);
+  std::array<Index, 6> out{};
+  for (int b = 0; b < 3; ++b)
+    for (int side = 0; side < 2; ++side) {
+      std::array<Index, 3> q = ijk;
+      q[b] += side == 0 ? -1 : 1;
+      out[2 * b + side] =
+          q[b] < 0 || q[b] >= lattice_size(g, b, a) ? -1 : g.face(a, q[0], q[1], q[2]);
+    }
+  return out;
+}
+
+/// The items i of [0, n) with keep(i), in order (found per chunk in parallel).
+template <class Keep>
+std::vector<Index> parallel_select(Index n, Keep&& keep) {
+  std::vector<std::vector<Index>> found(static_cast<size_t>(num_chunks(n, 4 * kGrain)));
+  parallel_for_chunks(n, 4 * kGrain, [&](Index begin, Index end) {
+    for (Index i = begin; i < end; ++i)
+      if (keep(i)) found[begin / (4 * kGrain)].push_back(i);
+  });
+  std::vector<Index> out;
+  for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
+  return out;
+}
+
+}  // namespace
+
 void extrapolate_faces(const GridSpec& g, std::vector<std::uint8_t> known, int layers, VecX& u) {
   const Index nf = g.num_faces();
-  std::vector<std::uint8_t> next;
-  for (int layer = 0; layer < layers; ++layer) {
-    next = known;
-    bool grew = false;
-    parallel_for_each(nf, kGrain, [&](Index f) {
-      if (known[f]) return;
-      const int a = g.face_axis(f);
-      const auto ijk = g.face_ijk(f);
+  // Each layer fills the unknown faces beside a known one with the mean of their known
+  // neighbours (Jacobi: from the faces known before the layer). Only those faces can change,
+  // so a layer visits them alone: at first every unknown face beside a known one, then the
+  // unknown neighbours of the faces the last layer filled.
+  std::vector<Index> front = parallel_select(nf, [&](Index f) {
+    if (known[f]) return false;
+    for (const Index e : face_neighbours(g, f))
+      if (e >= 0 && known[e]) return true;
+    return false;
+  });
+  std::vector<Index> mark(static_cast<size_t>(nf), -1);  // the layer that listed a face
+  for (int layer = 0; layer < layers && !front.empty(); ++layer) {
+    std::vector<double> value(front.size());
+    std::vector<std::uint8_t> has(front.size(), 0);
+    parallel_for_each(static_cast<Index>(front.size()), 1024, [&](Index k) {
       double s = 0;
       int n = 0;
-      for (int b = 0; b < 3; ++b)
-        for (int dir = -1; dir <= 1; dir += 2) {
-          std::array<Index, 3> q = ijk;
-          q[b] += dir;
-          if (q[b] < 0 || q[b] >= lattice_size(g, b, a)) continue;
-          const Index e = g.face(a, q[0], q[1], q[2]);
-          if (!known[e]) continue;
+      for (const Index e : face_neighbours(g, front[k]))
+        if (e >= 0 && known[e]) {
           s += u[e];
           ++n;
         }
       if (n == 0) return;
-      u[f] = s / n;  // reads only known faces, which this layer does not write
-      next[f] = 1;
+      value[k] = s / n;
+      has[k] = 1;
     });
-    for (Index f = 0; f < nf && !grew; ++f) grew = next[f] != known[f];
-    known.swap(next);
-    if (!grew) break;
+    std::vector<Index> filled;
+    for (size_t k = 0; k < front.size(); ++k)
+      if (has[k]) {
+        u[front[k]] = value[k];
+        filled.push_back(front[k]);
+      }
+    for (const Index f : filled) known[f] = 1;
+    front.clear();
+    for (const Index f : filled)
+      for (const Index e : face_neighbours(g, f))
+        if (e >= 0 && !known[e] && mark[e] != layer) {
+          mark[e] = layer;
+          front.push_back(e);
+        }
   }
-  for (Index f = 0; f < nf; ++f)
+  parallel_for_each(nf, 4 * kGrain, [&](Index f) {
     if (!known[f]) u[f] = 0.0;
+  });
 }
 
 namespace {
@@ -497,7 +768,10 @@ Index separate_particles(const GridCells& gc, int per_axis, LiquidParticles& lp)
   const GridSpec& g = gc.grid;
   const double reach = k_separation * g.h.minCoeff() / per_axis;
   const ParticleBuckets b = bucket_particles(g, lp.x);
-  const double eps = 1e-3 * g.h.minCoeff();
+  std::vector<Vec3> xs(b.order.size());  // the positions in bucket order
+  parallel_for_each(static_cast<Index>(xs.size()), 4 * kGrain,
+                    [&](Index e) { xs[e] = lp.x.row(b.order[e]).transpose(); });
+  const double eps = 1e-3 * g.h.minCoeff(), far2 = reach * reach * (1 + 1e-12);
   const Vec3 lo = g.lo.array() + eps, hi = g.hi().array() - eps;
   MatX3 moved = lp.x;
   std::vector<std::uint8_t> pushed(static_cast<size_t>(lp.size()), 0);
@@ -513,11 +787,11 @@ Index separate_particles(const GridCells& gc, int per_axis, LiquidParticles& lp)
         for (Index i = lo_ijk[0]; i <= hi_ijk[0]; ++i) {
           const Index d = g.cell(i, j, k);
           for (Index e = b.start[d]; e < b.start[d + 1]; ++e) {
-            const Index q = b.order[e];
-            if (q == p) continue;
-            const Vec3 r = x - lp.x.row(q).transpose();
+            if (b.order[e] == p) continue;
+            const Vec3 r = x - xs[e];
+            if (r.squaredNorm() > far2) continue;  // dist > reach whatever its rounding
             const double dist = r.norm();
-            // half the overlap each (the pair's other half moves q), relaxed by 1/2
+            // half the overlap each (the other half moves the other particle), relaxed by 1/2
             if (dist < reach && dist > 0) dx += 0.25 * (reach - dist) / dist * r;
           }
         }
@@ -569,7 +843,8 @@ void faces_to_particles(const GridSpec& g, const VecX& u, const VecX& u_old, dou
                         LiquidParticles& lp) {
   parallel_for_each(lp.size(), kGrain, [&](Index p) {
     const Vec3 x = lp.x.row(p).transpose();
-    const Vec3 un = face_velocity_at(g, u, x), uo = face_velocity_at(g, u_old, x);
+    const FaceStencil st = face_stencil(g, x);
+    const Vec3 un = face_velocity_from(g, u, st), uo = face_velocity_from(g, u_old, st);
     // see [ZhuBridson05]: FLIP adds the grid's change, PIC takes the grid's value
     const Vec3 v = lp.v.row(p).transpose();
     lp.v.row(p) = (flip * (v + un - uo) + (1.0 - flip) * un).transpose();
@@ -578,15 +853,19 @@ void faces_to_particles(const GridSpec& g, const VecX& u, const VecX& u_old, dou
 
 namespace {
 
+/// φ trilinear between the cell centres, from the point's per-axis weights
+/// (axis_weights(g, −1, ...)).
+double phi_from(const GridCells& gc, const std::array<AxisWeights, 3>& s) {
+  const GridSpec& g = gc.grid;
+  return trilinear(s, [&](Index i, Index j, Index k) { return gc.phi[g.cell(i, j, k)]; });
+}
+
 /// φ trilinear between the cell centres at x (clamped to the box; solid cells read as their
 /// nearest values would: the caller only samples non-solid cells).
 double phi_at(const GridCells& gc, const Vec3& x) {
   const GridSpec& g = gc.grid;
-  double v = 0;
-  for_each_lattice_weight(g, -1, x, [&](const std::array<Index, 3>& ijk, double w) {
-    if (w != 0) v += w * gc.phi[g.cell(ijk[0], ijk[1], ijk[2])];
-  });
-  return v;
+  return phi_from(gc, {axis_weights(g, -1, 0, x[0]), axis_weights(g, -1, 1, x[1]),
+                       axis_weights(g, -1, 2, x[2])});
 }
 
 /// φ's least and greatest over cell c's 3 × 3 × 3 block (clipped to the grid).
@@ -607,11 +886,6 @@ std::array<double, 2> block_range(const GridCells& gc, Index c) {
 /// its cell).
 bool sign_change(const std::array<double, 2>& r, double d = 0.0) {
   return r[0] + d < 0 && r[1] + d >= 0;
-}
-
-/// Whether cell c's φ changes sign within its 3 × 3 × 3 block (the surface may cross it).
-bool near_surface(const GridCells& gc, Index c) {
-  return sign_change(block_range(gc, c));
 }
 
 /// The length of [0, len] where f, linear from f0 to f1, is negative.
@@ -650,17 +924,26 @@ int steepest_axis(const GridCells& gc, Index c) {
 /// side of the cell centre's plane.
 void line_values(const GridCells& gc, Index c, int m, double* f) {
   const GridSpec& g = gc.grid;
+  TETFSI_CHECK(m >= 1 && m <= 4, "line_values: 1 to 4 lines per axis, got {}", m);
   const Vec3 lo = g.cell_centre(c) - 0.5 * g.h;
   const int a = steepest_axis(gc, c), b = (a + 1) % 3, d = (a + 2) % 3;
-  for (int l = 0; l < m * m; ++l) {
-    Vec3 x = lo;
-    x[b] += (l % m + 0.5) / m * g.h[b];
-    x[d] += (l / m + 0.5) / m * g.h[d];
-    for (int k = 0; k < 3; ++k) {
-      f[3 * l + k] = phi_at(gc, x);
-      x[a] += 0.5 * g.h[a];
-    }
+  // the weights along each axis of the lines' coordinates, each computed once
+  std::array<AxisWeights, 4> along_b{}, along_d{};
+  std::array<AxisWeights, 3> along_a{};
+  for (int i = 0; i < m; ++i) {
+    along_b[i] = axis_weights(g, -1, b, lo[b] + (i + 0.5) / m * g.h[b]);
+    along_d[i] = axis_weights(g, -1, d, lo[d] + (i + 0.5) / m * g.h[d]);
   }
+  double xa = lo[a];
+  for (int k = 0; k < 3; ++k, xa += 0.5 * g.h[a]) along_a[k] = axis_weights(g, -1, a, xa);
+  for (int l = 0; l < m * m; ++l)
+    for (int k = 0; k < 3; ++k) {
+      std::array<AxisWeights, 3> s;
+      s[a] = along_a[k];
+      s[b] = along_b[l % m];
+      s[d] = along_d[l / m];
+      f[3 * l + k] = phi_from(gc, s);
+    }
 }
 
 /// The share of a cell where φ + d is negative, from line_values' values f on its m × m
@@ -690,9 +973,15 @@ LiquidMeasures measure_liquid(const GridCells& gc, bool with_area) {
   constexpr int m = 4;
   const Vec3 step = g.h / m;
   VecX vol = VecX::Zero(g.num_cells()), area = VecX::Zero(g.num_cells());
+  // per cell, how many cells of its 3 × 3 × 3 block have φ < 0
+  const std::array<Index, 3> one{1, 1, 1};
+  std::vector<std::uint8_t> negative(static_cast<size_t>(g.num_cells()));
+  parallel_for_each(g.num_cells(), 4 * kGrain, [&](Index c) { negative[c] = gc.phi[c] < 0; });
+  negative = block_counts(g, std::move(negative), one);
   parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
     if (!gc.open_cell(c)) return;
-    if (!near_surface(gc, c)) {
+    if (negative[c] == 0 || negative[c] == block_size(g, g.cell_ijk(c), one)) {
+      // φ has one sign over the block: the surface does not cross the cell
       vol[c] = gc.phi[c] < 0 ? 1.0 : 0.0;
       return;
     }
@@ -742,16 +1031,34 @@ class ShiftedVolume {
   ShiftedVolume(const GridCells& gc, double cap) : m_cell_volume(gc.grid.cell_volume()) {
     const GridSpec& g = gc.grid;
     const Index nc = g.num_cells();
-    std::vector<std::array<double, 2>> range(static_cast<size_t>(nc));
-    parallel_for_each(nc, kGrain, [&](Index c) { range[c] = block_range(gc, c); });
-    for (Index c = 0; c < nc; ++c) {
-      if (!gc.open_cell(c)) continue;
-      if (range[c][0] >= cap) continue;  // air whatever the shift
-      if (range[c][1] < -cap) {          // liquid whatever the shift
-        m_fixed += 1.0;
-        continue;
+    // per cell, how many cells of its 3 × 3 × 3 block are liquid whatever the shift (φ <
+    // −cap, counted in the low 5 bits) and air whatever the shift (φ ≥ cap, the bits above)
+    const std::array<Index, 3> one{1, 1, 1};
+    std::vector<std::uint16_t> tag(static_cast<size_t>(nc));
+    parallel_for_each(nc, 4 * kGrain, [&](Index c) {
+      tag[c] = gc.phi[c] < -cap ? 1 : (gc.phi[c] >= cap ? 32 : 0);
+    });
+    tag = block_counts(g, std::move(tag), one);
+    // per chunk in parallel, joined in chunk order: the cells in index order (the count of
+    // fixed cells is exact in any order)
+    std::vector<std::vector<Cell>> found(static_cast<size_t>(num_chunks(nc, kGrain)));
+    std::vector<Index> fixed(found.size(), 0);
+    parallel_for_chunks(nc, kGrain, [&](Index begin, Index end) {
+      const Index k = begin / kGrain;
+      for (Index c = begin; c < end; ++c) {
+        if (!gc.open_cell(c)) continue;
+        const Index size = block_size(g, g.cell_ijk(c), one);
+        if (tag[c] >> 5 == size) continue;  // the block's least φ ≥ cap: air whatever the shift
+        if ((tag[c] & 31) == size) {        // its greatest < −cap: liquid whatever the shift
+          ++fixed[k];
+          continue;
+        }
+        found[k].push_back({block_range(gc, c), gc.phi[c], c});
       }
-      m_cells.push_back({range[c], gc.phi[c], c});
+    });
+    for (size_t k = 0; k < found.size(); ++k) {
+      m_fixed += static_cast<double>(fixed[k]);
+      m_cells.insert(m_cells.end(), found[k].begin(), found[k].end());
     }
     m_f.resize(m_cells.size() * kValues);
     parallel_for_each(static_cast<Index>(m_cells.size()), 256, [&](Index k) {
@@ -760,12 +1067,16 @@ class ShiftedVolume {
   }
 
   double operator()(double d) const {
-    double cells = m_fixed;
-    for (size_t k = 0; k < m_cells.size(); ++k) {
+    // each cell's share in parallel, summed in cell order
+    const Index n = static_cast<Index>(m_cells.size());
+    m_share.resize(m_cells.size());
+    parallel_for_each(n, 1024, [&](Index k) {
       const Cell& c = m_cells[k];
-      cells += sign_change(c.range, d) ? lines_share(&m_f[k * kValues], kLines, d)
-                                       : (c.centre + d < 0 ? 1.0 : 0.0);
-    }
+      m_share[k] = sign_change(c.range, d) ? lines_share(&m_f[k * kValues], kLines, d)
+                                           : (c.centre + d < 0 ? 1.0 : 0.0);
+    });
+    double cells = m_fixed;
+    for (Index k = 0; k < n; ++k) cells += m_share[k];
     return cells * m_cell_volume;
   }
 
@@ -779,6 +1090,7 @@ class ShiftedVolume {
   double m_cell_volume, m_fixed = 0;
   std::vector<Cell> m_cells;
   std::vector<double> m_f;  ///< kValues per cell: per line, φ at its start, middle and end
+  mutable std::vector<double> m_share;  ///< operator()'s per-cell shares
 };
 
 }  // namespace

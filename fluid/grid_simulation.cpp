@@ -263,12 +263,16 @@ void GridFluid::predict_liquid(GridPrediction& pred, double h) const {
   pred.particles_added = emit_liquid(pred.cells, lq, m_time + h, pred.particles);
   pred.liquid_advect_s = now_seconds() - t0;
   t0 = now_seconds();
-  set_free_surface(pred.cells, liquid_level_set(pred.cells, pred.particles.x, m_surface));
-  if (lq.hold_volume)
+  VecX phi = liquid_level_set(pred.cells, pred.particles.x, m_surface);
+  if (!lq.hold_volume)
+    set_free_surface(pred.cells, std::move(phi));
+  else {  // the hold sets the air cells from the shifted φ
+    pred.cells.phi = std::move(phi);
     pred.liquid_moved = hold_liquid_volume(
         pred.cells,
         m_liquid_expected + particle_volume(pred.particles_added - pred.particles_removed),
         m_surface);
+  }
   if (lq.density_correction > 0)
     pred.cells.volume_source = liquid_volume_source(
         pred.cells, pred.particles.x, lq.particles_per_axis, lq.density_correction, h);
