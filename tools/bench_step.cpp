@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <ostream>
 #include <random>
 #include <string>
@@ -23,6 +24,7 @@
 #include "fluid/grid_projection.hpp"
 #include "fluid/operators.hpp"
 #include "mesh/remesh.hpp"
+#include "tools/bench_step_liquid.hpp"
 #include "tools/output.hpp"
 #include "tools/run.hpp"
 #include "tools/run_stats.hpp"
@@ -78,6 +80,8 @@ struct Case {
   int floor_iterations = 0;
   bool floor_converged = false;
   double floor_s() const { return delaunay_s + poisson_s; }
+  LiquidPhases liquid;                     ///< a liquid scene (grid): its phases, per step
+  std::optional<LiquidComparison> levels;  ///< a liquid scene: the level sets on its particles
 };
 
 /// The scene's fluid, one-way, around `world`.
@@ -246,7 +250,13 @@ Case run_grid_case(const Scene& scene, double scale, int steps, const std::files
     mean.solve += ph.get("pressure_solve") / timed;
     mean.output += ph.get("output") / timed;
     mean.iterations += static_cast<double>(rep.fluid->iterations) / timed;
+    c.liquid.advect += rep.fluid->liquid_advect_s / timed;
+    c.liquid.surface += rep.fluid->liquid_surface_s / timed;
+    c.liquid.p2g += rep.fluid->liquid_p2g_s / timed;
   }
+  if (scene.fluid->params.liquid.enabled)
+    c.levels =
+        compare_liquid_level_sets(*sim.grid(), scene.fluid->params.liquid.particles_per_axis);
   const fluid::GridCells& gc = sim.grid()->cells();
   c.vertices = spec.num_cells();  // (the grid's cells, solid ones included)
   for (Index k = 0; k < spec.num_cells(); ++k) c.cells += gc.fluid(k) ? 1 : 0;
@@ -327,8 +337,10 @@ int bench_step_grid(const std::filesystem::path& scene_file, const Scene& scene,
              "solve", "output", "other", "iters", "s/fl", "tet_cell", "tet_s", "g/tet");
   const ScratchDir dir;
   nlohmann::json cases = nlohmann::json::array();
+  std::vector<Case> grid_cases;
   for (const double s : scales) {
     const Case c = run_grid_case(scene, s, opt.steps, dir.path);
+    grid_cases.push_back(c);
     const double tet_scale = tet_scale_for(tet, tet_base, c.cells);
     const Case t = run_case(tet, tet_scale, opt.steps, dir.path);
     const StepFigures& f = c.mean;
@@ -343,6 +355,20 @@ int bench_step_grid(const std::filesystem::path& scene_file, const Scene& scene,
       logger().warn("bench step: the floor's pressure solve at scale {:.4g} did not converge",
                     c.scale);
     cases.push_back(grid_case_json(c, t));
+    if (c.levels) cases.back()["liquid"] = liquid_json(c.liquid, f.solve, *c.levels);
+  }
+  if (!grid_cases.empty() && grid_cases.front().levels) {
+    print_liquid_header(out);
+    for (const Case& c : grid_cases)
+      print_liquid_row(out, c.scale, c.vertices, c.liquid, c.mean.solve, *c.levels);
+    fmt::print(out,
+               "grid = the grid's cells; advect = particles moved, separated, emitted (with p2g); "
+               "surface = the level set, the free\nsurface and the volume hold; p2g = particles "
+               "to faces, extrapolated; su/so = surface / solve; ours_s, vdb_s = the\nliquid's "
+               "level set (fluid::liquid_level_set, no hold) and OpenVDB's ParticlesToLevelSet "
+               "(spheres of the particles'\nspacing, voxels of h/4, band 1.5 cells, sampled at "
+               "the cells) on the same particles; vol_us, vol_vd = their\nvolumes / the "
+               "particles'; area_u, area_v = their surfaces' areas (m²).\n");
   }
   fmt::print(out,
              "\ncells = fluid cells of the grid; ratio = step / floor; s/fl = the step's pressure "
