@@ -519,7 +519,9 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
       phi[c] = R;
       return;
     }
-    if (gc.open_cell(c) && occupied_near[c] == block_size(g, g.cell_ijk(c), reach)) {  // deep
+    const Index full_block = (2 * reach[0] + 1) * (2 * reach[1] + 1) * (2 * reach[2] + 1);
+    if (gc.open_cell(c) && (occupied_near[c] == full_block ||
+                            occupied_near[c] == block_size(g, g.cell_ijk(c), reach))) {  // deep
       phi[c] = -sp.radius;
       return;
     }
@@ -860,14 +862,6 @@ double phi_from(const GridCells& gc, const std::array<AxisWeights, 3>& s) {
   return trilinear(s, [&](Index i, Index j, Index k) { return gc.phi[g.cell(i, j, k)]; });
 }
 
-/// φ trilinear between the cell centres at x (clamped to the box; solid cells read as their
-/// nearest values would: the caller only samples non-solid cells).
-double phi_at(const GridCells& gc, const Vec3& x) {
-  const GridSpec& g = gc.grid;
-  return phi_from(gc, {axis_weights(g, -1, 0, x[0]), axis_weights(g, -1, 1, x[1]),
-                       axis_weights(g, -1, 2, x[2])});
-}
-
 /// φ's least and greatest over cell c's 3 × 3 × 3 block (clipped to the grid).
 std::array<double, 2> block_range(const GridCells& gc, Index c) {
   const GridSpec& g = gc.grid;
@@ -965,13 +959,64 @@ double negative_share(const GridCells& gc, Index c, int m) {
   return lines_share(f.data(), m, 0.0);
 }
 
+/// The area of the surface in cell c: on m³ samples, m = 4, a sign change of φ to the next
+/// sample along axis a is a surface element of projected area ΔA_a = (h_b h_c / m²), and
+/// Σ_a ΔA_a |n_a| over the crossings is the area, n = ∇φ/|∇φ| by central differences at the
+/// crossing's midpoint. Every coordinate is computed per axis as the plain point arithmetic
+/// would (x = x0 + s h, y = x + Δ, the midpoint 0.5 (x + y), its neighbours ∓ Δ), so each
+/// axis' weights are computed once per value: the same φ values, bit for bit.
+double cell_area(const GridCells& gc, Index c) {
+  constexpr int m = 4;
+  const GridSpec& g = gc.grid;
+  const Vec3 step = g.h / m, x0 = g.cell_centre(c) - 0.5 * g.h;
+  // per axis and sample index: x, x + Δ, x − Δ; the midpoint along a crossing, and it ∓ Δ
+  enum Kind { kX, kXp, kXm, kMid, kMidm, kMidp, kKinds };
+  std::array<std::array<std::array<AxisWeights, m>, kKinds>, 3> w;
+  std::array<std::array<double, m>, 3> y;
+  for (int q = 0; q < 3; ++q)
+    for (int i = 0; i < m; ++i) {
+      const double x = x0[q] + (i + 0.5) / m * g.h[q];
+      y[q][i] = x + step[q];
+      const double mid = 0.5 * (x + y[q][i]), self = 0.5 * (x + x);  // self == x
+      w[q][kX][i] = axis_weights(g, -1, q, x);
+      w[q][kXp][i] = axis_weights(g, -1, q, self + step[q]);  // also x + Δ: y
+      w[q][kXm][i] = axis_weights(g, -1, q, self - step[q]);
+      w[q][kMid][i] = axis_weights(g, -1, q, mid);
+      w[q][kMidm][i] = axis_weights(g, -1, q, mid - step[q]);
+      w[q][kMidp][i] = axis_weights(g, -1, q, mid + step[q]);
+    }
+  double area = 0;
+  for (int l = 0; l < m * m * m; ++l) {
+    const std::array<int, 3> i{l % m, (l / m) % m, l / (m * m)};
+    const auto at = [&](const std::array<int, 3>& kind) {
+      return phi_from(gc, {w[0][kind[0]][i[0]], w[1][kind[1]][i[1]], w[2][kind[2]][i[2]]});
+    };
+    const double f = at({kX, kX, kX});
+    for (int a = 0; a < 3; ++a) {
+      std::array<int, 3> ky{kX, kX, kX};
+      ky[a] = kXp;
+      if (y[a][i[a]] > g.hi()[a] || (at(ky) < 0) == (f < 0)) continue;
+      Vec3 grad;
+      for (int b = 0; b < 3; ++b) {
+        std::array<int, 3> lo{kX, kX, kX}, hi{kX, kX, kX};
+        lo[a] = hi[a] = kMid;
+        lo[b] = b == a ? kMidm : kXm;
+        hi[b] = b == a ? kMidp : kXp;
+        grad[b] = (at(hi) - at(lo)) / (2 * step[b]);
+      }
+      const double gn = grad.norm();
+      if (gn > 0) area += g.cell_volume() / g.h[a] / (m * m) * std::abs(grad[a]) / gn;
+    }
+  }
+  return area;
+}
+
 /// liquid_measures, its area only `with_area` (the volume alone costs a fifth).
 LiquidMeasures measure_liquid(const GridCells& gc, bool with_area) {
   const GridSpec& g = gc.grid;
   LiquidMeasures out;
   if (gc.phi.size() != g.num_cells()) return out;
   constexpr int m = 4;
-  const Vec3 step = g.h / m;
   VecX vol = VecX::Zero(g.num_cells()), area = VecX::Zero(g.num_cells());
   // per cell, how many cells of its 3 × 3 × 3 block have φ < 0
   const std::array<Index, 3> one{1, 1, 1};
@@ -980,33 +1025,12 @@ LiquidMeasures measure_liquid(const GridCells& gc, bool with_area) {
   negative = block_counts(g, std::move(negative), one);
   parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
     if (!gc.open_cell(c)) return;
-    if (negative[c] == 0 || negative[c] == block_size(g, g.cell_ijk(c), one)) {
+    if (negative[c] == 0 || negative[c] == 27 || negative[c] == block_size(g, g.cell_ijk(c), one)) {
       // φ has one sign over the block: the surface does not cross the cell
       vol[c] = gc.phi[c] < 0 ? 1.0 : 0.0;
       return;
     }
-    const Vec3 x0 = g.cell_centre(c) - 0.5 * g.h;
-    for (int l = 0; with_area && l < m * m * m; ++l) {
-      const Vec3 s((l % m + 0.5) / m, ((l / m) % m + 0.5) / m, (l / (m * m) + 0.5) / m);
-      const Vec3 x = x0 + s.cwiseProduct(g.h);
-      const double f = phi_at(gc, x);
-      // a sign change to the next sample along axis a: a surface element of projected area
-      // ΔA_a = (h_b h_c / m²) there; Σ_a ΔA_a |n_a| over the crossings is the area
-      for (int a = 0; a < 3; ++a) {
-        Vec3 y = x;
-        y[a] += step[a];
-        if (y[a] > g.hi()[a] || (phi_at(gc, y) < 0) == (f < 0)) continue;
-        Vec3 grad;
-        for (int b = 0; b < 3; ++b) {
-          Vec3 lo = 0.5 * (x + y), hi = lo;
-          lo[b] -= step[b];
-          hi[b] += step[b];
-          grad[b] = (phi_at(gc, hi) - phi_at(gc, lo)) / (2 * step[b]);
-        }
-        const double gn = grad.norm();
-        if (gn > 0) area[c] += g.cell_volume() / g.h[a] / (m * m) * std::abs(grad[a]) / gn;
-      }
-    }
+    if (with_area) area[c] = cell_area(gc, c);
     vol[c] = negative_share(gc, c, m);
   });
   out.volume = vol.sum() * g.cell_volume();
@@ -1047,9 +1071,11 @@ class ShiftedVolume {
       const Index k = begin / kGrain;
       for (Index c = begin; c < end; ++c) {
         if (!gc.open_cell(c)) continue;
-        const Index size = block_size(g, g.cell_ijk(c), one);
-        if (tag[c] >> 5 == size) continue;  // the block's least φ ≥ cap: air whatever the shift
-        if ((tag[c] & 31) == size) {        // its greatest < −cap: liquid whatever the shift
+        const Index air = tag[c] >> 5, liquid = tag[c] & 31;
+        // (a block of 27 cells is whole: its size needs no indices)
+        const Index size = air == 27 || liquid == 27 ? 27 : block_size(g, g.cell_ijk(c), one);
+        if (air == size) continue;  // the block's least φ ≥ cap: air whatever the shift
+        if (liquid == size) {       // its greatest < −cap: liquid whatever the shift
           ++fixed[k];
           continue;
         }
