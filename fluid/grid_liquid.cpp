@@ -646,16 +646,35 @@ std::array<Index, 6> face_neighbours(const GridSpec& g, Index f) {
   return out;
 }
 
-/// The items i of [0, n) with keep(i), in order (found per chunk in parallel).
-template <class Keep>
-std::vector<Index> parallel_select(Index n, Keep&& keep) {
-  std::vector<std::vector<Index>> found(static_cast<size_t>(num_chunks(n, 4 * kGrain)));
-  parallel_for_chunks(n, 4 * kGrain, [&](Index begin, Index end) {
-    for (Index i = begin; i < end; ++i)
-      if (keep(i)) found[begin / (4 * kGrain)].push_back(i);
-  });
+/// The faces not `known` with a known neighbour of their axis (face_neighbours'), in index
+/// order: per axis and z layer of its lattice in parallel, the neighbours by index strides.
+std::vector<Index> unknown_beside_known(const GridSpec& g, const std::vector<std::uint8_t>& known) {
+  std::array<std::vector<std::vector<Index>>, 3> found;
+  for (int a = 0; a < 3; ++a) {
+    const std::array<Index, 3> d{lattice_size(g, 0, a), lattice_size(g, 1, a),
+                                 lattice_size(g, 2, a)};
+    const std::array<Index, 3> stride{1, d[0], d[0] * d[1]};
+    found[a].resize(static_cast<size_t>(d[2]));
+    parallel_for_each(d[2], 1, [&](Index k) {
+      std::vector<Index>& out = found[a][k];
+      for (Index j = 0; j < d[1]; ++j) {
+        const Index row = g.face(a, 0, j, k);
+        for (Index i = 0; i < d[0]; ++i) {
+          const Index f = row + i;
+          if (known[f]) continue;
+          const std::array<Index, 3> ijk{i, j, k};
+          bool beside = false;
+          for (int b = 0; b < 3 && !beside; ++b)
+            beside =
+                (ijk[b] > 0 && known[f - stride[b]]) || (ijk[b] + 1 < d[b] && known[f + stride[b]]);
+          if (beside) out.push_back(f);
+        }
+      }
+    });
+  }
   std::vector<Index> out;
-  for (const auto& f : found) out.insert(out.end(), f.begin(), f.end());
+  for (const auto& axis : found)
+    for (const auto& layer : axis) out.insert(out.end(), layer.begin(), layer.end());
   return out;
 }
 
@@ -667,12 +686,7 @@ void extrapolate_faces(const GridSpec& g, std::vector<std::uint8_t> known, int l
   // neighbours (Jacobi: from the faces known before the layer). Only those faces can change,
   // so a layer visits them alone: at first every unknown face beside a known one, then the
   // unknown neighbours of the faces the last layer filled.
-  std::vector<Index> front = parallel_select(nf, [&](Index f) {
-    if (known[f]) return false;
-    for (const Index e : face_neighbours(g, f))
-      if (e >= 0 && known[e]) return true;
-    return false;
-  });
+  std::vector<Index> front = unknown_beside_known(g, known);
   std::vector<Index> mark(static_cast<size_t>(nf), -1);  // the layer that listed a face
   for (int layer = 0; layer < layers && !front.empty(); ++layer) {
     std::vector<double> value(front.size());
