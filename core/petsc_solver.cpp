@@ -322,23 +322,30 @@ class PetscAmgSolver final : public LinearSolver {
           "the factorisation failed ({}): {}", PCFailedReasons[failed],
           pivot ? "the matrix is singular"
           : failed == PC_FACTOR_OUTMEMORY
-              ? "out of workspace; raise it with PETSC_OPTIONS='-tetfsi_mumps_mat_mumps_icntl_14 "
-                "<percent>'"
-              : fmt::format("the library's own error; PETSC_OPTIONS='-{}ksp_view' (mumps: "
-                            "'-tetfsi_mumps_mat_mumps_icntl_4 2') prints its diagnostics",
-                            options_prefix())));
+              ? fmt::format("out of workspace; raise it with PETSC_OPTIONS='{} <percent>'",
+                            mumps_workspace_option())
+              : fmt::format("the library's own error; PETSC_OPTIONS='-{0}ksp_view'{1} prints its "
+                            "diagnostics",
+                            options_prefix(),
+                            mumps ? fmt::format(" (or '-{}mat_mumps_icntl_4 2')", options_prefix())
+                                  : std::string())));
     }
   }
 
+  /// PETSc's option that sets MUMPS's workspace slack ICNTL(14) for this solver.
+  std::string mumps_workspace_option() const {
+    return fmt::format("-{}mat_mumps_icntl_14", options_prefix());
+  }
+
   /// Double MUMPS's workspace slack ICNTL(14) (percent over its analysis' estimate; at least +20).
-  static void raise_mumps_workspace() {
-    const char* key = "-tetfsi_mumps_mat_mumps_icntl_14";
+  void raise_mumps_workspace() const {
+    const std::string key = mumps_workspace_option();
     PetscInt now = 20;  // MUMPS's default
     PetscBool set = PETSC_FALSE;
-    TETFSI_PETSC(PetscOptionsGetInt(nullptr, nullptr, key, &now, &set));
+    TETFSI_PETSC(PetscOptionsGetInt(nullptr, nullptr, key.c_str(), &now, &set));
     const std::string next = std::to_string(std::max<PetscInt>(2 * now, now + 20));
     logger().debug("mumps: out of workspace; ICNTL(14) {} -> {}", now, next);
-    TETFSI_PETSC(PetscOptionsSetValue(nullptr, key, next.c_str()));
+    TETFSI_PETSC(PetscOptionsSetValue(nullptr, key.c_str(), next.c_str()));
   }
 
  public:
