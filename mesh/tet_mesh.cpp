@@ -110,6 +110,23 @@ Vec3 circumcentre(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
 
 namespace {
 
+/// What is wrong with tet t of m, if anything: a vertex index out of range (`vertex` its
+/// slot) or a signed volume (`vol6`: six times it) that is not positive.
+enum class TetFault { None, Index, Orientation };
+TetFault tet_fault(const TetMesh& m, Index t, int& vertex, double& vol6) {
+  const Index nv = m.num_vertices();
+  const auto r = m.tets.row(t);
+  for (int k = 0; k < 4; ++k)
+    if (!(r(k) >= 0 && r(k) < nv)) {
+      vertex = k;
+      return TetFault::Index;
+    }
+  const Vec3 a = m.vertices.row(r(0));
+  vol6 = (Vec3(m.vertices.row(r(1))) - a)
+             .dot((Vec3(m.vertices.row(r(2))) - a).cross(Vec3(m.vertices.row(r(3))) - a));
+  return vol6 > 0.0 ? TetFault::None : TetFault::Orientation;
+}
+
 /// The start of build_tet_mesh: the arrays moved in, indices in range and every tet
 /// positively oriented (everything after relies on both).
 TetMesh start_tet_mesh(MatX3 vertices, MatX4i tets) {
@@ -124,37 +141,26 @@ TetMesh start_tet_mesh(MatX3 vertices, MatX4i tets) {
                  "coarser mesh",
                  nt);
   // Indices in range and positive orientation first: everything below relies on both. The
-  // chunks look in parallel; the first bad tet (in index order) is checked again below for
-  // its message.
-  const auto bad = [&](Index t) {
-    const auto r = m.tets.row(t);
-    for (int k = 0; k < 4; ++k)
-      if (!(r(k) >= 0 && r(k) < nv)) return true;
-    const Vec3 a = m.vertices.row(r(0));
-    return !((Vec3(m.vertices.row(r(1))) - a)
-                 .dot((Vec3(m.vertices.row(r(2))) - a).cross(Vec3(m.vertices.row(r(3))) - a)) >
-             0.0);
-  };
+  // chunks look in parallel; the first bad tet in index order is named.
   constexpr Index kGrain = 16384;
   std::vector<Index> first(static_cast<std::size_t>(num_chunks(nt, kGrain)), -1);
   parallel_for_chunks(nt, kGrain, [&](Index begin, Index end) {
+    int vertex = 0;
+    double vol6 = 0.0;
     for (Index t = begin; t < end && first[begin / kGrain] < 0; ++t)
-      if (bad(t)) first[begin / kGrain] = t;
+      if (tet_fault(m, t, vertex, vol6) != TetFault::None) first[begin / kGrain] = t;
   });
   for (const Index t : first) {
     if (t < 0) continue;
     const auto r = m.tets.row(t);
-    for (int k = 0; k < 4; ++k) {
-      TETFSI_REQUIRE(MeshError, r(k) >= 0 && r(k) < nv,
-                     "build_tet_mesh: tet {} (vertices {} {} {} {}) refers to vertex {} but the "
-                     "mesh has {} vertices; fix the tet's vertex indices",
-                     t, r(0), r(1), r(2), r(3), r(k), nv);
-    }
-    const Vec3 a = m.vertices.row(r(0));
-    const double vol6 =
-        (Vec3(m.vertices.row(r(1))) - a)
-            .dot((Vec3(m.vertices.row(r(2))) - a).cross(Vec3(m.vertices.row(r(3))) - a));
-    TETFSI_REQUIRE(MeshError, vol6 > 0.0,
+    int k = 0;
+    double vol6 = 0.0;
+    const TetFault fault = tet_fault(m, t, k, vol6);
+    TETFSI_REQUIRE(MeshError, fault != TetFault::Index,
+                   "build_tet_mesh: tet {} (vertices {} {} {} {}) refers to vertex {} but the "
+                   "mesh has {} vertices; fix the tet's vertex indices",
+                   t, r(0), r(1), r(2), r(3), r(k), nv);
+    TETFSI_REQUIRE(MeshError, fault != TetFault::Orientation,
                    "build_tet_mesh: tet {} (vertices {} {} {} {}) is not positively oriented "
                    "(signed volume {:.3g} m^3); swap two of its vertices or remesh",
                    t, r(0), r(1), r(2), r(3), vol6 / 6.0);
