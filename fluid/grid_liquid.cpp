@@ -310,13 +310,16 @@ std::vector<T> block_counts(const GridSpec& g, std::vector<T> count,
   return count;
 }
 
-/// The number of cells of cell c's block within `reach` along each axis, clipped to the grid.
-Index block_size(const GridSpec& g, const std::array<Index, 3>& ijk,
-                 const std::array<Index, 3>& reach) {
+/// Whether `count` (of block_counts) covers every cell of cell c's block within `reach`,
+/// clipped to the grid. A count of a whole block's cells does without c's indices.
+inline bool whole_block(const GridSpec& g, Index c, Index count,
+                        const std::array<Index, 3>& reach) {
+  if (count == (2 * reach[0] + 1) * (2 * reach[1] + 1) * (2 * reach[2] + 1)) return true;
+  const auto ijk = g.cell_ijk(c);
   Index size = 1;
   for (int a = 0; a < 3; ++a)
     size *= std::min(g.n[a] - 1, ijk[a] + reach[a]) - std::max<Index>(0, ijk[a] - reach[a]) + 1;
-  return size;
+  return count == size;
 }
 
 /// The images of the particles that φ at a cell centre xc sums [ZhuBridson05]: each
@@ -519,9 +522,7 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
       phi[c] = R;
       return;
     }
-    const Index full_block = (2 * reach[0] + 1) * (2 * reach[1] + 1) * (2 * reach[2] + 1);
-    if (gc.open_cell(c) && (occupied_near[c] == full_block ||
-                            occupied_near[c] == block_size(g, g.cell_ijk(c), reach))) {  // deep
+    if (gc.open_cell(c) && whole_block(g, c, occupied_near[c], reach)) {  // deep
       phi[c] = -sp.radius;
       return;
     }
@@ -1039,7 +1040,7 @@ LiquidMeasures measure_liquid(const GridCells& gc, bool with_area) {
   negative = block_counts(g, std::move(negative), one);
   parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
     if (!gc.open_cell(c)) return;
-    if (negative[c] == 0 || negative[c] == 27 || negative[c] == block_size(g, g.cell_ijk(c), one)) {
+    if (negative[c] == 0 || whole_block(g, c, negative[c], one)) {
       // φ has one sign over the block: the surface does not cross the cell
       vol[c] = gc.phi[c] < 0 ? 1.0 : 0.0;
       return;
@@ -1085,11 +1086,9 @@ class ShiftedVolume {
       const Index k = begin / kGrain;
       for (Index c = begin; c < end; ++c) {
         if (!gc.open_cell(c)) continue;
-        const Index air = tag[c] >> 5, liquid = tag[c] & 31;
-        // (a block of 27 cells is whole: its size needs no indices)
-        const Index size = air == 27 || liquid == 27 ? 27 : block_size(g, g.cell_ijk(c), one);
-        if (air == size) continue;  // the block's least φ ≥ cap: air whatever the shift
-        if (liquid == size) {       // its greatest < −cap: liquid whatever the shift
+        // the block's least φ ≥ cap: air whatever the shift
+        if (whole_block(g, c, tag[c] >> 5, one)) continue;
+        if (whole_block(g, c, tag[c] & 31, one)) {  // its greatest < −cap: liquid whatever
           ++fixed[k];
           continue;
         }
