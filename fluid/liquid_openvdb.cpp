@@ -51,7 +51,8 @@ OpenVdbLevelSet openvdb_particle_level_set(const GridSpec& g, const MatX3& x, do
   openvdb::initialize();
   OpenVdbLevelSet out;
   double t0 = now_seconds();
-  // voxel centres at the cell centres (when h / voxel is odd): index space offset so
+  // voxel (0, 0, 0) on the first cell centre: the voxel centres lie on the cell centres
+  // when h / voxel is a whole number
   openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxel);
   const Vec3 c0 = g.cell_centre(0);
   xform->postTranslate(openvdb::Vec3d(c0[0], c0[1], c0[2]));

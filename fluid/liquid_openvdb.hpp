@@ -20,7 +20,7 @@ struct OpenVdbLevelSet {
 /// openvdb::tools::ParticlesToLevelSet into a float level set of voxel size `voxel` (m; the
 /// rasterizer skips spheres under 1.5 voxels) with a narrow band of `half_width` voxels each
 /// side, then sampled trilinearly at g's cell centres (±half_width · voxel beyond the band).
-/// Voxel centres lie on the cell centres when h / voxel is odd.
+/// Voxel centres lie on the cell centres when h / voxel is a whole number.
 /// @throws InputError for a radius, voxel or half width that is not positive and finite
 OpenVdbLevelSet openvdb_particle_level_set(const GridSpec& g, const MatX3& x, double radius,
                                            double voxel, int half_width);
