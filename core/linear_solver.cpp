@@ -10,6 +10,8 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/petsc_solver.hpp"
+#include "core/ranks.hpp"
+#include "core/solve_ranks.hpp"
 #include "core/struct_solver.hpp"
 #include "core/timer.hpp"
 
@@ -258,8 +260,10 @@ std::unique_ptr<LinearSolver> make_linear_solver(SolverKind kind, const SolverOp
     case SolverKind::AmgGamg:
     case SolverKind::Mumps:
     case SolverKind::SuperluDist:
+      if (drives_solve_workers()) return detail::make_served_solver(kind, opts);
       return detail::make_petsc_solver(kind, opts);
     case SolverKind::Pfmg:
+      if (drives_solve_workers()) return detail::make_served_solver(kind, opts);
       return detail::make_pfmg_solver(opts);
   }
   throw InternalError(
@@ -291,10 +295,12 @@ bool is_symmetric(const SparseMatrix& A, double rel_tol) {
 }
 
 std::unique_ptr<AmgPreconditioner> make_pfmg_preconditioner(const GridLayout& layout) {
+  if (drives_solve_workers()) return detail::make_served_preconditioner(&layout);
   return detail::make_pfmg_preconditioner(layout);
 }
 
 std::unique_ptr<AmgPreconditioner> make_amg_preconditioner() {
+  if (drives_solve_workers()) return detail::make_served_preconditioner(nullptr);
   return detail::make_petsc_preconditioner();
 }
 

@@ -48,7 +48,9 @@ ThreadLimit& thread_limit() {
 int default_thread_count() {
   const unsigned n = std::thread::hardware_concurrency();
   const int cores = n == 0 ? 1 : static_cast<int>(n);
-  return std::max(1, cores / ranks_on_this_node());  // mpirun's ranks share the cores
+  // Replicated ranks share the node's cores; a driver rank 0 has them all (its workers sleep
+  // between the solves).
+  return std::max(1, cores / (ranks_mode() == RanksMode::Replicated ? ranks_on_this_node() : 1));
 }
 
 void set_thread_count(int n) {

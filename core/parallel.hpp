@@ -17,7 +17,8 @@
 namespace tetfsi {
 
 /// The cores this machine offers (std::thread::hardware_concurrency, at least 1), shared
-/// among the ranks of an mpirun job on this machine (ranks_on_this_node, core/ranks.hpp).
+/// among the ranks of an mpirun job on this machine with replicated ranks (ranks_on_this_node,
+/// core/ranks.hpp); all of them for rank 0 of driver ranks.
 int default_thread_count();
 
 /// Let every parallel loop of the process use at most `n` threads (≥ 1) from now on (a

@@ -1,8 +1,15 @@
 #include "core/ranks.hpp"
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <thread>
 #include <vector>
+
+#ifdef __linux__
+#include <sched.h>
+#endif
 
 // The C API only (Open MPI's C++ bindings would need libmpi_cxx).
 #define OMPI_SKIP_MPICXX 1
@@ -10,7 +17,9 @@
 #include <mpi.h>
 
 #include "core/error.hpp"
+#include "core/log.hpp"
 #include "core/petsc_solver.hpp"
+#include "core/solve_ranks.hpp"
 
 namespace tetfsi {
 
@@ -18,6 +27,7 @@ namespace {
 
 int g_rank = 0;
 int g_count = 1;
+RanksMode g_mode = RanksMode::Driver;
 
 bool env_set(const char* name) {
   const char* v = std::getenv(name);
@@ -38,6 +48,36 @@ bool started_by_mpirun() {
   return env_set("OMPI_COMM_WORLD_SIZE") || env_set("PMI_SIZE") || env_set("PMIX_RANK");
 }
 
+namespace {
+
+/// TETFSI_RANKS: driver (default) or replicated.
+/// @throws InputError for another value.
+RanksMode mode_from_environment() {
+  const char* v = std::getenv("TETFSI_RANKS");
+  if (v == nullptr || *v == '\0' || std::strcmp(v, "driver") == 0) return RanksMode::Driver;
+  if (std::strcmp(v, "replicated") == 0) return RanksMode::Replicated;
+  throw InputError(fmt::format(
+      "TETFSI_RANKS is '{}': it must be driver (rank 0 runs the step, the other ranks join its "
+      "solves) or replicated (every rank runs the step)",
+      v));
+}
+
+/// Let this process run on every online core. Open MPI binds each rank to one core (for up to
+/// 2 ranks, by default), which would put all of a driver rank 0's threads on one core. The
+/// kernel keeps the process within its cgroup's cores whatever the mask.
+void unbind_from_cores() {
+#ifdef __linux__
+  cpu_set_t all;
+  CPU_ZERO(&all);
+  const unsigned n = std::max(1u, std::thread::hardware_concurrency());
+  for (unsigned c = 0; c < n && c < CPU_SETSIZE; ++c) CPU_SET(c, &all);
+  if (sched_setaffinity(0, sizeof all, &all) != 0)
+    logger().debug("rank 0: cannot widen its core binding ({})", std::strerror(errno));
+#endif
+}
+
+}  // namespace
+
 void start_ranks() {
   static bool done = false;
   if (done || !started_by_mpirun()) return;
@@ -49,6 +89,11 @@ void start_ranks() {
                  error);
   MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
   MPI_Comm_size(MPI_COMM_WORLD, &g_count);
+  g_mode = mode_from_environment();  // every rank fails alike, rank 0 says it
+  if (g_mode == RanksMode::Driver && g_count > 1) {
+    detail::start_solve_ranks();
+    if (g_rank == 0) unbind_from_cores();  // before TBB starts its threads
+  }
 }
 
 int rank_index() {
@@ -56,6 +101,22 @@ int rank_index() {
 }
 int rank_count() {
   return g_count;
+}
+
+RanksMode ranks_mode() {
+  return g_mode;
+}
+int simulation_rank_count() {
+  return g_mode == RanksMode::Driver ? 1 : g_count;
+}
+bool is_solve_worker() {
+  return g_mode == RanksMode::Driver && g_rank > 0;
+}
+bool drives_solve_workers() {
+  return g_mode == RanksMode::Driver && g_rank == 0 && g_count > 1;
+}
+int serve_solves() {
+  return detail::serve_solves();
 }
 
 int ranks_on_this_node() {

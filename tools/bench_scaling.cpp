@@ -45,13 +45,15 @@ std::string quoted(const std::string& s) {
   return q + "'";
 }
 
-/// The shell command of one run: this executable's `run`, under mpirun for ranks > 1.
+/// The shell command of one run: this executable's `run`, under mpirun for ranks > 1 (not
+/// bound to cores, so that replicated ranks' threads spread too; a driver rank 0 unbinds
+/// itself).
 std::string run_command(const fs::path& scene, const BenchScalingOptions& opt, int ranks,
                         int threads, const fs::path& out) {
   std::string cmd;
   if (ranks > 1)
     cmd = fmt::format(
-        "mpirun --quiet -np {}{} ", ranks,
+        "mpirun --quiet --bind-to none -np {}{} ", ranks,
         ranks > static_cast<int>(sysconf(_SC_NPROCESSORS_ONLN)) ? " --oversubscribe" : "");
   cmd += fmt::format("{} run {} --out {} --steps {} --threads {} --progress off --log-level error",
                      quoted(fs::read_symlink("/proc/self/exe").string()), quoted(scene.string()),

@@ -728,6 +728,11 @@ int main(int argc, char** argv) {
     return report_error(e.what());
   }
   if (!is_root_rank() && std::freopen("/dev/null", "w", stdout) == nullptr) return 1;
+  if (is_solve_worker()) {  // driver ranks: the workers join rank 0's solves, nothing else
+    set_log_level("off");
+    set_thread_count(1);
+    return serve_solves();
+  }
 
   CLI::App app{
       "tetfsi: incompressible fluids coupled with deformable linear-tet FEM solids "

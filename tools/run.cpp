@@ -381,7 +381,7 @@ std::optional<std::pair<std::string, std::string>> stop_request(const RunOptions
   std::optional<std::pair<std::string, std::string>> stop;
   if (is_root_rank())
     stop = stop_request_here(opt, stop_file, ses, longest_step, longest_checkpoint);
-  if (rank_count() == 1) return stop;
+  if (simulation_rank_count() == 1) return stop;
   const std::string reason = root_decides(stop ? stop->first : std::string());
   const std::string message = root_decides(stop ? stop->second : std::string());
   if (reason.empty()) return std::nullopt;
@@ -437,7 +437,7 @@ int record_report(const coupling::FsiStepReport& rep, RunRecorder* fluid, StepSt
 /// energies and fluid figures, that they still do.
 /// @throws InternalError if the ranks disagree.
 void check_ranks_agree(const StepStats& row) {
-  if (rank_count() == 1) return;
+  if (simulation_rank_count() == 1) return;
   double sum = row.kinetic_energy + 3.0 * row.elastic_energy + 5.0 * row.gravity_potential;
   if (row.fluid) {
     for (const double v :

@@ -1,8 +1,10 @@
 // MPI ranks (core/ranks.hpp) through the command line: `mpirun -np 2 tetfsi run SCENE` runs
-// the scene replicated with the PETSc solves distributed over the two ranks, rank 0 writing
+// the scene on rank 0 with the PETSc and hypre solves distributed over the two ranks (driver
+// ranks, the default; TETFSI_RANKS=replicated: every rank runs the scene), rank 0 writing
 // the output. Its results agree with the one-rank run to solver tolerance (the distributed
-// BoomerAMG is a different preconditioner, so the iterates differ in the last digits). On
-// this 2-core machine -np 2 fits; -np 3 needs --oversubscribe.
+// BoomerAMG is a different preconditioner, so the iterates differ in the last digits), and
+// the two ways of sharing the ranks agree bit for bit. On this 2-core machine -np 2 fits;
+// -np 3 needs --oversubscribe.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -11,6 +13,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -38,15 +41,16 @@ bool have_mpirun() {
 /// The shell prefix that runs `tetfsi` under `mpirun -np N` (as root too). The Open MPI and
 /// PMIx variables of this process are dropped first: a test before this one in the same
 /// process may have started PETSc, and the variables of that singleton MPI start make the
-/// launched ranks fail.
-std::string mpirun_prefix(int n) {
+/// launched ranks fail. With `timeout_s` > 0, mpirun is killed after that many seconds (exit
+/// code 124).
+std::string mpirun_prefix(int n, int timeout_s = 0) {
   return fmt::format(
       "unset $(env | sed -n "
       "'s/^\\(OMPI_[A-Za-z0-9_]*\\|PMIX_[A-Za-z0-9_]*\\|PMI_[A-Za-z0-9_]*\\)=.*/\\1/p'); "
       "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
       "OMPI_MCA_rmaps_base_oversubscribe=1 "
-      "mpirun --quiet -np {}",
-      n);
+      "{}mpirun --quiet -np {}",
+      timeout_s > 0 ? fmt::format("timeout {} ", timeout_s) : std::string(), n);
 }
 
 /// Every stats.csv column of `a` in `columns` (and every body column: the names ending in
@@ -85,8 +89,10 @@ void run_at_one_and_two_ranks(const fs::path& dir, const std::string& scene,
   REQUIRE_MESSAGE(one.code == 0, one.err);
   const Result two = tetfsi::test::run_tetfsi(dir, run + " --out r2", mpirun_prefix(2));
   REQUIRE_MESSAGE(two.code == 0, two.err);
-  // One summary (rank 0's), naming the ranks.
-  CHECK(contains(two.out, " on 2 ranks x 1 thread, "));
+  // One summary (rank 0's), naming the ranks and rank 0's threads: every core with driver
+  // ranks (the worker sleeps between the solves).
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  CHECK(contains(two.out, fmt::format(" on 2 ranks x {} thread{}, ", cores, cores > 1 ? "s" : "")));
   CHECK(tetfsi::test::lines_of(two.out).size() == tetfsi::test::lines_of(one.out).size());
   CHECK(json::parse(read_text(dir / "r2" / "summary.json"))["ranks"] == 2);
   CHECK(json::parse(read_text(dir / "r1" / "summary.json"))["ranks"] == 1);
@@ -205,6 +211,63 @@ TEST_CASE(
               r.err, "mumps: out of workspace; ICNTL(14) 0 -> 20"));
   const auto c = tetfsi::test::read_csv_columns(dir.path / "r" / "stats.csv");
   for (const double res : c.at("pressure_residual")) CHECK(res <= 1e-12);
+}
+
+TEST_CASE("mpi: driver ranks give the results of replicated ranks bit for bit") {
+  if (!have_mpirun()) {
+    MESSAGE("mpirun not found: skipped");
+    return;
+  }
+  // The same solver code on the same data: rank 0 sends each matrix and vector to the worker
+  // instead of the worker computing them. bar: the coupled Schur-CG's BoomerAMG and the
+  // pressure's amg; a small dam_break: the grid liquid's pfmg.
+  TempDir dir("mpi_driver");
+  const std::vector<std::pair<std::string, std::string>> runs = {
+      {"bar.json", "--steps 6"}, {"dam_break.json", "--steps 4 --set fluid.grid.cells=[30,10,13]"}};
+  for (const auto& [scene, args] : runs) {
+    CAPTURE(scene);
+    const std::string run =
+        fmt::format("run '{}' --progress off {} --out ", shipped_scene(scene).string(), args);
+    const Result driver =
+        tetfsi::test::run_tetfsi(dir.path, run + scene + ".driver", mpirun_prefix(2));
+    REQUIRE_MESSAGE(driver.code == 0, driver.err);
+    const Result replicated =
+        tetfsi::test::run_tetfsi(dir.path, run + scene + ".replicated",
+                                 "export TETFSI_RANKS=replicated; " + mpirun_prefix(2));
+    REQUIRE_MESSAGE(replicated.code == 0, replicated.err);
+    CHECK(json::parse(read_text(dir.path / (scene + ".driver") / "summary.json"))["ranks"] == 2);
+    tetfsi::test::check_same_runs(dir.path / (scene + ".driver"),
+                                  dir.path / (scene + ".replicated"));
+  }
+}
+
+TEST_CASE("mpi: driver ranks - a bad TETFSI_RANKS, and rank 0 failing, end in one line") {
+  if (!have_mpirun()) {
+    MESSAGE("mpirun not found: skipped");
+    return;
+  }
+  TempDir dir("mpi_driver_errors");
+  const std::string bar = shipped_scene("bar.json").string();
+  const Result bad =
+      tetfsi::test::run_tetfsi(dir.path, fmt::format("run '{}' --steps 1 --out bad", bar),
+                               "export TETFSI_RANKS=both; " + mpirun_prefix(2));
+  CHECK(bad.code != 0);
+  REQUIRE(bad.err_lines().size() == 1);
+  CHECK(contains(bad.err, "error: TETFSI_RANKS is 'both': it must be driver"));
+  // Rank 0 stops with an error before any solve (a missing scene) and after the workers have
+  // served solves (time splitting diverges on bar, the run's divergence check ends it): the
+  // worker stops with it, nothing waits (timeout: exit code 124).
+  const Result missing =
+      tetfsi::test::run_tetfsi(dir.path, "run no_such_scene.json --out m", mpirun_prefix(2, 120));
+  CHECK(missing.code != 0);
+  CHECK(missing.code != 124);
+  CHECK(contains(missing.err, "no_such_scene.json"));
+  const Result diverged = tetfsi::test::run_tetfsi(
+      dir.path, fmt::format("run '{}' --progress off --set coupling.scheme=splitting --out d", bar),
+      mpirun_prefix(2, 300));
+  CHECK(diverged.code != 0);
+  CHECK(diverged.code != 124);
+  CHECK(contains(diverged.err, "error: "));
 }
 
 TEST_CASE("mpi: a subcommand other than run or resume under mpirun -np 2 is a one-line error") {
