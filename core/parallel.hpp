@@ -9,8 +9,11 @@
 /// only their own output slot, or whose per-chunk partial results are reduced afterwards in
 /// chunk order, therefore gives the same bits at 1 and at N threads; at 1 thread the chunks
 /// run in order on the calling thread, exactly the serial loop.
+#include <algorithm>
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/types.hpp"
 
@@ -65,6 +68,41 @@ void run_alongside(const std::function<void()>& main, const std::function<void()
 /// The number of chunks parallel_for_chunks cuts [0, n) into (0 for n ≤ 0).
 inline Index num_chunks(Index n, Index grain) {
   return n <= 0 ? 0 : (n + grain - 1) / grain;
+}
+
+/// The items of [0, n) grouped by key, the same at any thread count: for every key k in
+/// [0, nkeys), items[start[k] .. start[k + 1]) lists in increasing order the items i for which
+/// `keys_of(i, emit)` calls emit(k) (as often as it calls it). keys_of is called twice per item,
+/// in parallel, and must emit the same keys both times. Up to 8 parts of [0, n) count their
+/// keys apart (8 × nkeys counters), then each part fills its slots of every key.
+template <class KeysOf>
+void group_by_key(Index n, Index nkeys, KeysOf&& keys_of, std::vector<Index>& start,
+                  std::vector<Index>& items) {
+  const Index parts =
+      std::max<Index>(1, std::min<Index>(std::min<Index>(thread_count(), 8), num_chunks(n, 4096)));
+  const Index grain = std::max<Index>(1, num_chunks(n, parts));
+  std::vector<std::vector<Index>> count(static_cast<std::size_t>(parts));
+  parallel_for_chunks(n, grain, [&](Index begin, Index end) {
+    std::vector<Index>& c = count[static_cast<std::size_t>(begin / grain)];
+    c.assign(static_cast<std::size_t>(nkeys), 0);
+    for (Index i = begin; i < end; ++i) keys_of(i, [&c](Index k) { ++c[k]; });
+  });
+  count.resize(static_cast<std::size_t>(num_chunks(n, grain)));
+  start.assign(static_cast<std::size_t>(nkeys) + 1, 0);
+  parallel_for_chunks(nkeys, 16384, [&](Index begin, Index end) {
+    for (Index k = begin; k < end; ++k) {
+      Index sum = 0;  // each part's first slot within key k
+      for (std::vector<Index>& c : count) sum += std::exchange(c[k], sum);
+      start[static_cast<std::size_t>(k) + 1] = sum;
+    }
+  });
+  for (Index k = 0; k < nkeys; ++k) start[k + 1] += start[k];
+  items.resize(static_cast<std::size_t>(start[nkeys]));
+  parallel_for_chunks(n, grain, [&](Index begin, Index end) {
+    std::vector<Index>& c = count[static_cast<std::size_t>(begin / grain)];
+    for (Index i = begin; i < end; ++i)
+      keys_of(i, [&](Index k) { items[static_cast<std::size_t>(start[k] + c[k]++)] = i; });
+  });
 }
 
 }  // namespace tetfsi

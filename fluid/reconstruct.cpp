@@ -16,8 +16,36 @@ namespace tetfsi::fluid {
 using mesh::TetMesh;
 
 namespace {
-/// Vertices or cells per chunk of the parallel loops (the sums into vertices stay serial).
+/// Vertices or cells per chunk of the parallel loops.
 constexpr Index kGrain = 2048;
+
+/// add(v, term(i)) for every item i in [0, n) and each of its `per_item` vertices
+/// v = vertex_of(i, k): every vertex gets its items' terms in increasing order, as the serial
+/// loop over the items gives them — that loop below `min_threads` threads (one term per item);
+/// else, in parallel, each vertex gathers its items (group_by_key) and evaluates their terms
+/// again: the same sums bit for bit, for per_item times the terms and the grouping (so worth it
+/// from min_threads on). add must touch only vertex v's sums.
+template <class VertexOf, class Term, class Add>
+void sum_into_vertices(Index n, Index nv, int per_item, int min_threads, VertexOf&& vertex_of,
+                       Term&& term, Add&& add) {
+  if (thread_count() < std::max(2, min_threads)) {
+    for (Index i = 0; i < n; ++i) {
+      const auto x = term(i);
+      for (int k = 0; k < per_item; ++k) add(vertex_of(i, k), x);
+    }
+    return;
+  }
+  std::vector<Index> start, items;
+  group_by_key(
+      n, nv,
+      [&](Index i, auto&& emit) {
+        for (int k = 0; k < per_item; ++k) emit(vertex_of(i, k));
+      },
+      start, items);
+  parallel_for_each(nv, kGrain, [&](Index v) {
+    for (Index q = start[v]; q < start[v + 1]; ++q) add(v, term(items[q]));
+  });
+}
 }  // namespace
 
 MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
@@ -25,17 +53,23 @@ MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
   TETFSI_CHECK(u.size() == nf, "u has {} entries for {} faces", u.size(), nf);
   std::vector<Mat3> normal(static_cast<size_t>(nv), Mat3::Zero());
   MatX3 rhs = MatX3::Zero(nv, 3);
-  for (Index f = 0; f < nf; ++f) {
-    const Vec3 n = m.face_normals.row(f).transpose();
-    const double a = m.face_areas[f];
-    const Mat3 nn = a * n * n.transpose();
-    const Vec3 r = a * u[f] * n;
-    for (int k = 0; k < 3; ++k) {
-      const Index v = m.faces(f, k);
-      normal[v] += nn;
-      rhs.row(v) += r.transpose();
-    }
-  }
+  struct FaceTerm {
+    Mat3 nn;
+    Vec3 r;
+  };
+  // A face's term (a 3 × 3 outer product) costs about what adding it does: the gather, which
+  // evaluates it per vertex, gains from 4 threads on (2 threads: 0.005 s slower at 550k faces).
+  sum_into_vertices(
+      nf, nv, 3, 4, [&](Index f, int k) { return m.faces(f, k); },
+      [&](Index f) {
+        const Vec3 n = m.face_normals.row(f).transpose();
+        const double a = m.face_areas[f];
+        return FaceTerm{a * n * n.transpose(), a * u[f] * n};
+      },
+      [&](Index v, const FaceTerm& x) {
+        normal[v] += x.nn;
+        rhs.row(v) += x.r.transpose();
+      });
   MatX3 U = MatX3::Zero(nv, 3);
   parallel_for_each(nv, kGrain, [&](Index v) {
     const Mat3& N = normal[v];
@@ -81,19 +115,24 @@ VecX vertex_linear_fit(const TetMesh& m, const VecX& c, const MatX3* points, Mat
   std::vector<Vec4> r(static_cast<size_t>(nv), Vec4::Zero());
   VecX lo = VecX::Constant(nv, std::numeric_limits<double>::infinity());
   VecX hi = -lo;
-  for (Index t = 0; t < nt; ++t) {
-    const Vec3 xc = points ? Vec3(points->row(t).transpose()) : mesh::tet_centroid(m, t);
-    const double w = m.volumes[t];
-    for (int i = 0; i < 4; ++i) {
-      const Index v = m.tets(t, i);
-      Vec4 phi;
-      phi << 1.0, xc - m.vertices.row(v).transpose();
-      N[v] += w * phi * phi.transpose();
-      r[v] += w * c[t] * phi;
-      lo[v] = std::min(lo[v], c[t]);
-      hi[v] = std::max(hi[v], c[t]);
-    }
-  }
+  struct CellTerm {
+    Vec3 xc;
+    double w, c;
+  };
+  sum_into_vertices(
+      nt, nv, 4, 2, [&](Index t, int k) { return m.tets(t, k); },
+      [&](Index t) {
+        return CellTerm{points ? Vec3(points->row(t).transpose()) : mesh::tet_centroid(m, t),
+                        m.volumes[t], c[t]};
+      },
+      [&](Index v, const CellTerm& x) {
+        Vec4 phi;
+        phi << 1.0, x.xc - m.vertices.row(v).transpose();
+        N[v] += x.w * phi * phi.transpose();
+        r[v] += x.w * x.c * phi;
+        lo[v] = std::min(lo[v], x.c);
+        hi[v] = std::max(hi[v], x.c);
+      });
   VecX out(nv);
   if (grad) *grad = MatX3::Zero(nv, 3);
   parallel_for_each(nv, kGrain, [&](Index v) {

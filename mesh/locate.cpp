@@ -18,6 +18,7 @@
 #include <Eigen/Geometry>  // cross()
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "mesh/geometry.hpp"
 
 namespace tetfsi::mesh {
@@ -65,6 +66,8 @@ struct PointLocator::Impl {
   mutable std::atomic<long long> walks{0}, walk_steps{0}, fallbacks{0}, outside{0};
 
   explicit Impl(const TetMesh& m);
+  /// lo, hi, slack, dims, size, inv_size from the tets' bounding box.
+  void set_grid(const TetMesh& m);
   std::array<int, 3> cell_of(const Vec3& p) const {
     std::array<int, 3> c{};
     for (int a = 0; a < 3; ++a) {
@@ -86,14 +89,75 @@ PointLocator::Impl::Impl(const TetMesh& m) : mesh(&m) {
   const Index nt = m.num_tets();
   if (nt == 0) return;
   max_steps = static_cast<int>(10.0 * std::cbrt(static_cast<double>(nt))) + 100;
+  set_grid(m);
+  // Each bucket's tets in increasing order (CSR), grouped in parallel.
+  const auto range = [&](Index t, std::array<int, 3>& c0, std::array<int, 3>& c1) {
+    Vec3 a = vertex(m, m.tets(t, 0)), b = a;
+    for (int k = 1; k < 4; ++k) {
+      const Vec3 x = vertex(m, m.tets(t, k));
+      a = a.cwiseMin(x);
+      b = b.cwiseMax(x);
+    }
+    const double e = 1e-8 * (b - a).maxCoeff() + slack;
+    c0 = cell_of(a - Vec3::Constant(e));
+    c1 = cell_of(b + Vec3::Constant(e));
+  };
+  const Index nb = dims[0] * dims[1] * dims[2];
+  group_by_key(
+      nt, nb,
+      [&](Index t, auto&& emit) {
+        std::array<int, 3> c0{}, c1{};
+        range(t, c0, c1);
+        for (int k = c0[2]; k <= c1[2]; ++k)
+          for (int j = c0[1]; j <= c1[1]; ++j)
+            for (int i = c0[0]; i <= c1[0]; ++i) emit(bucket(i, j, k));
+      },
+      start, items);
+  // A bucket's seed: its last tet whose centroid lies in it (walks from it are shortest),
+  // else its first tet. A tet's centroid bucket is among its buckets.
+  std::vector<int> home(static_cast<std::size_t>(nt));
+  parallel_for_each(nt, 16384, [&](Index t) {
+    Vec3 centroid = Vec3::Zero();
+    for (int k = 0; k < 4; ++k) centroid += vertex(m, m.tets(t, k));
+    const auto c = cell_of(0.25 * centroid);
+    home[static_cast<std::size_t>(t)] = bucket(c[0], c[1], c[2]);
+  });
+  seed.assign(static_cast<std::size_t>(nb), -1);
+  parallel_for_each(nb, 16384, [&](Index b) {
+    const int first = start[static_cast<std::size_t>(b)],
+              end = start[static_cast<std::size_t>(b) + 1];
+    if (first == end) return;
+    int& s = seed[static_cast<std::size_t>(b)];
+    s = items[static_cast<std::size_t>(first)];
+    for (int q = end - 1; q >= first; --q)
+      if (home[static_cast<std::size_t>(items[static_cast<std::size_t>(q)])] == b) {
+        s = items[static_cast<std::size_t>(q)];
+        break;
+      }
+  });
+}
+
+void PointLocator::Impl::set_grid(const TetMesh& m) {
+  const Index nt = m.num_tets();
+  // The bounding box of the tets' vertices: per chunk, then combined (min / max are exact).
+  const Index grain = 65536;
+  std::vector<Vec3> part_lo(static_cast<std::size_t>(num_chunks(nt, grain))), part_hi(part_lo);
+  parallel_for_chunks(nt, grain, [&](Index begin, Index end) {
+    Vec3 l = Vec3::Constant(std::numeric_limits<double>::infinity()), h = -l;
+    for (Index t = begin; t < end; ++t)
+      for (int k = 0; k < 4; ++k) {
+        const Vec3 x = vertex(m, m.tets(t, k));
+        l = l.cwiseMin(x);
+        h = h.cwiseMax(x);
+      }
+    part_lo[static_cast<std::size_t>(begin / grain)] = l;
+    part_hi[static_cast<std::size_t>(begin / grain)] = h;
+  });
   lo = Vec3::Constant(std::numeric_limits<double>::infinity());
   hi = -lo;
-  for (Index t = 0; t < nt; ++t) {
-    for (int k = 0; k < 4; ++k) {
-      const Vec3 x = vertex(m, m.tets(t, k));
-      lo = lo.cwiseMin(x);
-      hi = hi.cwiseMax(x);
-    }
+  for (std::size_t c = 0; c < part_lo.size(); ++c) {
+    lo = lo.cwiseMin(part_lo[c]);
+    hi = hi.cwiseMax(part_hi[c]);
   }
   const Vec3 ext = (hi - lo).cwiseMax(1e-12 * (hi - lo).norm() + 1e-300);
   slack = 1e-9 * ext.maxCoeff();
@@ -115,51 +179,6 @@ PointLocator::Impl::Impl(const TetMesh& m) : mesh(&m) {
   for (int a = 0; a < 3; ++a) {
     size(a) = ext(a) / dims[a];
     inv_size(a) = 1.0 / size(a);
-  }
-  const std::size_t nb = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
-
-  // Two passes over the tets (count, fill) into CSR arrays.
-  const auto range = [&](Index t, std::array<int, 3>& c0, std::array<int, 3>& c1) {
-    Vec3 a = vertex(m, m.tets(t, 0)), b = a;
-    for (int k = 1; k < 4; ++k) {
-      const Vec3 x = vertex(m, m.tets(t, k));
-      a = a.cwiseMin(x);
-      b = b.cwiseMax(x);
-    }
-    const double e = 1e-8 * (b - a).maxCoeff() + slack;
-    c0 = cell_of(a - Vec3::Constant(e));
-    c1 = cell_of(b + Vec3::Constant(e));
-  };
-  start.assign(nb + 1, 0);
-  std::array<int, 3> c0{}, c1{};
-  for (Index t = 0; t < nt; ++t) {
-    range(t, c0, c1);
-    for (int k = c0[2]; k <= c1[2]; ++k) {
-      for (int j = c0[1]; j <= c1[1]; ++j) {
-        for (int i = c0[0]; i <= c1[0]; ++i) ++start[static_cast<std::size_t>(bucket(i, j, k)) + 1];
-      }
-    }
-  }
-  for (std::size_t b = 0; b < nb; ++b) start[b + 1] += start[b];
-  items.resize(static_cast<std::size_t>(start[nb]));
-  seed.assign(nb, -1);
-  std::vector<int> fill(start.begin(), start.end() - 1);
-  for (Index t = 0; t < nt; ++t) {
-    range(t, c0, c1);
-    for (int k = c0[2]; k <= c1[2]; ++k) {
-      for (int j = c0[1]; j <= c1[1]; ++j) {
-        for (int i = c0[0]; i <= c1[0]; ++i) {
-          const int b = bucket(i, j, k);
-          items[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = t;
-          if (seed[static_cast<std::size_t>(b)] < 0) seed[static_cast<std::size_t>(b)] = t;
-        }
-      }
-    }
-    // Prefer a seed whose centroid lies in the bucket: walks from it are shortest.
-    Vec3 centroid = Vec3::Zero();
-    for (int k = 0; k < 4; ++k) centroid += vertex(m, m.tets(t, k));
-    const auto c = cell_of(0.25 * centroid);
-    seed[static_cast<std::size_t>(bucket(c[0], c[1], c[2]))] = t;
   }
 }
 

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -188,5 +189,39 @@ TEST_SUITE("unit") {
                                          [] { throw SolverError("side failed"); }),
                            "main failed", InputError);
     }
+  }
+
+  TEST_CASE(
+      "group_by_key: every key's items in increasing order, the same at 1, 2, 3 and 9 threads") {
+    const ThreadCountGuard guard;
+    // Items emit 0-3 keys (a key twice sometimes), by a hash: the plain serial grouping is
+    // the reference.
+    const Index n = 100003, nkeys = 5003;
+    const auto keys_of = [](Index i, auto&& emit) {
+      const auto h = static_cast<std::uint32_t>(i) * 2654435761u;
+      const int count = static_cast<int>(h >> 30);
+      for (int c = 0; c < count; ++c) emit(static_cast<Index>((h >> (3 * c)) % 5003));
+      if (i % 7 == 0) emit(static_cast<Index>(i % 5003));
+    };
+    std::vector<std::vector<Index>> expected(static_cast<size_t>(nkeys));
+    for (Index i = 0; i < n; ++i) keys_of(i, [&](Index k) { expected[k].push_back(i); });
+    for (const int threads : {1, 2, 3, 9}) {
+      CAPTURE(threads);
+      set_thread_count(threads);
+      std::vector<Index> start, items;
+      group_by_key(n, nkeys, keys_of, start, items);
+      REQUIRE(start.size() == static_cast<size_t>(nkeys) + 1);
+      CHECK(start.front() == 0);
+      CHECK(start.back() == static_cast<Index>(items.size()));
+      int wrong = 0;
+      for (Index k = 0; k < nkeys; ++k)
+        wrong += std::vector<Index>(items.begin() + start[k], items.begin() + start[k + 1]) !=
+                 expected[k];
+      CHECK(wrong == 0);
+    }
+    std::vector<Index> start{7}, items{7};  // nothing to group
+    group_by_key(0, 3, keys_of, start, items);
+    CHECK(start == std::vector<Index>{0, 0, 0, 0});
+    CHECK(items.empty());
   }
 }

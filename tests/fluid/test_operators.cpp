@@ -10,6 +10,7 @@
 #include <random>
 
 #include "core/linear_solver.hpp"
+#include "core/parallel.hpp"
 #include "fluid/operators.hpp"
 #include "fluid/reconstruct.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
@@ -323,4 +324,27 @@ TEST_CASE("vertex_quadratic_fit: quadratic fields read exactly, within the cells
   CHECK(rms_quad < rms_lin);
   CHECK(worst_quad < 1e-9);
   CHECK(worst_lin > 1e-4);
+}
+
+TEST_CASE("sums into vertices: the same bits at 1, 2, 4 and 5 threads (serial scatter or gather)") {
+  // vertex_least_squares gathers from 4 threads on, cell_to_vertex_linear from 2: each vertex
+  // adds its faces' or cells' terms in the serial loop's order either way.
+  const int saved = thread_count();
+  const mesh::TetMesh m = random_delaunay(3000, 11);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  VecX u(m.num_faces()), c(m.num_tets());
+  for (Index f = 0; f < m.num_faces(); ++f) u[f] = uni(rng);
+  for (Index t = 0; t < m.num_tets(); ++t) c[t] = uni(rng);
+  set_thread_count(1);
+  const MatX3 U1 = vertex_least_squares(m, u);
+  const VecX c1 = cell_to_vertex_linear(m, c);
+  CHECK(U1.allFinite());
+  for (const int threads : {2, 4, 5}) {
+    CAPTURE(threads);
+    set_thread_count(threads);
+    CHECK((vertex_least_squares(m, u).array() == U1.array()).all());
+    CHECK((cell_to_vertex_linear(m, c).array() == c1.array()).all());
+  }
+  set_thread_count(saved);
 }
