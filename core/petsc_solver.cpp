@@ -189,6 +189,26 @@ void krylov_with_restarts(KSP ksp, const VecX& b, VecX& x, const SolverOptions& 
                    rep.iterations, KSPConvergedReasons[reason], rep.residual);
 }
 
+/// Log (debug) how much of the matrix couples two ranks' row blocks: the share of the
+/// off-diagonal non-zeros whose column another rank owns (what each solve communicates).
+void log_coupling(const Eigen::SparseMatrix<double, Eigen::RowMajor, Index>& csr) {
+  const Index n = static_cast<Index>(csr.rows());
+  long long off_diagonal = 0, across = 0;
+  for (int r = 0; r < rank_count(); ++r) {
+    const RowRange rows = rank_rows(n, r, rank_count());
+    for (Index i = rows.begin; i < rows.end; ++i)
+      for (Index q = csr.outerIndexPtr()[i]; q < csr.outerIndexPtr()[i + 1]; ++q) {
+        const Index j = csr.innerIndexPtr()[q];
+        off_diagonal += j != i;
+        across += j < rows.begin || j >= rows.end;
+      }
+  }
+  logger().debug(
+      "{} ranks, contiguous row blocks of {} rows: {:.2f} % of the off-diagonal "
+      "non-zeros couple two ranks",
+      rank_count(), n, off_diagonal > 0 ? 100.0 * across / off_diagonal : 0.0);
+}
+
 /// A PETSc AIJ matrix on `csr` (compressed, row-major): sequential and sharing csr's arrays
 /// with one rank; with several, the MPIAIJ matrix whose local rows are this rank's (copied).
 Mat make_aij(const Eigen::SparseMatrix<double, Eigen::RowMajor, Index>& csr) {
@@ -200,6 +220,7 @@ Mat make_aij(const Eigen::SparseMatrix<double, Eigen::RowMajor, Index>& csr) {
         const_cast<Index*>(csr.innerIndexPtr()), const_cast<double*>(csr.valuePtr()), &m));
     return m;
   }
+  if (rank_index() == 0 && logger().should_log(spdlog::level::debug)) log_coupling(csr);
   const RowRange rows = my_rows(n);
   const Index* outer = csr.outerIndexPtr();
   const Index first = outer[rows.begin];

@@ -12,6 +12,7 @@
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Spatial_lock_grid_3.h>
 #include <CGAL/Triangulation_cell_base_with_info_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 #include <CGAL/box_intersection_d.h>
@@ -77,10 +78,18 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<int, K>;
 using Cb = CGAL::Triangulation_cell_base_with_info_3<int, K>;
 using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
-// Sequential: CGAL's parallel insertion measured slower on this machine (DESIGN.md §6).
+// Sequential: CGAL's parallel insertion measured slower on this machine (DESIGN.md §6); it is
+// an option of Delaunay::build (ParallelDT below).
 // Vertex ids must be set before a removal: the infinite vertex has id −1.
 using DT = CGAL::Delaunay_triangulation_3<K, Tds, CGAL::Default, AddressFreeRemoval>;
 using Point = K::Point_3;
+/// CGAL's concurrent triangulation (TBB; a lock grid over the points' box): its range
+/// insertion inserts the points in parallel. Only for Delaunay::build's option; the result is
+/// copied into a DT.
+using ParallelTds = CGAL::Triangulation_data_structure_3<Vb, Cb, CGAL::Parallel_tag>;
+using ParallelDT =
+    CGAL::Delaunay_triangulation_3<K, ParallelTds, CGAL::Default,
+                                   CGAL::Spatial_lock_grid_3<CGAL::Tag_priority_blocking>>;
 /// The hole's triangulation in remove_clusters: each vertex knows the one it stands for.
 using HoleVb = CGAL::Triangulation_vertex_base_with_info_3<DT::Vertex_handle, K>;
 using HoleCb = CGAL::Triangulation_cell_base_with_info_3<int, K>;
@@ -226,6 +235,43 @@ struct Delaunay::Impl {
     return finite;
   }
   bool refill_hole(const Hole& h);
+  /// handles[id] = the vertex with that id, for ids 0..n−1; no hint.
+  void index_handles(std::size_t n) {
+    handles.assign(n, DT::Vertex_handle());
+    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
+      handles[v->info()] = v;
+    hint = DT::Cell_handle();
+  }
+  /// Into an empty dt: the points (ids = indices) inserted by CGAL's parallel range insertion
+  /// into a ParallelDT, whose vertices and cells are then copied into dt (copy_tds). The same
+  /// triangulation as insert_points (the Delaunay of the points is unique under CGAL's
+  /// symbolic perturbation), its cells and vertices in another order in the containers.
+  void insert_points_in_parallel(const std::vector<Vec3>& points) {
+    CGAL::Bbox_3 box;
+    for (const Vec3& p : points) box += to_point(p).bbox();
+    CGAL::Spatial_lock_grid_3<CGAL::Tag_priority_blocking> locks(box, 50);
+    ParallelDT pdt(K(), &locks);
+    std::vector<std::pair<Point, int>> in;
+    in.reserve(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+      in.emplace_back(to_point(points[i]), static_cast<int>(i));
+    pdt.insert(in.begin(), in.end());
+    if (pdt.number_of_vertices() != points.size()) throw_duplicate(points);
+    pdt.infinite_vertex()->info() = -1;
+    struct CopyVertex {
+      DT::Vertex operator()(const ParallelDT::Vertex& v) const { return DT::Vertex(v.point()); }
+      void operator()(const ParallelDT::Vertex& from, DT::Vertex& to) const {
+        to.info() = from.info();
+      }
+    };
+    struct CopyCell {
+      DT::Cell operator()(const ParallelDT::Cell&) const { return DT::Cell(); }
+      void operator()(const ParallelDT::Cell&, DT::Cell&) const {}
+    };
+    dt.set_infinite_vertex(
+        dt.tds().copy_tds(pdt.tds(), pdt.infinite_vertex(), CopyVertex(), CopyCell()));
+    index_handles(points.size());
+  }
   /// Insert the points whose `skip` flag is 0 (every point if null), ids = indices, by range
   /// insertion (spatial sort + hinted insertion); the triangulation must then hold exactly
   /// `points`. Re-indexes the handles.
@@ -237,10 +283,7 @@ struct Delaunay::Impl {
       if (!skip || !(*skip)[i]) in.emplace_back(to_point(points[i]), static_cast<int>(i));
     dt.insert(in.begin(), in.end());
     if (dt.number_of_vertices() != points.size()) throw_duplicate(points);
-    handles.assign(points.size(), DT::Vertex_handle());
-    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
-      handles[v->info()] = v;
-    hint = DT::Cell_handle();
+    index_handles(points.size());
   }
 };
 
@@ -361,13 +404,16 @@ Delaunay::~Delaunay() = default;
 Delaunay::Delaunay(Delaunay&&) noexcept = default;
 Delaunay& Delaunay::operator=(Delaunay&&) noexcept = default;
 
-void Delaunay::build(const std::vector<Vec3>& points) {
+void Delaunay::build(const std::vector<Vec3>& points, bool parallel) {
   Impl& d = *m_impl;
   d.dt.clear();
   d.tracking = false;
   d.changed.clear();
   d.dt.infinite_vertex()->info() = -1;  // clear() made a new one
-  d.insert_points(points, nullptr);
+  if (parallel && thread_count() > 1 && points.size() >= 1000)
+    d.insert_points_in_parallel(points);
+  else
+    d.insert_points(points, nullptr);
 }
 
 bool Delaunay::update(const std::vector<Vec3>& points, double max_cost, Index& removed,

@@ -30,9 +30,12 @@ class Delaunay {
   Delaunay& operator=(Delaunay&&) noexcept;
 
   /// Insert points with ids 0..n−1 by range insertion (spatially sorted). Replaces any
-  /// previous content.
+  /// previous content. `parallel`: with more than one thread (and 1000 points), by CGAL's
+  /// parallel range insertion (Parallel_tag, a lock grid over the points' box), copied into the
+  /// sequential triangulation: the same triangulation, its cells and vertices in another
+  /// order in memory (which nothing handed out depends on).
   /// @throws MeshError naming both ids if two points coincide.
-  void build(const std::vector<Vec3>& points);
+  void build(const std::vector<Vec3>& points, bool parallel = false);
   /// Make this the triangulation of `points` with ids 0..n−1 from the current one: a vertex at
   /// one of the points (exactly) takes its index as id, the other vertices are removed and the
   /// points not present inserted (spatially sorted). The result is the triangulation `build`

@@ -168,7 +168,7 @@ void RemeshContext::build_delaunay(IncrementalState* state) {
   }
   if (state) state->valid = false;  // the triangulation is this remesh's from here on
   if (!reuse) {
-    dt.build(dt_pts);
+    dt.build(dt_pts, sizing.parallel_insertion);
     report.vertices_inserted = static_cast<Index>(dt_pts.size());
     return;
   }

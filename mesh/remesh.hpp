@@ -88,6 +88,9 @@ struct Sizing {
   /// vertices (a removal costs about 2 insertions, Delaunay::kRemovalCost), is at most this;
   /// a full rebuild costs 1 (it inserts every vertex).
   double incremental_max_cost = 1.0;
+  /// A full Delaunay (the first remesh, or a rebuild) inserts its points with CGAL's
+  /// parallel range insertion on the threads (Delaunay::build). The same mesh, bit for bit.
+  bool parallel_insertion = false;
 };
 
 struct RemeshOptions {

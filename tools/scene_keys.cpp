@@ -1165,7 +1165,13 @@ const Section<mesh::Sizing>& fluid_mesh_keys() {
                        "full rebuild costs 1",
                 .range = k_non_negative,
                 .note = "a removal costs about 2 insertions (measured)"},
-               TETFSI_AT(incremental_max_cost))}};
+               TETFSI_AT(incremental_max_cost)),
+       bind<Z>({.key = "parallel_insertion",
+                .type = KeyType::Boolean,
+                .doc = "a full Delaunay (the first remesh, a rebuild) inserts its points with "
+                       "CGAL's parallel insertion on the threads; the same mesh, bit for bit "
+                       "(off: measured slower on 2 cores)"},
+               TETFSI_AT(parallel_insertion))}};
   return s;
 }
 

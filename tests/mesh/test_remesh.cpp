@@ -18,6 +18,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "mesh/delaunay.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/quality.hpp"
@@ -785,6 +786,43 @@ TEST_SUITE("unit") {
       CHECK(incremental == 5);
       MESSAGE("max cost ", max_cost, ": ", incremental, " of 5 remeshes incremental");
     }
+  }
+
+  TEST_CASE(
+      "remesh: CGAL's parallel insertion (parallel_insertion) gives the same meshes bit for bit") {
+    // A ball moving past another, remeshed at 2 and 3 threads with the parallel full
+    // Delaunay: every step rebuilt (incremental off), and incremental updates of the copied
+    // triangulation (the first step's), against the sequential full remesh.
+    const int saved = thread_count();
+    const FluidDomain d = unit_box();
+    const SolidSurface still = icosphere(Vec3(0.3, 0.5, 0.5), 0.12, 3, 1);
+    for (const int threads : {2, 3}) {
+      for (const bool incremental : {false, true}) {
+        CAPTURE(threads);
+        CAPTURE(incremental);
+        set_thread_count(threads);
+        Sizing seq;
+        seq.surface_size = 0.04;
+        seq.far_size = 0.16;
+        seq.incremental = false;
+        Sizing par = seq;
+        par.incremental = incremental;
+        par.incremental_max_cost = 1e9;
+        par.parallel_insertion = true;
+        Remesher remesher;
+        for (int step = 0; step < 3; ++step) {
+          CAPTURE(step);
+          const std::vector<SolidSurface> solids = {
+              still, icosphere(Vec3(0.62 + 0.02 * step, 0.55, 0.5), 0.1, 3, 2)};
+          RemeshReport rp;
+          const TetMesh mp = remesher.remesh(d, solids, par, &rp);
+          const TetMesh ms = remesh(d, solids, seq);
+          check_identical(mp, ms);
+          CHECK(rp.incremental == (incremental && step > 0));
+        }
+      }
+    }
+    set_thread_count(saved);
   }
 
   TEST_CASE("Remesher: after a failed remesh or reset() the next one is a full rebuild") {
