@@ -278,9 +278,11 @@ void serve(const Header& h, std::map<int, Mirror>& objects) {
       objects.at(h.id).solver->set_grid(layout);
       return;
     }
-    case Op::Setup: {
+    case Op::Setup: {  // the arguments first, whatever happens after: rank 0 sends them
+      SparseMatrix a;
+      broadcast_matrix(nullptr, a);
       Mirror& m = objects.at(h.id);
-      broadcast_matrix(nullptr, m.matrix);
+      m.matrix = std::move(a);
       if (m.solver)
         m.solver->setup(m.matrix);
       else
