@@ -104,46 +104,45 @@ void send_vector(const VecX& v) {
   broadcast_vector(const_cast<VecX&>(v));
 }
 
-/// Rank 0's matrix `a` to every rank: the workers' `out` gets a copy (rank 0's `out` is
-/// untouched: it solves with `a` itself).
-void broadcast_matrix(const SparseMatrix* a, SparseMatrix& out) {
-  SparseMatrix compressed;
-  if (a != nullptr && !a->isCompressed()) {
-    compressed = *a;
-    compressed.makeCompressed();
-    a = &compressed;
-  }
-  std::int64_t dims[3] = {0, 0, 0};
-  if (a != nullptr) dims[0] = a->rows(), dims[1] = a->cols(), dims[2] = a->nonZeros();
-  broadcast(dims, 3, MPI_INT64_T);
-  std::vector<Index> outer, inner;
-  std::vector<double> values;
-  if (a != nullptr) {
-    outer.assign(a->outerIndexPtr(), a->outerIndexPtr() + dims[1] + 1);
-    inner.assign(a->innerIndexPtr(), a->innerIndexPtr() + dims[2]);
-    values.assign(a->valuePtr(), a->valuePtr() + dims[2]);
-  } else {
-    outer.resize(static_cast<std::size_t>(dims[1] + 1));
-    inner.resize(static_cast<std::size_t>(dims[2]));
-    values.resize(static_cast<std::size_t>(dims[2]));
-  }
+/// a (rank 0's, compressed) to every rank: its sizes, then its arrays (the workers' a is
+/// resized to receive them). static_assert: Index is MPI_INT.
+void broadcast_matrix(SparseMatrix& a) {
   static_assert(sizeof(Index) == sizeof(int));
-  broadcast(outer.data(), dims[1] + 1, MPI_INT);
-  broadcast(inner.data(), dims[2], MPI_INT);
-  broadcast(values.data(), dims[2], MPI_DOUBLE);
-  if (a == nullptr)
-    out = Eigen::Map<const SparseMatrix>(static_cast<Index>(dims[0]), static_cast<Index>(dims[1]),
-                                         static_cast<Index>(dims[2]), outer.data(), inner.data(),
-                                         values.data());
+  std::int64_t dims[3] = {a.rows(), a.cols(), a.nonZeros()};
+  broadcast(dims, 3, MPI_INT64_T);
+  if (rank_index() != 0) {
+    a.resize(static_cast<Index>(dims[0]), static_cast<Index>(dims[1]));
+    a.resizeNonZeros(static_cast<Index>(dims[2]));
+  }
+  broadcast(a.outerIndexPtr(), dims[1] + 1, MPI_INT);
+  broadcast(a.innerIndexPtr(), dims[2], MPI_INT);
+  broadcast(a.valuePtr(), dims[2], MPI_DOUBLE);
 }
 
+/// Rank 0's side of broadcast_matrix: a itself when compressed (MPI_Bcast only reads at the
+/// root), else a compressed copy.
+void send_matrix(const SparseMatrix& a) {
+  if (a.isCompressed()) return broadcast_matrix(const_cast<SparseMatrix&>(a));
+  SparseMatrix compressed = a;
+  compressed.makeCompressed();
+  broadcast_matrix(compressed);
+}
+
+/// g on rank 0 to every rank (the workers' g is overwritten; rank 0's only read).
 void broadcast_layout(GridLayout& g) {
   std::int64_t dims[3] = {g.dims[0], g.dims[1], g.dims[2]};
   broadcast(dims, 3, MPI_INT64_T);
-  for (int d = 0; d < 3; ++d) g.dims[d] = static_cast<Index>(dims[d]);
   const std::int64_t n = broadcast_size(static_cast<std::int64_t>(g.cells.size()));
-  if (rank_index() != 0) g.cells.resize(static_cast<std::size_t>(n));
+  if (rank_index() != 0) {
+    for (int d = 0; d < 3; ++d) g.dims[d] = static_cast<Index>(dims[d]);
+    g.cells.resize(static_cast<std::size_t>(n));
+  }
   broadcast(g.cells.data(), n, MPI_INT);
+}
+
+/// Rank 0's side of broadcast_layout, without a copy.
+void send_layout(const GridLayout& g) {
+  broadcast_layout(const_cast<GridLayout&>(g));
 }
 
 /// The same solver on every rank (rank 0's inside its served solver).
@@ -173,75 +172,72 @@ void call(Op op, int id, SolverKind kind = SolverKind::Amg, const SolverOptions*
 
 // ---- rank 0 ----------------------------------------------------------------------------------
 
-/// Rank 0: call Setup on mirrored object `id` with matrix a.
-void send_setup(int id, const SparseMatrix& a) {
-  call(Op::Setup, id);
-  SparseMatrix unused;
-  broadcast_matrix(&a, unused);
-}
+/// Rank 0's handle on an object mirrored on the workers: its id, and the Destroy call when it
+/// goes. A served object declares it after its inner solver, so that the Destroy goes out
+/// before the inner solver is destroyed (members go in reverse order), as the workers do it.
+class Mirrored {
+ public:
+  Mirrored() = default;
+  Mirrored(const Mirrored&) = delete;
+  Mirrored& operator=(const Mirrored&) = delete;
+  ~Mirrored() {
+    if (!g_released) call(Op::Destroy, id);
+  }
+  const int id = g_next_id++;
+};
 
 class ServedSolver final : public LinearSolver {
  public:
-  ServedSolver(SolverKind kind, const SolverOptions& opts) : m_id(g_next_id++) {
-    call(Op::MakeSolver, m_id, kind, &opts);
+  ServedSolver(SolverKind kind, const SolverOptions& opts) {
+    call(Op::MakeSolver, m_mirror.id, kind, &opts);
     m_inner = make_inner_solver(kind, opts);
-  }
-  ServedSolver(const ServedSolver&) = delete;
-  ServedSolver& operator=(const ServedSolver&) = delete;
-  ~ServedSolver() override {
-    if (!g_released) call(Op::Destroy, m_id);
   }
   std::string name() const override { return m_inner->name(); }
   void set_grid(const GridLayout& layout) override {
-    call(Op::SetGrid, m_id);
-    GridLayout copy = layout;
-    broadcast_layout(copy);
+    call(Op::SetGrid, m_mirror.id);
+    send_layout(layout);
     m_inner->set_grid(layout);
   }
   void setup(const SparseMatrix& A) override {
-    send_setup(m_id, A);
+    call(Op::Setup, m_mirror.id);
+    send_matrix(A);
     m_inner->setup(A);
   }
   SolveReport solve(const VecX& b, VecX& x) override {
-    call(Op::Solve, m_id);
+    call(Op::Solve, m_mirror.id);
     send_vector(b);
     send_vector(x);
     return m_inner->solve(b, x);
   }
 
  private:
-  int m_id;
   std::unique_ptr<LinearSolver> m_inner;
+  Mirrored m_mirror;  // after m_inner: see Mirrored
 };
 
 class ServedPreconditioner final : public AmgPreconditioner {
  public:
-  explicit ServedPreconditioner(const GridLayout* layout) : m_id(g_next_id++) {
-    GridLayout copy = layout != nullptr ? *layout : GridLayout{};
+  explicit ServedPreconditioner(const GridLayout* layout) {
     const SolverKind kind = layout != nullptr ? SolverKind::Pfmg : SolverKind::Amg;
-    call(Op::MakePreconditioner, m_id, kind);
-    if (layout != nullptr) broadcast_layout(copy);
-    m_inner = make_inner_preconditioner(kind, copy);
-  }
-  ServedPreconditioner(const ServedPreconditioner&) = delete;
-  ServedPreconditioner& operator=(const ServedPreconditioner&) = delete;
-  ~ServedPreconditioner() override {
-    if (!g_released) call(Op::Destroy, m_id);
+    call(Op::MakePreconditioner, m_mirror.id, kind);
+    if (layout != nullptr) send_layout(*layout);
+    m_inner = make_inner_preconditioner(kind, layout != nullptr ? *layout : GridLayout{});
   }
   void setup(const SparseMatrix& P) override {
-    send_setup(m_id, P);
+    call(Op::Setup, m_mirror.id);
+    send_matrix(P);
     m_inner->setup(P);
   }
   void apply(const VecX& r, VecX& z) override {
-    call(Op::Apply, m_id);
+    call(Op::Apply, m_mirror.id);
     send_vector(r);
     m_inner->apply(r, z);
   }
   double setup_seconds() const override { return m_inner->setup_seconds(); }
 
  private:
-  int m_id;
   std::unique_ptr<AmgPreconditioner> m_inner;
+  Mirrored m_mirror;  // after m_inner: see Mirrored
 };
 
 // ---- a worker --------------------------------------------------------------------------------
@@ -280,7 +276,7 @@ void serve(const Header& h, std::map<int, Mirror>& objects) {
     }
     case Op::Setup: {  // the arguments first, whatever happens after: rank 0 sends them
       SparseMatrix a;
-      broadcast_matrix(nullptr, a);
+      broadcast_matrix(a);
       Mirror& m = objects.at(h.id);
       m.matrix = std::move(a);
       if (m.solver)

@@ -111,6 +111,17 @@ inline Point to_point(const Vec3& p) {
   return Point(p.x(), p.y(), p.z());
 }
 
+/// The points whose `skip` flag is 0 (every point if null), each with its index as id: a range
+/// insertion's input.
+std::vector<std::pair<Point, int>> with_ids(const std::vector<Vec3>& points,
+                                            const std::vector<char>* skip) {
+  std::vector<std::pair<Point, int>> in;
+  in.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!skip || !(*skip)[i]) in.emplace_back(to_point(points[i]), static_cast<int>(i));
+  return in;
+}
+
 [[noreturn]] void throw_duplicate(const std::vector<Vec3>& pts) {
   std::vector<int> order(pts.size());
   std::iota(order.begin(), order.end(), 0);
@@ -247,14 +258,11 @@ struct Delaunay::Impl {
   /// triangulation as insert_points (the Delaunay of the points is unique under CGAL's
   /// symbolic perturbation), its cells and vertices in another order in the containers.
   void insert_points_in_parallel(const std::vector<Vec3>& points) {
+    const std::vector<std::pair<Point, int>> in = with_ids(points, nullptr);
     CGAL::Bbox_3 box;
-    for (const Vec3& p : points) box += to_point(p).bbox();
+    for (const auto& [p, id] : in) box += p.bbox();
     CGAL::Spatial_lock_grid_3<CGAL::Tag_priority_blocking> locks(box, 50);
     ParallelDT pdt(K(), &locks);
-    std::vector<std::pair<Point, int>> in;
-    in.reserve(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-      in.emplace_back(to_point(points[i]), static_cast<int>(i));
     pdt.insert(in.begin(), in.end());
     if (pdt.number_of_vertices() != points.size()) throw_duplicate(points);
     pdt.infinite_vertex()->info() = -1;
@@ -277,10 +285,7 @@ struct Delaunay::Impl {
   /// `points`. Re-indexes the handles.
   /// @throws MeshError naming both ids if two points coincide.
   void insert_points(const std::vector<Vec3>& points, const std::vector<char>* skip) {
-    std::vector<std::pair<Point, int>> in;
-    in.reserve(points.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-      if (!skip || !(*skip)[i]) in.emplace_back(to_point(points[i]), static_cast<int>(i));
+    const std::vector<std::pair<Point, int>> in = with_ids(points, skip);
     dt.insert(in.begin(), in.end());
     if (dt.number_of_vertices() != points.size()) throw_duplicate(points);
     index_handles(points.size());

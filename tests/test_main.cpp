@@ -14,7 +14,7 @@ int main(int argc, char** argv) {
   // `tetfsi` runs they start (`TETFSI_THREADS=1 make test`: the whole suite at one thread).
   if (const char* t = std::getenv("TETFSI_THREADS"); t != nullptr && *t != '\0') {
     try {
-      tetfsi::set_thread_count(tetfsi::parse_thread_count(t, "TETFSI_THREADS"));
+      tetfsi::set_thread_count(tetfsi::requested_thread_count(""));
     } catch (const std::exception& e) {
       std::fprintf(stderr, "error: %s\n", e.what());
       return 2;

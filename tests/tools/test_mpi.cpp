@@ -13,13 +13,13 @@
 #include <filesystem>
 #include <map>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "core/parallel.hpp"
 #include "tests/test_util.hpp"
 #include "tests/tools/run_compare.hpp"
 
@@ -91,11 +91,10 @@ void run_at_one_and_two_ranks(const fs::path& dir, const std::string& scene,
   REQUIRE_MESSAGE(two.code == 0, two.err);
   // One summary (rank 0's), naming the ranks and rank 0's threads: every core with driver
   // ranks (the worker sleeps between the solves).
-  const char* env = std::getenv("TETFSI_THREADS");  // the suite may run at a thread count
-  const unsigned cores = env != nullptr && *env != '\0'
-                             ? static_cast<unsigned>(std::atoi(env))
-                             : std::max(1u, std::thread::hardware_concurrency());
-  CHECK(contains(two.out, fmt::format(" on 2 ranks x {} thread{}, ", cores, cores > 1 ? "s" : "")));
+  // (TETFSI_THREADS when the suite runs at a thread count: the same rule as rank 0's.)
+  const int threads = tetfsi::requested_thread_count("");
+  CHECK(contains(two.out,
+                 fmt::format(" on 2 ranks x {} thread{}, ", threads, threads > 1 ? "s" : "")));
   CHECK(tetfsi::test::lines_of(two.out).size() == tetfsi::test::lines_of(one.out).size());
   CHECK(json::parse(read_text(dir / "r2" / "summary.json"))["ranks"] == 2);
   CHECK(json::parse(read_text(dir / "r1" / "summary.json"))["ranks"] == 1);
