@@ -213,6 +213,9 @@ TEST_CASE(
               r.err, "mumps: out of workspace; ICNTL(14) 0 -> 20"));
   const auto c = tetfsi::test::read_csv_columns(dir.path / "r" / "stats.csv");
   for (const double res : c.at("pressure_residual")) CHECK(res <= 1e-12);
+  // The debug log says how much of each matrix couples the two ranks' row blocks.
+  CHECK(contains(r.err, "2 ranks, contiguous row blocks of "));
+  CHECK(contains(r.err, "% of the off-diagonal non-zeros couple two ranks"));
 }
 
 TEST_CASE("mpi: driver ranks give the results of replicated ranks bit for bit") {
