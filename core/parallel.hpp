@@ -11,7 +11,9 @@
 /// run in order on the calling thread, exactly the serial loop.
 #include <algorithm>
 #include <functional>
+#include <memory>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -58,12 +60,62 @@ void parallel_for_each(Index n, Index grain, F&& fn) {
   });
 }
 
+/// Every item of `v` (a vector, e.g. an UnfilledVector) set to `value`, in parallel chunks:
+/// the first touch of a new buffer's pages is spread over the threads.
+template <class Vector, class T>
+void parallel_fill(Vector& v, const T& value) {
+  parallel_for_chunks(static_cast<Index>(v.size()), 16384, [&](Index begin, Index end) {
+    std::fill(v.begin() + begin, v.begin() + end, value);
+  });
+}
+
+/// fn(i) for every i in [0, n) as parallel_for_each, and the number of items for which it
+/// returned true (counted per chunk, then added).
+template <class F>
+Index parallel_count(Index n, Index grain, F&& fn) {
+  std::vector<Index> count(static_cast<std::size_t>(n > 0 ? (n + grain - 1) / grain : 0), 0);
+  parallel_for_chunks(n, grain, [&](Index begin, Index end) {
+    Index c = 0;
+    for (Index i = begin; i < end; ++i) c += fn(i) ? 1 : 0;
+    count[static_cast<std::size_t>(begin / grain)] = c;
+  });
+  Index total = 0;
+  for (Index c : count) total += c;
+  return total;
+}
+
 /// main() on the calling thread and side() as a task beside it (on another thread of the
 /// pool when there is one: work that does not use the pool, such as a serial solver, leaves
 /// the other threads free for it), returning when both are done. The two must not write
 /// what the other reads. At one thread: main() then side(). An exception from either
 /// reaches the caller (main's first) after both have ended.
 void run_alongside(const std::function<void()>& main, const std::function<void()>& side);
+
+/// An allocator whose value-construction (`resize(n)`, `vector(n)`) writes nothing: the items
+/// of an `UnfilledVector` hold garbage until written, so a buffer that a parallel loop fills
+/// whole (parallel_fill, or a loop that assigns every item) is not first filled serially.
+/// For plain structs of numbers (trivially destructible).
+template <class T>
+struct NoFillAllocator : std::allocator<T> {
+  static_assert(std::is_trivially_destructible_v<T>, "NoFillAllocator is for plain structs");
+  NoFillAllocator() noexcept = default;
+  template <class U>
+  NoFillAllocator(const NoFillAllocator<U>&) noexcept {}  // NOLINT: the standard's form
+  template <class U>
+  struct rebind {
+    using other = NoFillAllocator<U>;
+  };
+  template <class U>
+  void construct(U*) noexcept {}
+  template <class U, class... A>
+  void construct(U* p, A&&... a) {
+    ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
+  }
+};
+
+/// A vector whose `resize` leaves the new items unwritten (see NoFillAllocator).
+template <class T>
+using UnfilledVector = std::vector<T, NoFillAllocator<T>>;
 
 /// The number of chunks parallel_for_chunks cuts [0, n) into (0 for n ≤ 0).
 inline Index num_chunks(Index n, Index grain) {

@@ -21,18 +21,39 @@ constexpr Index kGrain = 2048;
 
 /// add(v, term(i)) for every item i in [0, n) and each of its `per_item` vertices
 /// v = vertex_of(i, k): every vertex gets its items' terms in increasing order, as the serial
-/// loop over the items gives them — that loop below `min_threads` threads (one term per item);
-/// else, in parallel, each vertex gathers its items (group_by_key) and evaluates their terms
-/// again: the same sums bit for bit, for per_item times the terms and the grouping (so worth it
-/// from min_threads on). add must touch only vertex v's sums.
+/// loop over the items gives them, so the sums are the same bit for bit at any thread count.
+/// At one thread, that loop (one term per item). From 2 threads to below `min_threads`, each
+/// thread owns a contiguous range of the vertices and runs the loop over all the items, adding
+/// only to its own vertices (a term is evaluated by each thread owning one of its item's
+/// vertices: about once, since neighbouring items share vertex ranges; every thread reads all
+/// the items' vertices, so this stops paying at a few threads). From `min_threads` on, each
+/// vertex gathers its items (group_by_key) and evaluates their terms again (per_item times the
+/// terms and the grouping, spread over every thread). add must touch only vertex v's sums.
 template <class VertexOf, class Term, class Add>
 void sum_into_vertices(Index n, Index nv, int per_item, int min_threads, VertexOf&& vertex_of,
                        Term&& term, Add&& add) {
-  if (thread_count() < std::max(2, min_threads)) {
+  const int threads = thread_count();
+  if (threads == 1) {
     for (Index i = 0; i < n; ++i) {
       const auto x = term(i);
       for (int k = 0; k < per_item; ++k) add(vertex_of(i, k), x);
     }
+    return;
+  }
+  if (threads < min_threads) {
+    const Index parts = std::min<Index>(threads, std::max<Index>(1, nv / kGrain));
+    parallel_for_chunks(parts, 1, [&](Index part, Index) {
+      const Index lo = nv * part / parts, hi = nv * (part + 1) / parts;
+      auto mine = [&](Index v) { return v >= lo && v < hi; };
+      for (Index i = 0; i < n; ++i) {
+        bool any = false;
+        for (int k = 0; k < per_item; ++k) any = any || mine(vertex_of(i, k));
+        if (!any) continue;
+        const auto x = term(i);
+        for (int k = 0; k < per_item; ++k)
+          if (const Index v = vertex_of(i, k); mine(v)) add(v, x);
+      }
+    });
     return;
   }
   std::vector<Index> start, items;
@@ -58,7 +79,7 @@ MatX3 vertex_least_squares(const TetMesh& m, const VecX& u) {
     Vec3 r;
   };
   // A face's term (a 3 × 3 outer product) costs about what adding it does: the gather, which
-  // evaluates it per vertex, gains from 4 threads on (2 threads: 0.005 s slower at 550k faces).
+  // evaluates it per vertex, gains over the owned vertex ranges from 4 threads on.
   sum_into_vertices(
       nf, nv, 3, 4, [&](Index f, int k) { return m.faces(f, k); },
       [&](Index f) {
@@ -120,7 +141,7 @@ VecX vertex_linear_fit(const TetMesh& m, const VecX& c, const MatX3* points, Mat
     double w, c;
   };
   sum_into_vertices(
-      nt, nv, 4, 2, [&](Index t, int k) { return m.tets(t, k); },
+      nt, nv, 4, 3, [&](Index t, int k) { return m.tets(t, k); },
       [&](Index t) {
         return CellTerm{points ? Vec3(points->row(t).transpose()) : mesh::tet_centroid(m, t),
                         m.volumes[t], c[t]};

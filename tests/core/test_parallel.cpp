@@ -224,4 +224,26 @@ TEST_SUITE("unit") {
     CHECK(start == std::vector<Index>{0, 0, 0, 0});
     CHECK(items.empty());
   }
+
+  TEST_CASE("parallel_count and parallel_fill: every item once, the count at 1, 2 and 3 threads") {
+    const ThreadCountGuard guard;
+    const Index n = 100003;
+    for (const int threads : {1, 2, 3}) {
+      CAPTURE(threads);
+      set_thread_count(threads);
+      std::vector<int> visits(static_cast<size_t>(n), 0);
+      const Index multiples_of_7 = parallel_count(n, 4096, [&](Index i) {
+        ++visits[i];
+        return i % 7 == 0;
+      });
+      CHECK(multiples_of_7 == (n + 6) / 7);
+      CHECK(std::count(visits.begin(), visits.end(), 1) == n);
+      CHECK(parallel_count(0, 4096, [](Index) { return true; }) == 0);
+      UnfilledVector<std::pair<double, Index>> v(static_cast<size_t>(n));
+      parallel_fill(v, std::pair<double, Index>{2.5, -1});
+      CHECK(std::count(v.begin(), v.end(), std::pair<double, Index>{2.5, -1}) == n);
+      v.resize(static_cast<size_t>(n) + 5);  // grows without filling, keeps what was there
+      CHECK(v[static_cast<size_t>(n) - 1] == std::pair<double, Index>{2.5, -1});
+    }
+  }
 }

@@ -326,11 +326,14 @@ TEST_CASE("vertex_quadratic_fit: quadratic fields read exactly, within the cells
   CHECK(worst_lin > 1e-4);
 }
 
-TEST_CASE("sums into vertices: the same bits at 1, 2, 4 and 5 threads (serial scatter or gather)") {
-  // vertex_least_squares gathers from 4 threads on, cell_to_vertex_linear from 2: each vertex
-  // adds its faces' or cells' terms in the serial loop's order either way.
+TEST_CASE("sums into vertices: the same bits at 1 to 5 threads (owned vertex ranges or gather)") {
+  // vertex_least_squares gathers from 4 threads on, cell_to_vertex_linear from 3; below that
+  // each thread adds into its own range of the vertices (2 or 3 ranges here: 2048 vertices or
+  // more each): each vertex adds its faces' or cells' terms in the serial loop's order
+  // either way.
   const int saved = thread_count();
-  const mesh::TetMesh m = random_delaunay(3000, 11);
+  const mesh::TetMesh m = random_delaunay(7000, 11);
+  REQUIRE(m.num_vertices() >= 3 * 2048);
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
   VecX u(m.num_faces()), c(m.num_tets());
@@ -340,7 +343,7 @@ TEST_CASE("sums into vertices: the same bits at 1, 2, 4 and 5 threads (serial sc
   const MatX3 U1 = vertex_least_squares(m, u);
   const VecX c1 = cell_to_vertex_linear(m, c);
   CHECK(U1.allFinite());
-  for (const int threads : {2, 4, 5}) {
+  for (const int threads : {2, 3, 4, 5}) {
     CAPTURE(threads);
     set_thread_count(threads);
     CHECK((vertex_least_squares(m, u).array() == U1.array()).all());
