@@ -33,11 +33,13 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/parallel.hpp"
 #include "core/ranks.hpp"
 #include "mesh/quality.hpp"
 #include "solid/world.hpp"
 #include "tools/scene.hpp"
 #include "tools/state_io.hpp"
+#include "tools/xml_appended.hpp"
 
 namespace fs = std::filesystem;
 
@@ -214,34 +216,6 @@ void write_xml_atomic(vtkXMLWriter* writer, vtkDataObject* data, const fs::path&
   rename_into_place(tmp, path);
 }
 
-/// Escape the five XML special characters for an attribute value.
-std::string xml_escape(const std::string& s) {
-  std::string out;
-  out.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&apos;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -365,46 +339,46 @@ void write_body_vtu(const fs::path& path, const solid::SolidBody& body, const Ve
 
 void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression compression,
                      const FluidFrameFields* fields) {
-  install_vtk_output_window();
   const Index nv = m.num_vertices();
   const Index nt = m.num_tets();
   TETFSI_CHECK(m.volumes.size() == nt, "fluid mesh: {} volumes for {} tets", m.volumes.size(), nt);
   TETFSI_CHECK(m.vertex_body.size() == nv, "fluid mesh: {} vertex_body entries for {} vertices",
                m.vertex_body.size(), nv);
-
-  vtkNew<vtkUnstructuredGrid> grid;
-  vtkNew<vtkPoints> points;
-  points->SetData(vector_array("Points", m.vertices.data(), nv));
-  grid->SetPoints(points);
-  grid->SetCells(VTK_TETRA, int32_cells(m.tets.data(), nt, 4));
-
-  grid->GetPointData()->AddArray(int_array("vertex_body", m.vertex_body));
-
-  const mesh::TetQuality q = mesh::tet_quality(m.vertices, m.tets);
-  vtkCellData* cd = grid->GetCellData();
-  cd->AddArray(scalar_array("volume", m.volumes));
-  cd->AddArray(scalar_array("q_min_dihedral_deg", q.min_dihedral_deg));
-  cd->AddArray(scalar_array("q_max_dihedral_deg", q.max_dihedral_deg));
-  cd->AddArray(scalar_array("q_radius_edge", q.radius_edge));
-  cd->AddArray(scalar_array("q_shape", q.shape));
-  vtkNew<vtkUnsignedCharArray> touches;
-  touches->SetName("touches_solid");
-  touches->SetNumberOfComponents(1);
-  touches->SetNumberOfTuples(nt);
-  for (Index t = 0; t < nt; ++t) {
+  static_assert(sizeof(Index) == sizeof(std::int32_t), "Index must be 32-bit");
+  constexpr Index grain = 16384;
+  // The arrays tetfsi does not hold: VTK's end offsets and cell types, and touches_solid.
+  std::vector<std::int32_t> offsets(static_cast<std::size_t>(nt));
+  std::vector<std::uint8_t> types(static_cast<std::size_t>(nt)), touches(offsets.size());
+  parallel_for_each(nt, grain, [&](Index t) {
+    offsets[t] = 4 * (t + 1);
+    types[t] = 10;  // VTK_TETRA
     bool any = false;
     for (int k = 0; k < 4; ++k) any = any || m.vertex_body[m.tets(t, k)] >= 0;
-    touches->SetValue(t, any ? 1 : 0);
-  }
-  cd->AddArray(touches);
-
+    touches[t] = any ? 1 : 0;
+  });
+  const mesh::TetQuality q = mesh::tet_quality(m.vertices, m.tets);
+  using T = XmlValueType;
+  auto n = [](Index k) { return static_cast<std::size_t>(k); };
+  XmlUnstructuredGrid g;
+  g.num_points = n(nv);
+  g.num_cells = n(nt);
+  g.points = {"Points", T::Float64, 3, m.vertices.data(), 3 * n(nv)};
+  g.connectivity = {"connectivity", T::Int32, 1, m.tets.data(), 4 * n(nt), false};
+  g.offsets = {"offsets", T::Int32, 1, offsets.data(), n(nt), false};
+  g.types = {"types", T::UInt8, 1, types.data(), n(nt), false};
+  g.point_data.push_back({"vertex_body", T::Int32, 1, m.vertex_body.data(), n(nv)});
+  auto cell_scalar = [&](const char* name, const VecX& v) {
+    TETFSI_CHECK(v.size() == nt, "fluid field '{}' has {} values for {} cells", name, v.size(), nt);
+    g.cell_data.push_back({name, T::Float64, 1, v.data(), n(nt)});
+  };
+  cell_scalar("volume", m.volumes);
+  cell_scalar("q_min_dihedral_deg", q.min_dihedral_deg);
+  cell_scalar("q_max_dihedral_deg", q.max_dihedral_deg);
+  cell_scalar("q_radius_edge", q.radius_edge);
+  cell_scalar("q_shape", q.shape);
+  g.cell_data.push_back({"touches_solid", T::UInt8, 1, touches.data(), n(nt)});
   if (fields) {
     const FluidFrameFields& f = *fields;
-    auto cell_scalar = [&](const char* name, const VecX& v) {
-      TETFSI_CHECK(v.size() == nt, "fluid field '{}' has {} values for {} cells", name, v.size(),
-                   nt);
-      cd->AddArray(scalar_array(name, v));
-    };
     cell_scalar("pressure", f.pressure);
     cell_scalar("smoke_density", f.density);
     cell_scalar("temperature", f.temperature);
@@ -413,12 +387,12 @@ void write_fluid_vtu(const fs::path& path, const mesh::TetMesh& m, Compression c
     TETFSI_CHECK(f.cell_velocity.rows() == nt && f.vertex_velocity.rows() == nv,
                  "fluid velocity fields have {} / {} rows for {} cells / {} vertices",
                  f.cell_velocity.rows(), f.vertex_velocity.rows(), nt, nv);
-    cd->AddArray(vector_array("velocity", f.cell_velocity.data(), nt));
-    grid->GetPointData()->AddArray(vector_array("velocity", f.vertex_velocity.data(), nv));
+    g.cell_data.push_back({"velocity", T::Float64, 3, f.cell_velocity.data(), 3 * n(nt)});
+    g.point_data.push_back({"velocity", T::Float64, 3, f.vertex_velocity.data(), 3 * n(nv)});
   }
-
-  vtkNew<vtkXMLUnstructuredGridWriter> writer;
-  write_xml_atomic(writer, grid, path, compression);
+  const fs::path tmp = tmp_path(path);
+  write_vtu_appended(tmp, g, compression);
+  rename_into_place(tmp, path);
 }
 
 void write_interface_vtp(const fs::path& path, const mesh::TetMesh& m, Compression compression,

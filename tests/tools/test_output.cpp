@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -28,7 +29,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "mesh/generate.hpp"
+#include "mesh/io.hpp"
 #include "mesh/quality.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "solid/world.hpp"
@@ -74,6 +77,12 @@ solid::SolidBody make_test_body(double phase = 0.0) {
   b.fix_dof(1, 2);
   return b;
 }
+
+/// Restores the thread count in force at construction.
+struct ThreadCountGuard {
+  int saved = thread_count();
+  ~ThreadCountGuard() { set_thread_count(saved); }
+};
 
 /// Read a .vtu with VTK's reader; fails the test if the reader reports an error.
 vtkSmartPointer<vtkUnstructuredGrid> read_vtu(const fs::path& p) {
@@ -427,6 +436,76 @@ TEST_CASE(
     CHECK(on_solid == 9);  // the 3 × 3 vertices of the bottom
     CHECK(vb->GetComponent(13, 0) == -1.0);
   }
+}
+
+TEST_CASE(
+    "write_fluid_vtu of 48k tets with fields: bit-exact arrays, VTK's ranges, the same bytes at 1 "
+    "and 3 threads, and vtu_check passes") {
+  // Arrays of up to 1.2 MB: dozens of 32 KiB blocks each, compressed in parallel.
+  TempDir dir("fluid_vtu_big");
+  const mesh::VolumeMesh box = mesh::make_box(Vec3(0, 0, 0), Vec3(1, 1, 1), Vec3i(20, 20, 20));
+  const mesh::TetMesh m = mesh::build_tet_mesh(box.vertices, box.tets);
+  const Index nv = m.num_vertices(), nt = m.num_tets();
+  REQUIRE(nt == 48000);
+  FluidFrameFields f;
+  f.pressure = VecX::LinSpaced(nt, -3.0, 5.0);
+  f.density = f.pressure.array().sin();
+  f.temperature = 300.0 + f.pressure.array().cos();
+  f.vorticity = f.pressure.array().abs();
+  f.divergence = 1e-9 * f.pressure;
+  f.cell_velocity = MatX3(nt, 3);
+  for (Index t = 0; t < nt; ++t) f.cell_velocity.row(t) = mesh::tet_centroid(m, t).transpose();
+  f.vertex_velocity = -m.vertices;
+  const ThreadCountGuard guard;
+  for (const char* name : {"lz4", "zlib", "none"}) {
+    CAPTURE(name);
+    std::string bytes[2];
+    for (const int threads : {1, 3}) {
+      set_thread_count(threads);
+      const fs::path p = dir.path / fmt::format("fluid_{}_{}.vtu", name, threads);
+      write_fluid_vtu(p, m, parse_compression(name), &f);
+      std::ifstream in(p, std::ios::binary);
+      bytes[threads == 1 ? 0 : 1].assign(std::istreambuf_iterator<char>(in), {});
+      CHECK_NOTHROW(mesh::check_vtk_xml_header(p));
+    }
+    CHECK(bytes[0] == bytes[1]);
+    CHECK(!has_tmp_files(dir.path));
+    auto grid = read_vtu(dir.path / fmt::format("fluid_{}_3.vtu", name));
+    REQUIRE(grid->GetNumberOfPoints() == nv);
+    REQUIRE(grid->GetNumberOfCells() == nt);
+    vtkCellData* cd = grid->GetCellData();
+    CHECK(max_diff(cd->GetArray("pressure"), f.pressure) == 0.0);
+    CHECK(max_diff(cd->GetArray("smoke_density"), f.density) == 0.0);
+    CHECK(max_diff(cd->GetArray("temperature"), f.temperature) == 0.0);
+    CHECK(max_diff(cd->GetArray("divergence"), f.divergence) == 0.0);
+    CHECK(max_diff(cd->GetArray("volume"), m.volumes) == 0.0);
+    CHECK(max_diff(cd->GetArray("velocity"), f.cell_velocity.data(), nt) == 0.0);
+    CHECK(max_diff(grid->GetPointData()->GetArray("velocity"), f.vertex_velocity.data(), nv) ==
+          0.0);
+    bool cells_ok = grid->GetCellType(nt - 1) == VTK_TETRA;
+    for (Index t = 0; t < nt && cells_ok; ++t) {
+      vtkIdType npts = 0;
+      const vtkIdType* pts = nullptr;
+      grid->GetCellPoints(t, npts, pts);
+      cells_ok = npts == 4;
+      for (int k = 0; k < 4 && cells_ok; ++k) cells_ok = pts[k] == m.tets(t, k);
+    }
+    CHECK(cells_ok);
+    // RangeMin / RangeMax as VTK writes them: the values' range, the norms' for vectors
+    // (printed to 11 significant digits).
+    const std::string& text = bytes[1];
+    const std::size_t at = text.find("Name=\"velocity\" NumberOfComponents=\"3\"");
+    REQUIRE(at != std::string::npos);
+    const std::string tag = text.substr(at, text.find('>', at) - at);
+    const double norm_max = f.vertex_velocity.rowwise().norm().maxCoeff();
+    CHECK(tag.find(fmt::format("RangeMax=\"{:.11g}\"", norm_max)) != std::string::npos);
+    CHECK(tag.find("RangeMin=\"0\"") != std::string::npos);  // the vertex at the origin
+  }
+  // A file that cannot be written: one line naming it, and nothing left behind.
+  const fs::path bad = dir.path / "no_such_dir" / "fluid.vtu";
+  CHECK_THROWS_WITH_AS(write_fluid_vtu(bad, m, Compression::LZ4, &f),
+                       doctest::Contains(bad.string().c_str()), InputError);
+  CHECK(!fs::exists(dir.path / "no_such_dir"));
 }
 
 TEST_CASE("write_interface_vtp: the Solid faces only with compact points and their arrays") {
