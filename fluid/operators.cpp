@@ -2,10 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Dense>
 
 #include "core/error.hpp"
+#include "core/parallel.hpp"
 #include "core/timer.hpp"
 
 namespace tetfsi::fluid {
@@ -29,7 +33,7 @@ VecX effective_dual_lengths(const TetMesh& m, double min_dual_fraction) {
                  "min_dual_fraction must be in (0, 1), got {}", min_dual_fraction);
   const Index nf = m.num_faces();
   VecX d(nf);
-  for (Index f = 0; f < nf; ++f) {
+  parallel_for_each(nf, 8192, [&](Index f) {
     double floor = std::max(min_dual_fraction, 1e-9) * mean_edge(m, f);
     if (m.is_boundary(f)) {
       // Open faces: the circumcentre may lie beyond the face (obtuse boundary tets); bound
@@ -39,7 +43,7 @@ VecX effective_dual_lengths(const TetMesh& m, double min_dual_fraction) {
     }
     const double df = m.dual_lengths[f];
     d[f] = std::isfinite(df) ? std::max(df, floor) : floor;
-  }
+  });
   return d;
 }
 
@@ -47,14 +51,14 @@ VecX net_flux(const TetMesh& m, const VecX& u) {
   TETFSI_CHECK(u.size() == m.num_faces(), "u has {} entries for {} faces", u.size(), m.num_faces());
   const Index nt = m.num_tets();
   VecX r(nt);
-  for (Index t = 0; t < nt; ++t) {
+  parallel_for_each(nt, 8192, [&](Index t) {
     double s = 0.0;
     for (int k = 0; k < 4; ++k) {
       const Index f = m.tet_faces(t, k);
       s += m.tet_face_signs(t, k) * m.face_areas[f] * u[f];
     }
     r[t] = s;
-  }
+  });
   return r;
 }
 
@@ -110,34 +114,97 @@ PressureGroups pressure_groups(const TetMesh& m, double min_dual_fraction) {
   return g;
 }
 
+namespace {
+
+/// Stable insertion sort of a short range by `less` (a column has a few to a few dozen
+/// entries; std::stable_sort would allocate for each).
+template <class T, class Less>
+void insertion_sort(T* a, std::size_t n, Less less) {
+  for (std::size_t i = 1; i < n; ++i) {
+    const T x = a[i];
+    std::size_t j = i;
+    for (; j > 0 && less(x, a[j - 1]); --j) a[j] = a[j - 1];
+    a[j] = x;
+  }
+}
+
+/// Column k of the pressure matrix (= row k, symmetric) written at `col`, returning its
+/// length: (row, value) sorted by row, the diagonal Σ w over the group's faces and each other
+/// group's −Σ w over the faces it shares with k, every sum in face order — the order
+/// setFromTriplets summed the faces' triplets in, so the same values bit for bit. The group's
+/// faces are those of its `cells` (increasing) to other groups and its Open faces; `face_buf`
+/// holds at least 4 per cell; `pins`: how often the diagonal is doubled.
+std::size_t pressure_column(const TetMesh& m, const VecX& d_eff, const PressureGroups& g, Index k,
+                            const Index* cells, Index ncells, int pins, Index* face_buf,
+                            std::pair<Index, double>* col) {
+  std::size_t nfaces = 0;
+  for (Index c = 0; c < ncells; ++c)
+    for (int i = 0; i < 4; ++i) {
+      const Index f = m.tet_faces(cells[c], i), n = m.neighbours(cells[c], i);
+      if (n >= 0 ? g.cell_group[n] != k : m.face_kind[f] == FaceKind::Open) face_buf[nfaces++] = f;
+    }
+  insertion_sort(face_buf, nfaces, std::less<Index>());
+  std::size_t n = 0;
+  double diag = 0.0;
+  for (std::size_t q = 0; q < nfaces; ++q) {
+    const Index f = face_buf[q];
+    const double w = m.face_areas[f] / d_eff[f];
+    diag += w;
+    const Index t2 = m.face_tets(f, 1);
+    if (t2 < 0) continue;  // an Open face
+    const Index g1 = g.cell_group[m.face_tets(f, 0)], g2 = g.cell_group[t2];
+    col[n++] = {g1 == k ? g2 : g1, -w};
+  }
+  for (int i = 0; i < pins; ++i) diag *= 2.0;
+  col[n++] = {k, diag};
+  insertion_sort(col, n, [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::size_t len = 0;  // duplicates summed in face order
+  for (std::size_t i = 0; i < n; ++i) {
+    if (len > 0 && col[len - 1].first == col[i].first)
+      col[len - 1].second += col[i].second;
+    else
+      col[len++] = col[i];
+  }
+  return len;
+}
+
+}  // namespace
+
 SparseMatrix pressure_matrix(const TetMesh& m, const VecX& d_eff, const PressureGroups& g,
                              const Regions& regions) {
-  const Index ng = g.count, nf = m.num_faces();
-  VecX diag = VecX::Zero(ng);
-  Triplets trips;
-  trips.reserve(2 * static_cast<size_t>(nf) + ng);
-  for (Index f = 0; f < nf; ++f) {
-    const Index t1 = m.face_tets(f, 0), t2 = m.face_tets(f, 1);
-    const double w = m.face_areas[f] / d_eff[f];
-    if (t2 >= 0) {
-      const Index g1 = g.cell_group[t1], g2 = g.cell_group[t2];
-      if (g1 == g2) continue;  // internal to a group: no weight (file comment)
-      diag[g1] += w;
-      diag[g2] += w;
-      trips.emplace_back(g1, g2, -w);
-      trips.emplace_back(g2, g1, -w);
-    } else if (m.face_kind[f] == FaceKind::Open) {
-      diag[g.cell_group[t1]] += w;
-    }
-  }
+  const Index ng = g.count, nt = m.num_tets();
+  std::vector<Index> start, cells;  // each group's cells, increasing
+  group_by_key(
+      nt, ng, [&](Index t, auto&& emit) { emit(g.cell_group[t]); }, start, cells);
+  // The pin: exact for a compatible right-hand side (see project()).
+  std::vector<int> pins(static_cast<std::size_t>(ng), 0);
   for (Index r = 0; r < regions.count(); ++r)
-    if (!regions.has_open[r]) {
-      const Index k = g.cell_group[regions.first_cell[r]];
-      diag[k] *= 2.0;  // the pin: exact for a compatible right-hand side (see project())
+    if (!regions.has_open[r]) ++pins[g.cell_group[regions.first_cell[r]]];
+  // Each column into its slot of at most 4 per cell + 1 entries, then packed into M.
+  constexpr Index grain = 4096;
+  auto slot = [&](Index k) { return 4 * static_cast<std::size_t>(start[k]) + k; };
+  std::vector<std::pair<Index, double>> buf(slot(ng));
+  std::vector<Index> count(static_cast<std::size_t>(ng) + 1, 0);
+  parallel_for_chunks(ng, grain, [&](Index begin, Index end) {
+    std::vector<Index> face_buf;
+    for (Index k = begin; k < end; ++k) {
+      face_buf.resize(4 * static_cast<std::size_t>(start[k + 1] - start[k]));
+      count[k + 1] = static_cast<Index>(pressure_column(m, d_eff, g, k, cells.data() + start[k],
+                                                        start[k + 1] - start[k], pins[k],
+                                                        face_buf.data(), buf.data() + slot(k)));
     }
-  for (Index k = 0; k < ng; ++k) trips.emplace_back(k, k, diag[k]);
+  });
+  for (Index k = 0; k < ng; ++k) count[k + 1] += count[k];
   SparseMatrix M(ng, ng);
-  M.setFromTriplets(trips.begin(), trips.end());
+  M.resizeNonZeros(count[ng]);
+  std::copy(count.begin(), count.end(), M.outerIndexPtr());
+  parallel_for_each(ng, grain, [&](Index k) {
+    const std::pair<Index, double>* col = buf.data() + slot(k);
+    for (Index at = count[k]; at < count[k + 1]; ++at, ++col) {
+      M.innerIndexPtr()[at] = col->first;
+      M.valuePtr()[at] = col->second;
+    }
+  });
   return M;
 }
 

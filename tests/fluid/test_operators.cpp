@@ -6,6 +6,7 @@
 /// quadratic vertex jets read a quadratic field exactly and stay within the cells' range.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <random>
 
@@ -27,6 +28,34 @@ const mesh::TetMesh& sphere_in_box() {
       mesh::remesh(box_domain(Vec3::Zero(), Vec3::Ones()),
                    {sphere_surface(Vec3(0.5, 0.5, 0.5), 0.2, 2)}, sizing(0.04, 0.16));
   return m;
+}
+
+/// The pressure matrix as the faces' triplets summed by setFromTriplets (the assembly before
+/// the columns were built in parallel): the reference for pressure_matrix, bit for bit.
+SparseMatrix triplet_pressure_matrix(const mesh::TetMesh& m, const VecX& d_eff,
+                                     const PressureGroups& g, const Regions& regions) {
+  VecX diag = VecX::Zero(g.count);
+  Triplets trips;
+  for (Index f = 0; f < m.num_faces(); ++f) {
+    const Index t1 = m.face_tets(f, 0), t2 = m.face_tets(f, 1);
+    const double w = m.face_areas[f] / d_eff[f];
+    if (t2 >= 0) {
+      const Index g1 = g.cell_group[t1], g2 = g.cell_group[t2];
+      if (g1 == g2) continue;
+      diag[g1] += w;
+      diag[g2] += w;
+      trips.emplace_back(g1, g2, -w);
+      trips.emplace_back(g2, g1, -w);
+    } else if (m.face_kind[f] == FaceKind::Open) {
+      diag[g.cell_group[t1]] += w;
+    }
+  }
+  for (Index r = 0; r < regions.count(); ++r)
+    if (!regions.has_open[r]) diag[g.cell_group[regions.first_cell[r]]] *= 2.0;
+  for (Index k = 0; k < g.count; ++k) trips.emplace_back(k, k, diag[k]);
+  SparseMatrix M(g.count, g.count);
+  M.setFromTriplets(trips.begin(), trips.end());
+  return M;
 }
 
 std::unique_ptr<LinearSolver> amg(double tol = 1e-12) {
@@ -155,6 +184,36 @@ TEST_CASE("projection with Open faces: divergence-free, prescribed pressure resp
     u[f] = m.face_kind[f] == FaceKind::Interior ? N(rng) : 0;
   const ProjectionReport r2 = project(m, 1e-6, VecX(), u, q, *solver);
   CHECK(r2.divergence_after <= 1e-8 * r2.divergence_before);
+}
+
+TEST_CASE("pressure matrix: the faces' triplets summed, bit for bit, at 1, 2 and 3 threads") {
+  // Co-spherical groups (the lattice away from the sphere), a closed box (one pin) and the
+  // same box with its x = 0 side Open (no pin, Open faces on the diagonal).
+  const int saved = thread_count();
+  mesh::TetMesh m = sphere_in_box();
+  for (const bool open : {false, true}) {
+    CAPTURE(open);
+    if (open)
+      for (Index f = 0; f < m.num_faces(); ++f)
+        if (m.is_boundary(f) && m.face_centroids(f, 0) < 1e-9) m.face_kind[f] = FaceKind::Open;
+    const VecX d_eff = effective_dual_lengths(m, 1e-2);
+    const PressureGroups g = pressure_groups(m, 1e-2);
+    const Regions regions = fluid_regions(m);
+    REQUIRE(g.count < m.num_tets());  // some cells share a group
+    REQUIRE(regions.has_open[0] == open);
+    const SparseMatrix R = triplet_pressure_matrix(m, d_eff, g, regions);
+    for (const int threads : {1, 2, 3}) {
+      CAPTURE(threads);
+      set_thread_count(threads);
+      const SparseMatrix M = pressure_matrix(m, d_eff, g, regions);
+      REQUIRE(M.isCompressed());
+      REQUIRE(M.nonZeros() == R.nonZeros());
+      CHECK(std::equal(R.outerIndexPtr(), R.outerIndexPtr() + R.cols() + 1, M.outerIndexPtr()));
+      CHECK(std::equal(R.innerIndexPtr(), R.innerIndexPtr() + R.nonZeros(), M.innerIndexPtr()));
+      CHECK(std::equal(R.valuePtr(), R.valuePtr() + R.nonZeros(), M.valuePtr()));
+    }
+  }
+  set_thread_count(saved);
 }
 
 TEST_CASE("multigrid iterations stay flat as the cell count grows 8x") {
