@@ -181,14 +181,11 @@ SlabLists slab_particles(const GridSpec& g, const MatX3& x, Index size) {
 ParticleBuckets bucket_particles(const GridSpec& g, const MatX3& x) {
   const Index nc = g.num_cells(), np = x.rows();
   ParticleBuckets b;
-  b.start.assign(static_cast<size_t>(nc) + 1, 0);
   std::vector<Index> cell(static_cast<size_t>(np));
   parallel_for_each(np, 4 * kGrain, [&](Index p) { cell[p] = g.cell_at(x.row(p).transpose()); });
-  for (Index p = 0; p < np; ++p) ++b.start[cell[p] + 1];
-  for (Index c = 0; c < nc; ++c) b.start[c + 1] += b.start[c];
-  b.order.resize(static_cast<size_t>(np));
-  std::vector<Index> fill(b.start.begin(), b.start.end() - 1);
-  for (Index p = 0; p < np; ++p) b.order[fill[cell[p]]++] = p;
+  // each cell's particles in increasing order, as the serial counting sort gave them
+  group_by_key(
+      np, nc, [&](Index p, auto&& emit) { emit(cell[p]); }, b.start, b.order);
   return b;
 }
 
