@@ -258,8 +258,11 @@ void write_vtu_appended(const fs::path& path, const XmlUnstructuredGrid& g,
   }
   const std::string tail = "\n  </AppendedData>\n</VTKFile>\n";
   ok = ok && std::fwrite(tail.data(), 1, tail.size(), file.f) == tail.size();
-  const int err = errno;
-  ok = std::fclose(std::exchange(file.f, nullptr)) == 0 && ok;
+  int err = ok ? 0 : errno;  // the failed write's reason, else the close's
+  if (std::fclose(std::exchange(file.f, nullptr)) != 0 && ok) {
+    ok = false;
+    err = errno;
+  }
   if (!ok) {
     std::error_code ec;
     fs::remove(path, ec);
