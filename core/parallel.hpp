@@ -69,21 +69,6 @@ void parallel_fill(Vector& v, const T& value) {
   });
 }
 
-/// fn(i) for every i in [0, n) as parallel_for_each, and the number of items for which it
-/// returned true (counted per chunk, then added).
-template <class F>
-Index parallel_count(Index n, Index grain, F&& fn) {
-  std::vector<Index> count(static_cast<std::size_t>(n > 0 ? (n + grain - 1) / grain : 0), 0);
-  parallel_for_chunks(n, grain, [&](Index begin, Index end) {
-    Index c = 0;
-    for (Index i = begin; i < end; ++i) c += fn(i) ? 1 : 0;
-    count[static_cast<std::size_t>(begin / grain)] = c;
-  });
-  Index total = 0;
-  for (Index c : count) total += c;
-  return total;
-}
-
 /// main() on the calling thread and side() as a task beside it (on another thread of the
 /// pool when there is one: work that does not use the pool, such as a serial solver, leaves
 /// the other threads free for it), returning when both are done. The two must not write
@@ -120,6 +105,21 @@ using UnfilledVector = std::vector<T, NoFillAllocator<T>>;
 /// The number of chunks parallel_for_chunks cuts [0, n) into (0 for n ≤ 0).
 inline Index num_chunks(Index n, Index grain) {
   return n <= 0 ? 0 : (n + grain - 1) / grain;
+}
+
+/// fn(i) for every i in [0, n) as parallel_for_each, and the number of items for which it
+/// returned true (counted per chunk, then added).
+template <class F>
+Index parallel_count(Index n, Index grain, F&& fn) {
+  std::vector<Index> count(static_cast<std::size_t>(num_chunks(n, grain)), 0);
+  parallel_for_chunks(n, grain, [&](Index begin, Index end) {
+    Index c = 0;
+    for (Index i = begin; i < end; ++i) c += fn(i) ? 1 : 0;
+    count[static_cast<std::size_t>(begin / grain)] = c;
+  });
+  Index total = 0;
+  for (Index c : count) total += c;
+  return total;
 }
 
 /// The items of [0, n) grouped by key, the same at any thread count: for every key k in

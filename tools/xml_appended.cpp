@@ -56,21 +56,30 @@ const char* type_name(XmlValueType t) {
   return "";
 }
 
-/// Value i of array a, as a double.
-double value_at(const XmlArray& a, std::size_t i) {
-  switch (a.type) {
-    case XmlValueType::Int32:
-      return static_cast<const std::int32_t*>(a.data)[i];
-    case XmlValueType::UInt8:
-      return static_cast<const std::uint8_t*>(a.data)[i];
-    case XmlValueType::Float64:
-      return static_cast<const double*>(a.data)[i];
+/// The least and greatest value over the tuples [begin, end) of `data` (`comps` values each),
+/// or of the tuples' Euclidean norms for several components.
+template <class V>
+std::pair<double, double> value_range(const V* data, Index begin, Index end, std::size_t comps) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (Index t = begin; t < end; ++t) {
+    const V* x = data + static_cast<std::size_t>(t) * comps;
+    double v = static_cast<double>(x[0]);
+    if (comps > 1) {
+      double s = 0.0;
+      for (std::size_t c = 0; c < comps; ++c) {
+        const double y = static_cast<double>(x[c]);
+        s += y * y;
+      }
+      v = std::sqrt(s);
+    }
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
   }
-  return 0.0;
+  return {lo, hi};
 }
 
-/// The RangeMin / RangeMax attributes of `a` (empty without `range` or values): min and max of
-/// the values, or of the tuples' norms for several components, per chunk in parallel.
+/// The RangeMin / RangeMax attributes of `a` (empty without `range` or values): value_range
+/// per chunk in parallel, each chunk read at its own type.
 std::string range_attributes(const XmlArray& a) {
   const auto comps = static_cast<std::size_t>(std::max(1, a.components));
   const auto tuples = static_cast<Index>(a.count / comps);
@@ -78,21 +87,18 @@ std::string range_attributes(const XmlArray& a) {
   constexpr Index grain = 65536;
   std::vector<std::pair<double, double>> part(static_cast<std::size_t>(num_chunks(tuples, grain)));
   parallel_for_chunks(tuples, grain, [&](Index begin, Index end) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (Index t = begin; t < end; ++t) {
-      double v = value_at(a, static_cast<std::size_t>(t) * comps);
-      if (comps > 1) {
-        double s = 0.0;
-        for (std::size_t c = 0; c < comps; ++c) {
-          const double x = value_at(a, static_cast<std::size_t>(t) * comps + c);
-          s += x * x;
-        }
-        v = std::sqrt(s);
-      }
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
+    auto& p = part[static_cast<std::size_t>(begin / grain)];
+    switch (a.type) {
+      case XmlValueType::Int32:
+        p = value_range(static_cast<const std::int32_t*>(a.data), begin, end, comps);
+        break;
+      case XmlValueType::UInt8:
+        p = value_range(static_cast<const std::uint8_t*>(a.data), begin, end, comps);
+        break;
+      case XmlValueType::Float64:
+        p = value_range(static_cast<const double*>(a.data), begin, end, comps);
+        break;
     }
-    part[static_cast<std::size_t>(begin / grain)] = {lo, hi};
   });
   double lo = part[0].first, hi = part[0].second;
   for (const auto& [l, h] : part) {
