@@ -360,24 +360,65 @@ struct KernelSums {
   Vec3 mean = Vec3::Zero();
   double wsum = 0;
 };
-/// The kernel-weighted sums held in registers: s += the kernel term of point p at xc
-/// (nothing where the kernel is 0: a zero term). Component by component, as KernelSums'
-/// Vec3 sums.
-struct KernelAccumulator {
-  double mx = 0, my = 0, mz = 0, wsum = 0;
-  void add(const Vec3& xc, const Vec3& p, double R2) {
-    const double dx = xc[0] - p[0], dy = xc[1] - p[1], dz = xc[2] - p[2];
-    const double d2 = dx * dx + dy * dy + dz * dz;  // squaredNorm()
-    if (d2 > R2 * (1 + 1e-12)) return;              // beyond R: d2 / R2 ≥ 1 whatever its rounding
-    const double t = 1.0 - d2 / R2;
-    if (!(t > 0)) return;  // kernel() is 0
-    const double w = t * t * t;
-    mx += w * p[0];
-    my += w * p[1];
-    mz += w * p[2];
-    wsum += w;
+/// The kernel-weighted sums of the points within R of a centre xc, in two passes: the points
+/// are gathered in their order without a branch on their distance (each is written, the end
+/// moves on for those within R: a data-dependent branch there mispredicts at every other
+/// point near the kernel's edge), then their terms are added in that order, component by
+/// component as KernelSums' Vec3 sums. Bit for bit the sums of adding each point's term in
+/// turn and skipping those beyond R (a term whose kernel is 0 adds a zero, which changes no
+/// sum: the sums start at +0 and are never −0). The buffer is the calling thread's, reused:
+/// one NearPoints at a time per thread.
+class NearPoints {
+ public:
+  NearPoints(const Vec3& xc, double R2)
+      : m_xc(xc),
+        m_R2(R2),
+        m_bound(R2 * (1 + 1e-12)),
+        m_buf(buffer()),
+        m_out(m_buf.data()),
+        m_cap(static_cast<Index>(m_buf.size())) {}
+  /// room for `count` more points
+  void reserve(Index count) {
+    if (m_n + count <= m_cap) return;
+    m_buf.resize(static_cast<size_t>(2 * (m_n + count)));
+    m_out = m_buf.data();
+    m_cap = static_cast<Index>(m_buf.size());
   }
-  KernelSums sums() const { return {Vec3(mx, my, mz), wsum}; }
+  /// gathers p (after reserve)
+  void add(const Vec3& p) {
+    const double dx = m_xc[0] - p[0], dy = m_xc[1] - p[1], dz = m_xc[2] - p[2];
+    const double d2 = dx * dx + dy * dy + dz * dz;  // squaredNorm()
+    m_out[m_n] = {p[0], p[1], p[2], d2};
+    m_n += d2 <= m_bound ? 1 : 0;  // beyond: d2 / R2 ≥ 1 whatever its rounding
+  }
+  KernelSums sums() const {
+    double mx = 0, my = 0, mz = 0, wsum = 0;
+    for (Index k = 0; k < m_n; ++k) {
+      const Near& q = m_out[k];
+      const double t = 1.0 - q.d2 / m_R2;
+      if (!(t > 0)) continue;  // kernel() is 0
+      const double w = t * t * t;
+      mx += w * q.x;
+      my += w * q.y;
+      mz += w * q.z;
+      wsum += w;
+    }
+    return {Vec3(mx, my, mz), wsum};
+  }
+
+ private:
+  struct Near {
+    double x, y, z, d2;
+  };
+  static std::vector<Near>& buffer() {
+    thread_local std::vector<Near> buf(1024);
+    return buf;
+  }
+  const Vec3 m_xc;
+  const double m_R2, m_bound;
+  std::vector<Near>& m_buf;
+  Near* m_out;
+  Index m_cap, m_n = 0;
 };
 
 /// The cells within `reach` of a cell whose boxes come within R of its centre (widened for
@@ -385,7 +426,11 @@ struct KernelAccumulator {
 struct ReachMask {
   std::array<Index, 3> reach{};
   std::vector<std::uint8_t> near;  ///< by (o_x + r_x) + (2 r_x + 1)((o_y + r_y) + ...)
-  ReachMask(const GridSpec& g, const std::array<Index, 3>& r, double R) : reach(r) {
+  /// `widen`: the share of a cell each box is widened by; `slack`: the share of R² the gap
+  /// may exceed it by (a looser mask holds every offset of a tighter one)
+  ReachMask(const GridSpec& g, const std::array<Index, 3>& r, double R, double widen = 1e-6,
+            double slack = 1e-9)
+      : reach(r) {
     const std::array<Index, 3> w{2 * r[0] + 1, 2 * r[1] + 1, 2 * r[2] + 1};
     near.resize(static_cast<size_t>(w[0] * w[1] * w[2]));
     for (Index o = 0; o < w[0] * w[1] * w[2]; ++o) {
@@ -394,11 +439,27 @@ struct ReachMask {
       double gap2 = 0;
       for (int a = 0; a < 3; ++a) {
         const double gap =
-            std::max(0.0, static_cast<double>(std::abs(off[a])) - 0.5 - 1e-6) * g.h[a];
+            std::max(0.0, static_cast<double>(std::abs(off[a])) - 0.5 - widen) * g.h[a];
         gap2 += gap * gap;
       }
-      near[o] = gap2 < R * R * (1 + 1e-9);
+      near[o] = gap2 < R * R * (1 + slack);
     }
+    // per row (o_y, o_z): the greatest |o_x| near, −1 if none (near is symmetric and its
+    // offsets along a row an interval: the gap grows with |o_x|)
+    half.assign(static_cast<size_t>(w[1] * w[2]), -1);
+    for (Index o = 0; o < w[0] * w[1] * w[2]; ++o)
+      if (near[o]) half[o / w[0]] = std::max(half[o / w[0]], std::abs(o % w[0] - r[0]));
+  }
+  /// half's entry of row (oj, ok)
+  Index half_width(Index oj, Index ok) const {
+    return half[(oj + reach[1]) + (2 * reach[1] + 1) * (ok + reach[2])];
+  }
+  std::vector<Index> half;  ///< per row of the block: how far along x it is near
+  /// operator() for any offset (beyond reach: not near)
+  bool near_at(const std::array<Index, 3>& o) const {
+    for (int a = 0; a < 3; ++a)
+      if (std::abs(o[a]) > reach[a]) return false;
+    return (*this)(o[0], o[1], o[2]);
   }
   bool operator()(Index oi, Index oj, Index ok) const {
     return near[(oi + reach[0]) +
@@ -406,28 +467,43 @@ struct ReachMask {
   }
 };
 
+/// kernel_sums' masks: the cells' own, and a looser one for the walls' images of the inner
+/// cells (wider than any round-off of their mirrored boxes: it holds every (cell, image) pair
+/// the boxes would, and a few more whose terms are zero).
+struct ReachMasks {
+  ReachMask cells, images;
+  ReachMasks(const GridSpec& g, const std::array<Index, 3>& r, double R)
+      : cells(g, r, R), images(g, r, R, 1e-4, 1e-6) {}
+};
+
 /// kernel_sums where no wall lies within R of cell c's centre: the particles themselves, in
 /// the cells whose boxes come within R of it (a cell on the grid's boundary always: the
-/// bucketing clamps to it).
+/// bucketing clamps to it). A row of cells (i, j, k) over an interval of i holds one range of
+/// the buckets: each row is read as that range, from its first near cell to its last (those
+/// between add no term: the order of the terms is the cells' own).
 KernelSums kernel_sums_inner(const GridSpec& g, Index c, const ReachMask& mask,
                              const ParticleBuckets& b, const std::vector<Vec3>& xs, double R) {
   const auto ijk = g.cell_ijk(c);
   const auto& reach = mask.reach;
   const Vec3 xc = g.cell_centre(c);
-  const double R2 = R * R;
-  KernelAccumulator s;
+  const Index nx = g.n[0], row_lo = ijk[0] - reach[0], row_hi = ijk[0] + reach[0];
+  NearPoints s(xc, R * R);
   for (Index k = std::max<Index>(0, ijk[2] - reach[2]);
        k <= std::min(g.n[2] - 1, ijk[2] + reach[2]); ++k)
     for (Index j = std::max<Index>(0, ijk[1] - reach[1]);
          j <= std::min(g.n[1] - 1, ijk[1] + reach[1]); ++j) {
-      const bool edge = k == 0 || k == g.n[2] - 1 || j == 0 || j == g.n[1] - 1;
-      for (Index i = std::max<Index>(0, ijk[0] - reach[0]);
-           i <= std::min(g.n[0] - 1, ijk[0] + reach[0]); ++i) {
-        if (!(edge || i == 0 || i == g.n[0] - 1) && !mask(i - ijk[0], j - ijk[1], k - ijk[2]))
-          continue;
-        const Index d = g.cell(i, j, k);
-        for (Index e = b.start[d]; e < b.start[d + 1]; ++e) s.add(xc, xs[e], R2);
+      Index lo = row_lo, hi = row_hi;  // a row on the grid's boundary: all of it
+      if (!(k == 0 || k == g.n[2] - 1 || j == 0 || j == g.n[1] - 1)) {
+        const Index w = mask.half_width(j - ijk[1], k - ijk[2]);
+        if (row_lo > 0) lo = ijk[0] - w;  // else from the boundary cell i = 0
+        if (row_hi < nx - 1) hi = ijk[0] + w;
       }
+      lo = std::max<Index>(lo, 0);
+      hi = std::min(hi, nx - 1);
+      if (lo > hi) continue;
+      const Index e0 = b.start[g.cell(lo, j, k)], e1 = b.start[g.cell(hi, j, k) + 1];
+      s.reserve(e1 - e0);
+      for (Index e = e0; e < e1; ++e) s.add(xs[e]);
     }
   return s.sums();
 }
@@ -436,8 +512,9 @@ KernelSums kernel_sums_inner(const GridSpec& g, Index c, const ReachMask& mask,
 /// cell c [ZhuBridson05], in the order cells (k, j, i), particles (bucket order), images. A
 /// (cell, image) pair whose box lies beyond R of the centre is skipped, as is every term of
 /// zero weight: the sums are the full sums' bit for bit (the terms left out are zeros).
-KernelSums kernel_sums(const GridSpec& g, Index c, const ReachMask& mask, const ParticleBuckets& b,
-                       const std::vector<Vec3>& xs, double R) {
+KernelSums kernel_sums(const GridSpec& g, Index c, const ReachMasks& masks,
+                       const ParticleBuckets& b, const std::vector<Vec3>& xs, double R) {
+  const ReachMask& mask = masks.cells;
   const auto ijk = g.cell_ijk(c);
   const auto& reach = mask.reach;
   const Vec3 xc = g.cell_centre(c), box_lo = g.lo, box_hi = g.hi();
@@ -445,7 +522,7 @@ KernelSums kernel_sums(const GridSpec& g, Index c, const ReachMask& mask, const 
   if (pi.count == 1) return kernel_sums_inner(g, c, mask, b, xs, R);
   const double R2 = R * R, prune = R2 * (1 + 1e-9);
   const double inf = std::numeric_limits<double>::infinity();
-  KernelAccumulator s;
+  NearPoints s(xc, R2);
   std::array<std::uint8_t, 27> active{};
   for (Index k = std::max<Index>(0, ijk[2] - reach[2]);
        k <= std::min(g.n[2] - 1, ijk[2] + reach[2]); ++k)
@@ -456,22 +533,40 @@ KernelSums kernel_sums(const GridSpec& g, Index c, const ReachMask& mask, const 
         const Index d = g.cell(i, j, k);
         const Index e0 = b.start[d], e1 = b.start[d + 1];
         if (e0 == e1) continue;
-        // the cell's box (open where bucketing clamps to the grid), widened for round-off
         const std::array<Index, 3> dijk{i, j, k};
-        Vec3 lo, hi;
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = dijk[a] == 0 ? -inf : box_lo[a] + (dijk[a] - 1e-6) * g.h[a];
-          hi[a] = dijk[a] == g.n[a] - 1 ? inf : box_lo[a] + (dijk[a] + 1 + 1e-6) * g.h[a];
-        }
         bool any = false;
-        for (int m = 0; m < pi.count; ++m) {
-          Vec3 ilo, ihi;
-          pi.box(m, box_lo, box_hi, lo, hi, ilo, ihi);
-          const Vec3 gap = (ilo - xc).cwiseMax(xc - ihi).cwiseMax(0.0);
-          active[m] = gap.squaredNorm() < prune;
-          any = any || active[m];
+        if (i > 0 && i < g.n[0] - 1 && j > 0 && j < g.n[1] - 1 && k > 0 && k < g.n[2] - 1) {
+          // an inner cell's image in a wall is the cell mirrored in it (index −1 − i at the
+          // low wall, 2n − 1 − i at the high): near if its offset is near in the looser mask
+          for (int m = 0; m < pi.count; ++m) {
+            std::array<Index, 3> off{};
+            for (int a = 0; a < 3; ++a) {
+              const int w = pi.mirror[m][a];
+              off[a] = (w == 0   ? dijk[a]
+                        : w == 1 ? -1 - dijk[a]
+                                 : 2 * g.n[a] - 1 - dijk[a]) -
+                       ijk[a];
+            }
+            active[m] = masks.images.near_at(off);
+            any = any || active[m];
+          }
+        } else {
+          // the cell's box (open where bucketing clamps to the grid), widened for round-off
+          Vec3 lo, hi;
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = dijk[a] == 0 ? -inf : box_lo[a] + (dijk[a] - 1e-6) * g.h[a];
+            hi[a] = dijk[a] == g.n[a] - 1 ? inf : box_lo[a] + (dijk[a] + 1 + 1e-6) * g.h[a];
+          }
+          for (int m = 0; m < pi.count; ++m) {
+            Vec3 ilo, ihi;
+            pi.box(m, box_lo, box_hi, lo, hi, ilo, ihi);
+            const Vec3 gap = (ilo - xc).cwiseMax(xc - ihi).cwiseMax(0.0);
+            active[m] = gap.squaredNorm() < prune;
+            any = any || active[m];
+          }
         }
         if (!any) continue;
+        s.reserve((e1 - e0) * pi.count);
         for (Index e = e0; e < e1; ++e) {
           const Vec3& p0 = xs[e];
           for (int m = 0; m < pi.count; ++m) {
@@ -480,7 +575,7 @@ KernelSums kernel_sums(const GridSpec& g, Index c, const ReachMask& mask, const 
             for (int a = 0; a < 3; ++a)
               if (pi.mirror[m][a] != 0)
                 p[a] = pi.mirror[m][a] == 1 ? 2 * box_lo[a] - p0[a] : 2 * box_hi[a] - p0[a];
-            s.add(xc, p, R2);
+            s.add(p);
           }
         }
       }
@@ -512,7 +607,7 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
                "liquid_level_set: a kernel block of {} {} {} cells each way has over 255 cells",
                reach[0], reach[1], reach[2]);
   const std::vector<std::uint8_t> occupied_near = block_counts(g, std::move(occupied), reach);
-  const ReachMask mask(g, reach, R);
+  const ReachMasks masks(g, reach, R);
   VecX phi(g.num_cells());
   parallel_for_each(g.num_cells(), kGrain, [&](Index c) {
     if (occupied_near[c] == 0) {
@@ -523,7 +618,7 @@ VecX liquid_level_set(const GridCells& gc, const MatX3& x, const LiquidSurfacePa
       phi[c] = -sp.radius;
       return;
     }
-    const KernelSums s = kernel_sums(g, c, mask, b, xs, R);
+    const KernelSums s = kernel_sums(g, c, masks, b, xs, R);
     // see [ZhuBridson05]: φ(x) = |x − x̄| − r, x̄ the kernel-weighted mean of the particles
     const Vec3 xc = g.cell_centre(c);
     phi[c] = s.wsum > 0 ? std::min((xc - s.mean / s.wsum).norm() - sp.radius, R) : R;
