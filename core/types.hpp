@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace tetfsi {
@@ -39,6 +40,15 @@ using MatX4i = Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor>;
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, Index>;
 using Triplet = Eigen::Triplet<double, Index>;
 using Triplets = std::vector<Triplet>;
+
+/// static_cast<Index>(std::floor(q)), the same value for every q whose floor an Index holds,
+/// without the call to libm's floor that x86-64 code built for its baseline (no SSE4.1
+/// rounding) makes: the truncation, one less where it rounded a negative q up. (Beyond an
+/// Index, where the cast is undefined, the same as x86's cast of the floor: the least Index.)
+inline Index floor_index(double q) {
+  const Index t = static_cast<Index>(q);
+  return static_cast<double>(t) > q && t != std::numeric_limits<Index>::min() ? t - 1 : t;
+}
 
 /// View an n × 3 row-major array as a flat interleaved vector of length 3n (no copy).
 inline Eigen::Map<VecX> flat(MatX3& m) {

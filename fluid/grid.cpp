@@ -110,8 +110,7 @@ void rasterize_axis(const GridSpec& g, int a, const Tri& T, Visit&& visit) {
   for (int k = 0; k < 3; ++k) q[k] = Vec2(T.p[k][b], T.p[k][c]);
   const auto range = [&](int ax, double lo, double hi, Index& i0, Index& i1) {
     i0 = std::max<Index>(0, static_cast<Index>(std::ceil((lo - g.lo[ax]) / g.h[ax] - 0.5)));
-    i1 = std::min<Index>(g.n[ax] - 1,
-                         static_cast<Index>(std::floor((hi - g.lo[ax]) / g.h[ax] - 0.5)));
+    i1 = std::min<Index>(g.n[ax] - 1, floor_index((hi - g.lo[ax]) / g.h[ax] - 0.5));
   };
   Index j0, j1, k0, k1;
   range(b, std::min({q[0][0], q[1][0], q[2][0]}), std::max({q[0][0], q[1][0], q[2][0]}), j0, j1);
@@ -398,8 +397,7 @@ void mark_crossed(const GridSpec& g, const mesh::SolidSurface& s, GridCells& gc,
     for (int a = 0; a < 3; ++a)
       rasterize_axis(g, a, triangle(s, t), [&](Index j, Index k, double x, const Vec3& w) {
         if (x < g.lo[a] || x > g.hi()[a]) return;
-        const Index i = std::clamp<Index>(
-            static_cast<Index>(std::floor((x - g.lo[a]) / g.h[a] + 0.5)), 0, g.n[a]);
+        const Index i = std::clamp<Index>(floor_index((x - g.lo[a]) / g.h[a] + 0.5), 0, g.n[a]);
         const auto ijk = line_ijk(a, i, j, k);
         const Index f = g.face(a, ijk[0], ijk[1], ijk[2]);
         gc.face_kind[f] = FaceKind::Solid;

@@ -110,7 +110,7 @@ struct GridSpec {
   int face_side(Index f) const;
   /// The index along axis a of the cell layer holding coordinate v (clamped to the box).
   Index axis_index(int a, double v) const {
-    return std::clamp<Index>(static_cast<Index>(std::floor((v - lo[a]) / h[a])), 0, n[a] - 1);
+    return std::clamp<Index>(floor_index((v - lo[a]) / h[a]), 0, n[a] - 1);
   }
   /// The cell containing x (clamped to the box).
   Index cell_at(const Vec3& x) const {

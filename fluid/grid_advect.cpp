@@ -32,13 +32,13 @@ PointWeights point_weights(const GridSpec& g, const Vec3& x) {
     const double s0 = (x[b] - g.lo[b]) / g.h[b];
     for (int t = 0; t < 2; ++t) {
       const double s = s0 - (t == 0 ? 0.0 : 0.5);
-      const Index base = static_cast<Index>(std::floor(s));
+      const Index base = floor_index(s);
       const double frac = s - static_cast<double>(base);
       const Index top = g.n[b] - t;
       pw.idx[t][b] = {std::clamp<Index>(base, 0, top), std::clamp<Index>(base + 1, 0, top)};
       pw.wt[t][b] = {1.0 - frac, frac};
     }
-    ijk[b] = std::clamp<Index>(static_cast<Index>(std::floor(s0)), 0, g.n[b] - 1);
+    ijk[b] = std::clamp<Index>(floor_index(s0), 0, g.n[b] - 1);
   }
   pw.cell = g.cell(ijk[0], ijk[1], ijk[2]);
   return pw;

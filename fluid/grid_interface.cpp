@@ -90,7 +90,7 @@ CellStencil8 cell_stencil(const GridCells& gc, const Vec3& x, Sees&& sees) {
   Vec3 frac;
   for (int a = 0; a < 3; ++a) {
     const double s = (x[a] - g.lo[a]) / g.h[a] - 0.5;
-    base[a] = static_cast<Index>(std::floor(s));
+    base[a] = floor_index(s);
     frac[a] = s - static_cast<double>(base[a]);
   }
   CellStencil8 st;
@@ -175,7 +175,7 @@ std::vector<std::pair<Index, double>> grid_cell_stencil_linear(const GridCells& 
   std::array<Index, 3> first{};
   bool interior = true;
   for (int a = 0; a < 3; ++a) {
-    first[a] = static_cast<Index>(std::floor((x[a] - g.lo[a]) / g.h[a] - 0.5)) - 1;
+    first[a] = floor_index((x[a] - g.lo[a]) / g.h[a] - 0.5) - 1;
     interior = interior && first[a] + 1 >= 0 && first[a] + 2 < g.n[a];
   }
   // reaches the 4 × 4 × 4 block, whose cell centres are the queries

@@ -83,8 +83,7 @@ inline AxisWeights axis_weights(const GridSpec& g, int a, int b, double xb) {
   const double s = (xb - g.lo[b]) / g.h[b] - (b == a ? 0.0 : 0.5);
   const Index top = lattice_size(g, b, a) - 1;
   const double sc = std::clamp(s, 0.0, static_cast<double>(top));
-  const Index base =
-      std::min<Index>(static_cast<Index>(std::floor(sc)), std::max<Index>(top - 1, 0));
+  const Index base = std::min<Index>(floor_index(sc), std::max<Index>(top - 1, 0));
   const double frac = top > 0 ? sc - static_cast<double>(base) : 0.0;
   return {{base, std::min(base + 1, top)}, {1.0 - frac, frac}};
 }
@@ -157,7 +156,7 @@ SlabLists slab_particles(const GridSpec& g, const MatX3& x, Index size) {
   for (int t = 0; t < 2; ++t) {
     const double top = static_cast<double>(lattice_size(g, 2, t == 0 ? 2 : 0) - 1);
     const auto slab = [&](double z) {
-      return std::clamp<Index>(static_cast<Index>(std::floor(z / size)), 0, sl.slabs - 1);
+      return std::clamp<Index>(floor_index(z / size), 0, sl.slabs - 1);
     };
     std::vector<Index>& start = sl.start[t];
     start.assign(static_cast<size_t>(sl.slabs) + 1, 0);

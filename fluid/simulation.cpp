@@ -413,7 +413,7 @@ RefineField FluidSimulation::refinement_field() const {
   return [mark = std::move(mark), lo, n, cell, size](const Vec3& x) -> double {
     Vec3i v;
     for (int a = 0; a < 3; ++a) {
-      const int i = static_cast<int>(std::floor((x[a] - lo[a]) / cell));
+      const int i = floor_index((x[a] - lo[a]) / cell);
       if (i < 0 || i >= n[a]) return 0.0;
       v[a] = i;
     }

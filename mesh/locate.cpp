@@ -71,7 +71,9 @@ struct PointLocator::Impl {
   std::array<int, 3> cell_of(const Vec3& p) const {
     std::array<int, 3> c{};
     for (int a = 0; a < 3; ++a) {
-      const double x = std::floor((p(a) - lo(a)) * inv_size(a));
+      // floor(x) < 0 iff x < 0, and ≥ dims iff x ≥ dims; between, the cast is the floor
+      // (std::floor would be a call to libm in code built for x86-64's baseline)
+      const double x = (p(a) - lo(a)) * inv_size(a);
       c[a] = x < 0.0 ? 0 : (x >= dims[a] ? dims[a] - 1 : static_cast<int>(x));
     }
     return c;
