@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include <Eigen/Geometry>
 
@@ -286,23 +287,48 @@ void for_each_line(const GridSpec& g, int a, F&& fn) {
 }
 
 /// Per cell, the sum of `count` over its block within `reach` along each axis (clipped to
-/// the grid): running sums along each axis, one after another. T must hold the block's sum.
+/// the grid): running sums along each axis, one after another. T must hold the block's sum
+/// (an unsigned T: its running sums may wrap in between, the window's sum is exact). Along x
+/// a line at a time; along y and z a whole row (or plane part) at a time, the running sum
+/// kept per x (contiguous, vectorised).
 template <class T>
 std::vector<T> block_counts(const GridSpec& g, std::vector<T> count,
                             const std::array<Index, 3>& reach) {
+  static_assert(std::is_unsigned_v<T>);
   std::vector<T> next(count.size());
-  for (int a = 0; a < 3; ++a) {
-    for_each_line(g, a, [&](Index first, Index stride, Index len) {
-      int s = 0;  // over the window [i − reach, i + reach] ∩ [0, len)
-      for (Index m = 0; m < std::min(len, reach[a]); ++m) s += count[first + m * stride];
-      for (Index i = 0; i < len; ++i) {
-        if (const Index in = i + reach[a]; in < len) s += count[first + in * stride];
-        if (const Index gone = i - reach[a] - 1; gone >= 0) s -= count[first + gone * stride];
-        next[first + i * stride] = static_cast<T>(s);
-      }
-    });
-    std::swap(count, next);
-  }
+  for_each_line(g, 0, [&](Index first, Index stride, Index len) {
+    unsigned s = 0;  // over the window [i − reach, i + reach] ∩ [0, len)
+    for (Index m = 0; m < std::min(len, reach[0]); ++m) s += count[first + m * stride];
+    for (Index i = 0; i < len; ++i) {
+      if (const Index in = i + reach[0]; in < len) s += count[first + in * stride];
+      if (const Index gone = i - reach[0] - 1; gone >= 0) s -= count[first + gone * stride];
+      next[first + i * stride] = static_cast<T>(s);
+    }
+  });
+  std::swap(count, next);
+  const Index nx = g.n[0], ny = g.n[1], nz = g.n[2], plane = nx * ny;
+  // along axis a (1: y, 2: z) over `width` contiguous values from `base`, the lines of
+  // length len at `stride`: one running sum per value
+  const auto window = [&](int a, Index base, Index width, Index len, Index stride) {
+    std::vector<T> s(static_cast<size_t>(width), T{0});
+    for (Index m = 0; m < std::min(len, reach[a]); ++m)
+      for (Index x = 0; x < width; ++x) s[x] += count[base + m * stride + x];
+    for (Index i = 0; i < len; ++i) {
+      if (const Index in = i + reach[a]; in < len)
+        for (Index x = 0; x < width; ++x) s[x] += count[base + in * stride + x];
+      if (const Index gone = i - reach[a] - 1; gone >= 0)
+        for (Index x = 0; x < width; ++x) s[x] -= count[base + gone * stride + x];
+      std::copy(s.begin(), s.end(), next.begin() + base + i * stride);
+    }
+  };
+  parallel_for_each(nz, 1, [&](Index k) { window(1, k * plane, nx, ny, nx); });
+  std::swap(count, next);
+  constexpr Index kPart = 4096;  // values of a z-plane per task
+  parallel_for_each(num_chunks(plane, kPart), 1, [&](Index part) {
+    const Index base = part * kPart;
+    window(2, base, std::min(kPart, plane - base), nz, plane);
+  });
+  std::swap(count, next);
   return count;
 }
 
