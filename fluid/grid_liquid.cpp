@@ -273,19 +273,6 @@ Index emit_liquid(const GridCells& gc, const LiquidParams& p, double t, LiquidPa
 
 namespace {
 
-/// Calls fn(first, stride, len) for every line of cells along axis a (first: its first
-/// cell), in parallel.
-template <class F>
-void for_each_line(const GridSpec& g, int a, F&& fn) {
-  const Index len = g.n[a], stride = a == 0 ? 1 : (a == 1 ? g.n[0] : g.n[0] * g.n[1]);
-  parallel_for_each(g.num_cells() / len, 64, [&](Index line) {
-    const Index first = a == 0   ? line * g.n[0]
-                        : a == 1 ? line % g.n[0] + g.n[0] * g.n[1] * (line / g.n[0])
-                                 : line;
-    fn(first, stride, len);
-  });
-}
-
 /// Per cell, the sum of `count` over its block within `reach` along each axis (clipped to
 /// the grid): running sums along each axis, one after another. T must hold the block's sum
 /// (an unsigned T: its running sums may wrap in between, the window's sum is exact). Along x
@@ -296,17 +283,18 @@ std::vector<T> block_counts(const GridSpec& g, std::vector<T> count,
                             const std::array<Index, 3>& reach) {
   static_assert(std::is_unsigned_v<T>);
   std::vector<T> next(count.size());
-  for_each_line(g, 0, [&](Index first, Index stride, Index len) {
-    unsigned s = 0;  // over the window [i − reach, i + reach] ∩ [0, len)
-    for (Index m = 0; m < std::min(len, reach[0]); ++m) s += count[first + m * stride];
-    for (Index i = 0; i < len; ++i) {
-      if (const Index in = i + reach[0]; in < len) s += count[first + in * stride];
-      if (const Index gone = i - reach[0] - 1; gone >= 0) s -= count[first + gone * stride];
-      next[first + i * stride] = static_cast<T>(s);
+  const Index nx = g.n[0], ny = g.n[1], nz = g.n[2], plane = nx * ny;
+  parallel_for_each(ny * nz, 64, [&](Index line) {  // the x-lines, each contiguous
+    const Index first = line * nx;
+    unsigned s = 0;  // over the window [i − reach, i + reach] ∩ [0, nx)
+    for (Index m = 0; m < std::min(nx, reach[0]); ++m) s += count[first + m];
+    for (Index i = 0; i < nx; ++i) {
+      if (const Index in = i + reach[0]; in < nx) s += count[first + in];
+      if (const Index gone = i - reach[0] - 1; gone >= 0) s -= count[first + gone];
+      next[first + i] = static_cast<T>(s);
     }
   });
   std::swap(count, next);
-  const Index nx = g.n[0], ny = g.n[1], nz = g.n[2], plane = nx * ny;
   // along axis a (1: y, 2: z) over `width` contiguous values from `base`, the lines of
   // length len at `stride`: one running sum per value
   const auto window = [&](int a, Index base, Index width, Index len, Index stride) {
