@@ -116,11 +116,15 @@ void add_interface_mass(const CoupledInput& in, CoupledSystem& sys, VecX& forces
   const TetMesh& m = *in.mesh;
   const std::vector<CoupledBody>& bodies = *in.bodies;
   const VecX& u_ref = in.half_cell_u0();
+  const VecX* delta = in.half_cell_lengths;
+  TETFSI_REQUIRE(InputError, !delta || delta->size() == m.num_faces(),
+                 "coupled solve: half-cell lengths for {} of {} faces", delta ? delta->size() : 0,
+                 m.num_faces());
   sys.half_mass = VecX::Zero(m.num_faces());
   for (Index f = 0; f < m.num_faces(); ++f)  // (a face of zero area has no half cell)
     if (m.face_kind[f] == FaceKind::Solid && m.face_areas[f] > 0)
-      sys.half_mass[f] =
-          (*in.rho)[m.face_tets(f, 0)] * std::max(m.dual_lengths[f], 0.0) / m.face_areas[f];
+      sys.half_mass[f] = (*in.rho)[m.face_tets(f, 0)] *
+                         (delta ? (*delta)[f] : std::max(m.dual_lengths[f], 0.0)) / m.face_areas[f];
   std::vector<Triplets> added(sys.nb);
   struct Entry {
     Index body, l;

@@ -39,7 +39,9 @@
 /// circumcentre (A_f δ_f, δ_f = max(d_f, 0), not the clamped d̃_f), whose fluid moves with the
 /// face's normal velocity (H u)_f. Left out (the paper's form), that fluid carries no kinetic
 /// energy and the added mass is biased low at first order (−10 % of C_m at 0.025 m cells around a
-/// 0.1 m sphere). Counted, it is the mass M_I = Σ_f ρ_t A_f δ_f H_fᵀ H_f on the body's DOFs: A +=
+/// 0.1 m sphere). Counted, it is the mass M_I = Σ_f ρ_t A_f δ_f H_fᵀ H_f on the body's DOFs, δ_f
+/// lowered off a convex body (raised in a cavity) by the spreading of its normals
+/// (half_cells.hpp, CoupledInput::half_cell_lengths): A +=
 /// M_I/h, b += Σ_f ρ_t A_f δ_f u_f⁰ H_fᵀ / h (u_f⁰ the half cell's velocity at tⁿ,
 /// CoupledInput::u_ref), and the fluid's force on the body gains −Σ_f ρ_t A_f δ_f (u_f − u_f⁰)/h
 /// H_fᵀ, its pressure at the face rather than at the circumcentre. Every scheme sees the same
@@ -156,8 +158,11 @@ struct CoupledInput {
   /// The fluid's gravity (liquids): the hydrostatic pressure ρ g·x pushes the free bodies
   /// exactly (face_pressure_forces), J carries only the dynamic pressure.
   Vec3 gravity = Vec3::Zero();
-  Vec3 hydrostatic_origin = Vec3::Zero();            ///< as fluid::FluidParams
-  const InterfaceOperators* interface = nullptr;     ///< H, J, D1 of `mesh` and the bodies
+  Vec3 hydrostatic_origin = Vec3::Zero();         ///< as fluid::FluidParams
+  const InterfaceOperators* interface = nullptr;  ///< H, J, D1 of `mesh` and the bodies
+  /// #F the interface half cells' lengths δ_eff with the bodies' normals spreading
+  /// (half_cells.hpp); null: δ_f = max(d_f, 0)
+  const VecX* half_cell_lengths = nullptr;
   const std::vector<CoupledBody>* bodies = nullptr;  ///< every body of the mesh, by index
   VolumeTargets* volume_targets = nullptr;           ///< may be null: no volume correction
 };

@@ -3,18 +3,25 @@
 #include "coupling/tet_fluid.hpp"
 
 #include "core/error.hpp"
+#include "coupling/half_cells.hpp"
 #include "fluid/interface.hpp"
 #include "fluid/operators.hpp"
 
 namespace tetfsi::coupling {
 
 TetPrediction::TetPrediction(fluid::FluidPrediction pred, const fluid::FluidParams& params,
-                             const std::vector<BodyInterface>& bodies)
-    : m_pred(std::move(pred)), m_params(params), m_ops(m_pred.mesh, bodies) {}
+                             const std::vector<BodyInterface>& bodies,
+                             const std::vector<MatX3>& positions)
+    : m_pred(std::move(pred)), m_params(params), m_ops(m_pred.mesh, bodies) {
+  std::vector<const MatX3*> x;
+  for (const MatX3& p : positions) x.push_back(&p);
+  m_half_cells = half_cell_lengths(m_pred.mesh, bodies, x);
+}
 
 CoupledSolution TetPrediction::solve(const std::vector<CoupledBody>& bodies,
                                      const CoupledOptions& opt, const SolveVariant& v) const {
   CoupledInput in = make_input(m_pred, m_params, m_ops, bodies, v.targets);
+  in.half_cell_lengths = &m_half_cells;
   if (v.u_star) in.u_star = v.u_star;
   VecX zero_f;
   if (v.homogeneous) {
@@ -54,7 +61,7 @@ std::unique_ptr<PredictedFluid> TetCoupledFluid::predict(
     double h, PhaseTimes& phases) {
   mesh::TetMesh m = m_build(positions);
   return std::make_unique<TetPrediction>(m_fluid.predict(std::move(m), h, motions, phases),
-                                         m_fluid.params(), m_bodies);
+                                         m_fluid.params(), m_bodies, positions);
 }
 
 fluid::FluidStepReport TetCoupledFluid::commit(std::unique_ptr<PredictedFluid> pred,

@@ -22,8 +22,10 @@ using MeshBuilder = std::function<mesh::TetMesh(const std::vector<MatX3>& positi
 /// interface operators of that mesh.
 class TetPrediction final : public PredictedFluid {
  public:
+  /// @param positions the bodies' node positions the mesh was built around (the interface
+  ///   half cells' normals, half_cells.hpp)
   TetPrediction(fluid::FluidPrediction pred, const fluid::FluidParams& params,
-                const std::vector<BodyInterface>& bodies);
+                const std::vector<BodyInterface>& bodies, const std::vector<MatX3>& positions);
 
   const VecX& u_star() const override { return m_pred.u_star; }
   CoupledSolution solve(const std::vector<CoupledBody>& bodies, const CoupledOptions& opt,
@@ -40,6 +42,7 @@ class TetPrediction final : public PredictedFluid {
   fluid::FluidPrediction m_pred;
   const fluid::FluidParams& m_params;
   const InterfaceOperators m_ops;
+  VecX m_half_cells;  ///< #F δ_eff of the Solid faces (CoupledInput::half_cell_lengths)
 };
 
 class TetCoupledFluid final : public CoupledFluid {

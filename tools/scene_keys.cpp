@@ -1523,8 +1523,8 @@ const Section<CouplingSpec>& coupling_keys() {
        {{.key = "interface_mass",
          .type = KeyType::Boolean,
          .doc = "tet fluid: the fluid between a body and the first circumcentres moves with the "
-                "body (its kinetic energy counted: the added mass unbiased); false: the "
-                "paper's form"},
+                "body (its kinetic energy counted, with the spreading of a curved body's "
+                "normals: the added mass unbiased); false: the paper's form"},
         [](const C& c) { return json(c.params.solve.interface_mass); },
         [](C& c, const json& v) { c.params.solve.interface_mass = v.get<bool>(); }},
        {{.key = "grid_multigrid",
