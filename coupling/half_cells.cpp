@@ -63,10 +63,10 @@ MatX3 vertex_normals(const fluid::BodyInterface& bi, const MatX3& x) {
 }  // namespace
 
 VecX half_cell_lengths(const TetMesh& m, const std::vector<fluid::BodyInterface>& bodies,
-                       const std::vector<const MatX3*>& x) {
+                       const std::vector<MatX3>& x) {
   std::vector<MatX3> normals(bodies.size());
   for (size_t b = 0; b < bodies.size(); ++b)
-    if (b < x.size() && x[b]) normals[b] = vertex_normals(bodies[b], *x[b]);
+    if (b < x.size() && x[b].rows() > 0) normals[b] = vertex_normals(bodies[b], x[b]);
   VecX delta = VecX::Zero(m.num_faces());
   for (Index f = 0; f < m.num_faces(); ++f) {
     if (m.face_kind[f] != FaceKind::Solid || !(m.face_areas[f] > 0)) continue;
@@ -74,7 +74,7 @@ VecX half_cell_lengths(const TetMesh& m, const std::vector<fluid::BodyInterface>
     const Index b = m.face_body[f];
     if (d > 0 && normals[b].rows() > 0) {
       const fluid::BodyInterface& bi = bodies[b];
-      const MatX3& xb = *x[b];
+      const MatX3& xb = x[b];
       Index sv[3];
       Vec3 p[3], n[3];
       for (int k = 0; k < 3; ++k) {

@@ -45,8 +45,8 @@ double half_cell_spreading(const TubeSpreading& tube, double delta);
 
 /// δ_eff (m) of every Solid face of area > 0 (0 elsewhere, #F). x[b]: body b's node positions
 /// (#n_b × 3, the geometry its vertex normals, area-weighted over its interface triangles,
-/// come from); null: body b's half cells keep δ_f.
+/// come from); empty (or beyond x): body b's half cells keep δ_f.
 VecX half_cell_lengths(const mesh::TetMesh& m, const std::vector<fluid::BodyInterface>& bodies,
-                       const std::vector<const MatX3*>& x);
+                       const std::vector<MatX3>& x);
 
 }  // namespace tetfsi::coupling

@@ -12,11 +12,10 @@ namespace tetfsi::coupling {
 TetPrediction::TetPrediction(fluid::FluidPrediction pred, const fluid::FluidParams& params,
                              const std::vector<BodyInterface>& bodies,
                              const std::vector<MatX3>& positions)
-    : m_pred(std::move(pred)), m_params(params), m_ops(m_pred.mesh, bodies) {
-  std::vector<const MatX3*> x;
-  for (const MatX3& p : positions) x.push_back(&p);
-  m_half_cells = half_cell_lengths(m_pred.mesh, bodies, x);
-}
+    : m_pred(std::move(pred)),
+      m_params(params),
+      m_ops(m_pred.mesh, bodies),
+      m_half_cells(half_cell_lengths(m_pred.mesh, bodies, positions)) {}
 
 CoupledSolution TetPrediction::solve(const std::vector<CoupledBody>& bodies,
                                      const CoupledOptions& opt, const SolveVariant& v) const {

@@ -42,7 +42,7 @@ class TetPrediction final : public PredictedFluid {
   fluid::FluidPrediction m_pred;
   const fluid::FluidParams& m_params;
   const InterfaceOperators m_ops;
-  VecX m_half_cells;  ///< #F δ_eff of the Solid faces (CoupledInput::half_cell_lengths)
+  const VecX m_half_cells;  ///< #F δ_eff of the Solid faces (CoupledInput::half_cell_lengths)
 };
 
 class TetCoupledFluid final : public CoupledFluid {

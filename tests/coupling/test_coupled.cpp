@@ -309,9 +309,7 @@ VecX rig_half_cells(CoupledRig& r) {
         {r.surfaces()[b].triangles, r.surfaces()[b].nodes, r.world().bodies[b].num_nodes()});
     x.push_back(r.world().bodies[b].positions());
   }
-  std::vector<const MatX3*> px;
-  for (const MatX3& xb : x) px.push_back(&xb);
-  return half_cell_lengths(r.fluid().mesh(), interfaces, px);
+  return half_cell_lengths(r.fluid().mesh(), interfaces, x);
 }
 
 }  // namespace
