@@ -4,8 +4,11 @@
 #   make test-long  the long cases only
 #   make bench      the solver benchmark
 #   make sanitize   an ASan + UBSan build in build-sanitize/ and its test run (skips "long")
-#   make pictures   regenerate the README's pictures docs/*.png (scripts/make_pictures.sh, ~8 min)
+#   make pictures   regenerate the pictures docs/*.png (scripts/make_pictures.sh, ~12 min)
 BUILD ?= build
+# ccache (when present) rewrites absolute paths under base_dir as relative ones, so two clones
+# of the repository (a fresh one per CI run, a worktree beside this one) share their objects.
+export CCACHE_BASEDIR ?= /
 JOBS ?= $(shell nproc)
 SCENE ?= data/scenes/smoke_sheets.json
 OUT ?= out/smoke_sheets
@@ -34,7 +37,7 @@ build: configure
 	@cmake --build $(BUILD) -j $(JOBS)
 
 run: build
-	$(BUILD)/tools/tetfsi run $(SCENE) --out $(OUT)
+	$(BUILD)/cli/tetfsi run $(SCENE) --out $(OUT)
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS) -LE long
@@ -49,7 +52,7 @@ pictures: build
 	BUILD=$(BUILD) bash scripts/make_pictures.sh
 
 bench: build
-	$(BUILD)/tools/tetfsi bench solvers --n 250000
+	$(BUILD)/cli/tetfsi bench solvers --n 250000
 
 sanitize: setup
 	@if [ ! -f $(SAN_BUILD)/CMakeCache.txt ]; then \

@@ -129,7 +129,7 @@ struct CoupledOptions {
   /// schur_amg on the grid fluid: precondition with hypre's structured multigrid
   /// (make_pfmg_preconditioner: P's 7-point part, the bodies' couplings beyond it on the
   /// diagonal) instead of BoomerAMG on the whole P. Off by default: cheaper set-up and
-  /// V-cycles, but 2–6× the iterations where stiff bodies couple many cells (README).
+  /// V-cycles, but 2–6× the iterations where stiff bodies couple many cells (docs/method/grid_fluid.md).
   bool grid_multigrid = false;
   /// schur_amg: if set, the AMG setup of the first solve is kept here and reused by later
   /// solves with this cache (see SolveCache: only for the same P).

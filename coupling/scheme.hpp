@@ -94,7 +94,7 @@ struct CoupledStepReport {
   bool predicted_mesh = true;  ///< the mesh was built around x* (else around xⁿ)
   double solid_kinetic_energy = 0.0, elastic_energy = 0.0;  ///< after the step (J)
   /// Σ_b f_fluid,b · (dⁿ⁺¹ − dⁿ): the work of the fluid's forces of the solution on the free
-  /// bodies over the step (J; the divergence check's budget, tools/divergence.hpp)
+  /// bodies over the step (J; the divergence check's budget, run/divergence.hpp)
   double fluid_work = 0.0;
   /// fluid kinetic + solid kinetic + elastic (J), after the step
   double total_energy() const {

@@ -10,7 +10,7 @@
 ///  - two-way (a fluid and a scheme): the scheme advances the bodies and the fluid together
 ///    (CoupledStepper, scheme.hpp), asking the remesh policy for the mesh around the
 ///    positions it needs.
-/// The command line (tools/) parses a scene, builds this, runs the loop and writes output;
+/// The application (run/, cli/) parses a scene, builds this, runs the loop and writes output;
 /// tests and benchmarks construct it directly.
 #include <functional>
 #include <optional>

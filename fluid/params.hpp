@@ -1,7 +1,7 @@
 #pragma once
 /// @file params.hpp
 /// Plain parameter structs of the fluid (what a scene's `fluid` section turns into). Physics
-/// never sees JSON: tools/scene.cpp fills these. SI units throughout.
+/// never sees JSON: scene/scene.cpp fills these. SI units throughout.
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -180,7 +180,7 @@ struct FluidParams {
   /// keeps more angular momentum in rigid rotation than vertex least squares.
   Reconstruction reconstruction = Reconstruction::Whitney;
   /// How the transfer carries smoke density and temperature, and the face velocities
-  /// (transfer.hpp). Measured (the README's transfer table): BFECC keeps 7× more of a
+  /// (transfer.hpp). Measured (docs/results/fluid.md, transfer): BFECC keeps 7× more of a
   /// rotating blob's peak than semi-Lagrangian at 119k cells, clamped (no new extrema), so it
   /// is the scalars' default; the second-order velocity options are not the default (they
   /// lose more on the coarse Taylor–Green and gain energy in the fine rotation).
@@ -188,7 +188,7 @@ struct FluidParams {
   TransferScheme velocity_transfer = TransferScheme::SemiLagrangian;
   /// How the scalars' transfer reads the old (and, for the second-order schemes, the
   /// intermediate) cell values at a traced point. Quadratic by default: measured (the
-  /// README's transfer table) with BFECC it keeps 91 % of a rotating blob's peak at 119k
+  /// docs/results/fluid.md, transfer) with BFECC it keeps 91 % of a rotating blob's peak at 119k
   /// cells (51 % with the linear reading), a fifth of the L1 error and more of the mass.
   ScalarInterpolation scalar_interpolation = ScalarInterpolation::Quadratic;
   /// The transfer takes the old pressure's acceleration at the midpoint of each back-trace

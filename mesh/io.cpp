@@ -22,7 +22,6 @@
 
 #include <fmt/format.h>
 #include <vtkCellType.h>
-#include <vtkCommand.h>
 #include <vtkIdList.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
@@ -498,26 +497,12 @@ RawVolume read_tetgen(const fs::path& path) {
 // VTK .vtu
 // ---------------------------------------------------------------------------------------
 
-/// Collects the first error VTK reports to an object's observers.
-class VtkErrorCatcher : public vtkCommand {
- public:
-  static VtkErrorCatcher* New() { return new VtkErrorCatcher; }
-  void Execute(vtkObject*, unsigned long, void* data) override {
-    if (m_message.empty() && data) m_message = static_cast<const char*>(data);
-  }
-  const std::string& message() const { return m_message; }
-
- private:
-  std::string m_message;
-};
-
 RawVolume read_vtu(const fs::path& path) {
   require_file(path);
   check_vtk_xml_header(path);
   const VtkMessageCapture capture;  // VTK's messages off stderr, first one kept
   vtkNew<vtkXMLUnstructuredGridReader> reader;
-  vtkNew<VtkErrorCatcher> catcher;
-  reader->AddObserver(vtkCommand::ErrorEvent, catcher);
+  const VtkErrorObserver errors(reader);
   if (!reader->CanReadFile(path.string().c_str())) {
     throw InputError(fmt::format(
         "{}: not a VTK XML UnstructuredGrid file; expected '<VTKFile type=\"UnstructuredGrid\"'",
@@ -531,11 +516,10 @@ RawVolume read_vtu(const fs::path& path) {
                                  path.string(), e.what()));
   }
   vtkUnstructuredGrid* grid = reader->GetOutput();
-  if (!catcher->message().empty() || !capture.first_message().empty() || grid == nullptr) {
+  if (!errors.first_message().empty() || !capture.first_message().empty() || grid == nullptr) {
     // The parser's own message (line, column) is the useful one; the reader's comes second.
-    const std::string detail = !capture.first_message().empty()
-                                   ? capture.first_message()
-                                   : one_line_vtk_message(catcher->message());
+    const std::string detail =
+        !capture.first_message().empty() ? capture.first_message() : errors.first_message();
     throw InputError(fmt::format("{}: VTK could not read the file: {}", path.string(),
                                  detail.empty() ? "unknown error" : detail));
   }

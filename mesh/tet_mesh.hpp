@@ -102,7 +102,7 @@ TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets);
 /// build_tet_mesh with the neighbours known (tet across local face k, the face opposite
 /// vertex k; −1 on the boundary), e.g. from a Delaunay: no face hashing, the same TetMesh as
 /// build_tet_mesh(vertices, tets) gives, face numbering included. Less memory and time
-/// (the remesher's TetMesh phase at 245k cells: see README).
+/// (the remesher's TetMesh phase at 245k cells: docs/results/performance.md).
 /// @throws MeshError naming the tets if a neighbour is out of range, does not name the tet
 ///   back or does not share the face; as build_tet_mesh for the tets themselves.
 TetMesh build_tet_mesh(MatX3 vertices, MatX4i tets, const MatX4i& neighbours);

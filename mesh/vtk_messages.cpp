@@ -1,15 +1,18 @@
 /// @file vtk_messages.cpp
-/// VtkMessageCapture: a capturing vtkOutputWindow installed for a scope.
+/// VTK's messages: routed to the logger, captured for a scope, observed per object.
 #include "mesh/vtk_messages.hpp"
 
 #include <algorithm>
 #include <cctype>
 
+#include <vtkCommand.h>
 #include <vtkLogger.h>
 #include <vtkNew.h>
 #include <vtkObjectFactory.h>
 #include <vtkOutputWindow.h>
 #include <vtkSmartPointer.h>
+
+#include "core/log.hpp"
 
 namespace tetfsi::mesh {
 
@@ -34,7 +37,54 @@ class CapturingOutputWindow : public vtkOutputWindow {
 };
 vtkStandardNewMacro(CapturingOutputWindow);
 
+/// Routes VTK's messages to the tetfsi logger at debug level, one line each.
+class LoggerOutputWindow : public vtkOutputWindow {
+ public:
+  static LoggerOutputWindow* New();
+  vtkTypeMacro(LoggerOutputWindow, vtkOutputWindow);
+  void DisplayText(const char* text) override {
+    std::string s = text ? text : "";
+    std::replace(s.begin(), s.end(), '\n', ' ');
+    logger().debug("VTK: {}", s);
+  }
+};
+vtkStandardNewMacro(LoggerOutputWindow);
+
+/// Keeps the first error event's text.
+class ErrorCollector : public vtkCommand {
+ public:
+  static ErrorCollector* New() { return new ErrorCollector; }
+  void Execute(vtkObject*, unsigned long, void* data) override {
+    if (data && message.empty()) message = static_cast<const char*>(data);
+  }
+  std::string message;
+};
+
 }  // namespace
+
+void route_vtk_messages_to_log() {
+  static const bool done = [] {
+    vtkNew<LoggerOutputWindow> w;
+    vtkOutputWindow::SetInstance(w);
+    vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);  // VTK 9's loguru on stderr
+    return true;
+  }();
+  (void)done;
+}
+
+struct VtkErrorObserver::Impl {
+  vtkNew<ErrorCollector> collector;
+};
+
+VtkErrorObserver::VtkErrorObserver(vtkObject* object) : m_impl(std::make_unique<Impl>()) {
+  object->AddObserver(vtkCommand::ErrorEvent, m_impl->collector);
+}
+
+VtkErrorObserver::~VtkErrorObserver() = default;
+
+std::string VtkErrorObserver::first_message() const {
+  return one_line_vtk_message(m_impl->collector->message);
+}
 
 struct VtkMessageCapture::Impl {
   vtkNew<CapturingOutputWindow> window;

@@ -29,7 +29,7 @@ while getopts "n:b:k" opt; do
   esac
 done
 shift $((OPTIND - 1))
-tetfsi="$PWD/$build/tools/tetfsi"
+tetfsi="$PWD/$build/cli/tetfsi"
 # compare_runs.py: $COMPARE_RUNS, else scripts/compare_runs.py.
 compare=${COMPARE_RUNS:-scripts/compare_runs.py}
 [ -x "$tetfsi" ] || { echo "error: no $tetfsi: build first (make build)" >&2; exit 2; }

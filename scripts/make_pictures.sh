@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerate the README's pictures docs/smoke_sheets.png, docs/paddle.png, docs/toy.png,
+# Regenerate the manual's pictures docs/smoke_sheets.png, docs/paddle.png, docs/toy.png,
 # docs/dam_break.png, docs/bunny.png and docs/bowl.png
 # (and docs/smoke_sheets_stats.png, `tetfsi plot` of the smoke_sheets run):
 # run each scene for part of its length into out/pictures/<scene>/ and render its last frame
@@ -13,7 +13,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
-tetfsi="$BUILD/tools/tetfsi"
+tetfsi="$BUILD/cli/tetfsi"
 [[ -x $tetfsi ]] || { echo "make_pictures: $tetfsi not built; run make build" >&2; exit 1; }
 mkdir -p docs
 

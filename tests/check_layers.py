@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Check that no layer includes a header of a layer above it.
 
-Layers: core <- mesh <- {fluid, solid} <- coupling <- tools; fluid and solid never include
-each other, and no layer includes tests/. Every quoted #include in core/, mesh/, fluid/,
-solid/, coupling/ and tools/ is resolved — `"<layer>/x.hpp"` by its first folder, any other
+Layers: core <- mesh <- {fluid, solid} <- coupling <- io <- scene <- run <- {render, bench}
+<- cli (the application's rooms above coupling); fluid and solid never include each other,
+nor do render and bench, and no layer includes tests/. Every quoted #include in these folders
+is resolved — `"<layer>/x.hpp"` by its first folder, any other
 quoted include relative to the including file — and must land in the file's own layer or one
 below.
 
@@ -25,8 +26,16 @@ ALLOWED = {
     "fluid": {"core", "mesh", "fluid"},
     "solid": {"core", "mesh", "solid"},
     "coupling": {"core", "mesh", "fluid", "solid", "coupling"},
-    "tools": {"core", "mesh", "fluid", "solid", "coupling", "tools"},
 }
+# The application's rooms, each above the one before it; render and bench are siblings.
+_BASE = ALLOWED["coupling"]
+ALLOWED["io"] = _BASE | {"io"}
+ALLOWED["scene"] = ALLOWED["io"] | {"scene"}
+ALLOWED["run"] = ALLOWED["scene"] | {"run"}
+ALLOWED["render"] = ALLOWED["io"] | {"render"}
+ALLOWED["bench"] = ALLOWED["run"] | {"bench"}
+ALLOWED["cli"] = ALLOWED["run"] | {"render", "bench", "cli"}
+ORDER = "core <- mesh <- {fluid, solid} <- coupling <- io <- scene <- run <- {render, bench} <- cli"
 TOP_LEVEL = set(ALLOWED) | {"tests"}
 
 
@@ -59,14 +68,22 @@ def check(root):
                     if to is not None and to not in ALLOWED[layer]:
                         errors.append(f"{rel}:{line}: #include \"{target}\": {layer}/ may "
                                       f"include only {', '.join(sorted(ALLOWED[layer]))} "
-                                      f"(core <- mesh <- {{fluid, solid}} <- coupling <- tools)")
+                                      f"({ORDER})")
     return errors
 
 
 def self_test():
     cases = [
         ("clean", {"mesh/a.hpp": '#include "core/types.hpp"\n#include <vector>\n',
-                   "tools/b.cpp": '#include "coupling/x.hpp"\n#include "b.hpp"\n'}, []),
+                   "run/b.cpp": '#include "coupling/x.hpp"\n#include "b.hpp"\n'}, []),
+        ("io includes scene", {"io/a.cpp": '#include "scene/scene.hpp"\n'},
+         ['io/a.cpp:1: #include "scene/scene.hpp": io/ may include only']),
+        ("rooms that are siblings", {"render/a.cpp": '#include "bench/b.hpp"\n',
+                                     "bench/b.cpp": '#include "render/a.hpp"\n'},
+         ['render/a.cpp:1: #include "bench/b.hpp": render/ may include only',
+          'bench/b.cpp:1: #include "render/a.hpp": bench/ may include only']),
+        ("scene includes render", {"scene/a.hpp": '#include "render/render.hpp"\n'},
+         ['scene/a.hpp:1: #include "render/render.hpp": scene/ may include only']),
         ("lower includes higher", {"core/a.cpp": '// x\n#include "mesh/tet_mesh.hpp"\n'},
          ['core/a.cpp:2: #include "mesh/tet_mesh.hpp": core/ may include only core']),
         ("siblings", {"fluid/a.hpp": '#include "solid/world.hpp"\n'},
@@ -76,7 +93,7 @@ def self_test():
          ['solid/a.cpp:1: #include "../coupling/c.hpp": solid/ may include only']),
         ("tests", {"coupling/a.cpp": '#include "tests/test_util.hpp"\n'},
          ['coupling/a.cpp:1: #include "tests/test_util.hpp": coupling/ may include only']),
-        ("commented out", {"core/a.cpp": '/*\n#include "tools/x.hpp"\n*/\n'}, []),
+        ("commented out", {"core/a.cpp": '/*\n#include "cli/x.hpp"\n*/\n'}, []),
     ]
     failed = 0
     for name, files, expected in cases:

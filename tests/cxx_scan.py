@@ -7,7 +7,8 @@ is enough for this code base's style (clang-format, Google style; no macros that
 
 import re
 
-LAYERS = ["core", "mesh", "fluid", "solid", "coupling", "tools"]
+LAYERS = ["core", "mesh", "fluid", "solid", "coupling", "io", "scene", "run", "render", "bench",
+          "cli"]
 
 
 class Source:

@@ -1,7 +1,7 @@
 #pragma once
 /// @file coupled_test_utils.hpp
 /// A fluid box with solid bodies, stepped by coupling::FsiSimulation — the library's own
-/// simulation object, with its remesh policy, as the run loop uses it; no tools/ layer.
+/// simulation object, with its remesh policy, as the run loop uses it; no application layer.
 #include <memory>
 #include <optional>
 #include <utility>

@@ -153,7 +153,7 @@ TEST_SUITE("unit") {
   }
 }  // TEST_SUITE
 
-// ---- The README's measurement: how much the integrator and the contact each dissipate ----
+// ---- docs/results/solid.md's measurement: how much the integrator and the contact each dissipate ----
 
 namespace {
 

@@ -416,7 +416,7 @@ TEST_CASE("velocity transfer: the old pressure along the path keeps a rigid rota
   // projection removes the radial part); the midpoint rule for the old pressure's acceleration
   // gives that back, and the clamped MacCormack velocity on top removes most of the rest.
   // Measured at 18k cells / 50 steps: −34 %, −25 %, −3 % (the fine figures are the long
-  // test's and the README's).
+  // test's and docs/results/fluid.md's).
   Index cells = 0;
   const double sl = rotation_drift(0.08, 50, Reconstruction::Whitney, &cells);
   const double path = rotation_drift(0.08, 50, Reconstruction::Whitney, &cells,
@@ -435,7 +435,7 @@ TEST_CASE("rigid rotation: the vertex jets with BFECC and the path keep the angu
   // The jets read a linear field exactly (test_operators.cpp) and keep every face's flux,
   // so what is left of the transfer's error on a rigid rotation is the trace's and the
   // clamp's. Measured at 18k cells / 50 steps: +1.1 % per revolution (Whitney: a few %, the
-  // README's table; +0.6 % at 98k cells / 100 steps, the long test).
+  // docs/results/fluid.md's table; +0.6 % at 98k cells / 100 steps, the long test).
   Index cells = 0;
   const double d =
       rotation_drift(0.08, 50, Reconstruction::VertexJets, &cells, TransferScheme::Bfecc, true);
@@ -446,7 +446,7 @@ TEST_CASE("rigid rotation: the vertex jets with BFECC and the path keep the angu
 
 TEST_CASE("transfer table: blob and rotation and Taylor-Green at two resolutions" *
           doctest::test_suite("long")) {
-  // The README's table (fixed CFL: 50 steps per revolution at 18k cells, 100 at 98k).
+  // docs/results/fluid.md's table (fixed CFL: 50 steps per revolution at 18k cells, 100 at 98k).
   for (ScalarInterpolation how : {ScalarInterpolation::VertexFit, ScalarInterpolation::Quadratic})
     for (TransferScheme k : k_all_schemes) {
       // σ = 2 cells of the fine mesh (radius 2σ = 4 cells), 1 cell of the coarse one
