@@ -186,8 +186,9 @@ Command add_run(CLI::App& app) {
   };
   auto o = std::make_shared<Opt>();
   CLI::App* run = app.add_subcommand(
-      "run", "simulate a scene (bodies alone, or with a fluid one- or two-way) and write its frames "
-             "for ParaView, stats.csv and summary.json into OUT");
+      "run",
+      "simulate a scene (bodies alone, or with a fluid one- or two-way) and write its frames "
+      "for ParaView, stats.csv and summary.json into OUT");
   run->add_option("SCENE", o->scene_file, "scene file (JSON)")->required()->type_name("FILE");
   run->add_option("--out,-o", o->out, "output folder (default: out/<scene name>)")
       ->type_name("DIR");
@@ -352,9 +353,10 @@ Command add_scene(CLI::App& app) {
 }
 
 Command add_columns(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand(
-      "columns", "about stats.csv: every column, its unit and meaning (Markdown, as in "
-                 "docs/user/output.md)");
+  CLI::App* cmd =
+      app.add_subcommand("columns",
+                         "about stats.csv: every column, its unit and meaning (Markdown, as in "
+                         "docs/user/output.md)");
   return {cmd, [] {
             std::cout << tetfsi::app::stats_columns_markdown();
             return 0;
@@ -730,6 +732,59 @@ Command add_plot(CLI::App& app) {
   return {cmd, [o] { return tetfsi::app::plot_command(o->out, o->png, std::cout); }};
 }
 
+/// Run the one subcommand the command line chose; every error is one line and exit code 1.
+int dispatch(const std::vector<Command>& commands, const std::string& log_level,
+             const std::string& threads) {
+  using namespace tetfsi;
+  try {
+    set_log_level(rank_index() == 0 ? log_level : std::string("off"));
+    set_thread_count(requested_thread_count(threads));
+    for (const Command& c : commands) {
+      if (!*c.app) continue;
+      TETFSI_REQUIRE(
+          InputError,
+          rank_count() == 1 || c.app->get_name() == "run" || c.app->get_name() == "resume",
+          "only `tetfsi run` and `tetfsi resume` use MPI ranks ({} here): start "
+          "`tetfsi {}` without mpirun",
+          rank_count(), c.app->get_name());
+      return c.action();
+    }
+  } catch (const std::exception& e) {
+    return report_error(e.what());  // tetfsi::Error and everything else: one line
+  } catch (...) {
+    return report_error("unknown internal error");
+  }
+  return 0;
+}
+
+/// `tetfsi --help`'s last part: examples and what a run writes.
+const char* const k_footer =
+    "Examples:\n"
+    "  tetfsi validate data/scenes/sheet_sag.json\n"
+    "  tetfsi run data/scenes/sheet_sag.json --steps 50 --set output.every=5\n"
+    "  tetfsi bench solvers --n 250000 --backends cholmod,amg --json bench.json\n"
+    "  tetfsi quality out/sheet_sag/sheet/sheet_000050.vtu --json q.json --png q.png\n"
+    "  tetfsi run data/scenes/remesh_sheet.json -o out/rs   # the fluid mesh follows the sheet\n"
+    "  tetfsi bench remesh --json remesh.json\n"
+    "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
+    "  tetfsi bench threads data/scenes/smoke_sheets.json --threads-list 1,2\n"
+    "  tetfsi bench scaling data/scenes/smoke_sheets.json --threads 1,2 --ranks 1,2\n"
+    "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
+    "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
+    "  tetfsi run data/scenes/smoke_sheets.json       # the default scene: smoke and two sheets\n"
+    "  tetfsi run data/scenes/dam_break.json          # a liquid on the grid\n"
+    "  tetfsi scene --keys   # every scene key with its default and range\n"
+    "  tetfsi columns        # every stats.csv column with its unit\n"
+    "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
+    "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
+    "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
+    "  tetfsi run data/scenes/toy.json --checkpoint-every 50 --wall-time 11:30:00\n"
+    "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"
+    "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
+    "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
+    "OUT/interface.pvd; checkpoints (run --checkpoint-every N, or a stopped run) in\n"
+    "OUT/checkpoints/. Errors: one line 'error: ...', exit code 1.\n";
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -759,32 +814,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("tetfsi ") + TETFSI_VERSION);
   app.require_subcommand(1);
   app.fallthrough();  // --log-level is accepted after the subcommand too
-  app.footer(
-      "Examples:\n"
-      "  tetfsi validate data/scenes/sheet_sag.json\n"
-      "  tetfsi run data/scenes/sheet_sag.json --steps 50 --set output.every=5\n"
-      "  tetfsi bench solvers --n 250000 --backends cholmod,amg --json bench.json\n"
-      "  tetfsi quality out/sheet_sag/sheet/sheet_000050.vtu --json q.json --png q.png\n"
-      "  tetfsi run data/scenes/remesh_sheet.json -o out/rs   # the fluid mesh follows the sheet\n"
-      "  tetfsi bench remesh --json remesh.json\n"
-      "  tetfsi bench step data/scenes/remesh_sheet.json --json step.json\n"
-      "  tetfsi bench threads data/scenes/smoke_sheets.json --threads-list 1,2\n"
-      "  tetfsi bench scaling data/scenes/smoke_sheets.json --threads 1,2 --ranks 1,2\n"
-      "  tetfsi bench coupled data/scenes/bar.json --json coupled.json   # the two schemes\n"
-      "  tetfsi bench bfgs --json bfgs.json   # [BatheSonnad80] Table I on shell_step\n"
-      "  tetfsi run data/scenes/smoke_sheets.json       # the default scene: smoke and two sheets\n"
-      "  tetfsi run data/scenes/dam_break.json          # a liquid on the grid\n"
-      "  tetfsi scene --keys   # every scene key with its default and range\n"
-      "  tetfsi columns        # every stats.csv column with its unit\n"
-      "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
-      "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
-      "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
-      "  tetfsi run data/scenes/toy.json --checkpoint-every 50 --wall-time 11:30:00\n"
-      "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"
-      "Output: OUT/<body>.pvd (open in ParaView), OUT/<body>/*.vtu, OUT/stats.csv,\n"
-      "OUT/summary.json, OUT/scene.resolved.json; fluid scenes add OUT/fluid.pvd and\n"
-      "OUT/interface.pvd; checkpoints (run --checkpoint-every N, or a stopped run) in\n"
-      "OUT/checkpoints/. Errors: one line 'error: ...', exit code 1.\n");
+  app.footer(k_footer);
 
   std::string log_level = "info";
   app.add_option("--log-level", log_level,
@@ -819,23 +849,5 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
 
-  try {
-    set_log_level(rank_index() == 0 ? log_level : std::string("off"));
-    set_thread_count(requested_thread_count(threads));
-    for (const Command& c : commands) {
-      if (!*c.app) continue;
-      TETFSI_REQUIRE(
-          InputError,
-          rank_count() == 1 || c.app->get_name() == "run" || c.app->get_name() == "resume",
-          "only `tetfsi run` and `tetfsi resume` use MPI ranks ({} here): start "
-          "`tetfsi {}` without mpirun",
-          rank_count(), c.app->get_name());
-      return c.action();
-    }
-  } catch (const std::exception& e) {
-    return report_error(e.what());  // tetfsi::Error and everything else: one line
-  } catch (...) {
-    return report_error("unknown internal error");
-  }
-  return 0;
+  return dispatch(commands, log_level, threads);
 }

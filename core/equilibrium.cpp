@@ -120,8 +120,10 @@ LineSearchResult line_search(const std::function<VecX(const VecX&)>& residual, c
   return done();
 }
 
-EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
-                                    const EquilibriumOptions& opt, EquilibriumHistory& history) {
+namespace {
+
+/// @throws InputError unless the options are in their ranges.
+void check_options(const EquilibriumOptions& opt) {
   TETFSI_REQUIRE(InputError,
                  opt.rtol > 0 && opt.etol > 0 && opt.stol > 0 && opt.stol < 1 &&
                      opt.max_iterations >= 1 && opt.max_updates >= 1 && opt.max_condition > 1,
@@ -129,6 +131,37 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
                  ">= 1, max_updates >= 1, max_condition > 1 (got {}, {}, {}, {}, {}, {})",
                  opt.rtol, opt.etol, opt.stol, opt.max_iterations, opt.max_updates,
                  opt.max_condition);
+}
+
+/// The iterate after x: x + dx, or with `search` the line search's x + β dx [BatheSonnad80,
+/// Eqs. (9), (10)], and its out-of-balance force; the evaluations counted in `rep`.
+struct Step {
+  VecX x, g;
+  double beta = 1.0;
+};
+Step take_step(const EquilibriumProblem& problem, const VecX& x, const VecX& dx, const VecX& g,
+               const EquilibriumOptions& opt, bool search, EquilibriumReport& rep) {
+  Step st;
+  if (search) {
+    LineSearchResult ls = line_search(problem.residual, x, dx, g, opt);
+    rep.evaluations += ls.evaluations;
+    st.beta = ls.beta;
+    st.x = std::move(ls.x);
+    st.g = std::move(ls.g);
+    if (st.beta != 1.0) ++rep.line_searches;
+  } else {
+    st.x = x + dx;
+    ++rep.evaluations;
+    st.g = problem.residual(st.x);
+  }
+  return st;
+}
+
+}  // namespace
+
+EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
+                                    const EquilibriumOptions& opt, EquilibriumHistory& history) {
+  check_options(opt);
   EquilibriumReport rep;
   auto evaluate = [&](const VecX& y) {
     ++rep.evaluations;
@@ -194,20 +227,8 @@ EquilibriumReport solve_equilibrium(const EquilibriumProblem& problem, VecX& x,
       if (carry) history.updates = H.factors();
       return rep;
     }
-    VecX xn, gn;
-    double beta = 1.0;
     const bool search = bfgs ? opt.line_search : opt.line_search_newton;
-    if (search && phi0 > 0.0) {  // see [BatheSonnad80, Eqs. (9), (10)]
-      LineSearchResult ls = line_search(problem.residual, x, dx, g, opt);
-      rep.evaluations += ls.evaluations;
-      beta = ls.beta;
-      xn = std::move(ls.x);
-      gn = std::move(ls.g);
-      if (beta != 1.0) ++rep.line_searches;
-    } else {
-      xn = x + dx;
-      gn = evaluate(xn);
-    }
+    auto [xn, gn, beta] = take_step(problem, x, dx, g, opt, search && phi0 > 0.0, rep);
     if (!gn.allFinite()) {
       rep.failure = fmt::format("the out-of-balance force became non-finite at iteration {}", i);
       return rep;

@@ -450,117 +450,174 @@ void check_ranks_agree(const StepStats& row) {
                  rank_index(), sum);
 }
 
-void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
-                 OutputWriter& out, const RunOptions& opt, RunResult& r, Session& ses) {
-  solid::SolidWorld& world = sim.world();
-  const double dt = scene.time.dt;
-  const int n = scene.time.num_steps();
-  const int every = std::max(1, scene.output.every);
-  const int checkpoint_every = scene.output.checkpoint_every;
-  r.steps_planned = n;
-  r.dt = dt;
-  Progress progress(opt.progress, n, ses.first_step - 1);
-  StepStats row;
-  StateSnapshot last_good;
-  DivergenceGuard& guard = *ses.guard;
-  int last_frame = ses.last_frame;  // step of the last frame written, on schedule or not
-  double longest_step = 0.0, longest_checkpoint = 0.0;
-  int last_checkpoint = -1;
-  const fs::path stop_file = out.out_dir() / "STOP";
-  // When the run stops early, also write the last completed step as a frame if it is not one
-  // yet, so that the collection ends where the run did (best effort: the stop is reported).
-  auto write_last_good_frame = [&](int done) {
-    if (done <= last_frame) return;
+/// The loop of a dynamic run: steps ses.first_step..n, a frame on the output.every schedule,
+/// a stats row per step, checkpoints; a stop request (signal, OUT/STOP, wall time) or a failed
+/// step ends it with the output complete up to the last good step.
+class DynamicLoop {
+ public:
+  DynamicLoop(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
+              OutputWriter& out, const RunOptions& opt, RunResult& r, Session& ses)
+      : m_scene(scene),
+        m_sim(sim),
+        m_fluid(fluid),
+        m_out(out),
+        m_opt(opt),
+        m_r(r),
+        m_ses(ses),
+        m_dt(scene.time.dt),
+        m_n(scene.time.num_steps()),
+        m_every(std::max(1, scene.output.every)),
+        m_progress(opt.progress, m_n, ses.first_step - 1),
+        m_last_frame(ses.last_frame),
+        m_stop_file(out.out_dir() / "STOP") {}
+
+  void run() {
+    m_r.steps_planned = m_n;
+    m_r.dt = m_dt;
+    for (int step = m_ses.first_step; step <= m_n; ++step) {
+      if (stopped_before(step)) return;
+      const double t0 = now_seconds();
+      int fluid_solves = 0;  // iterated coupling schemes
+      if (!advance(step, fluid_solves)) return;
+      finish_step(step, fluid_solves, t0);
+    }
+    m_progress.finish();
+    m_r.completed = true;
+  }
+
+ private:
+  /// When the run stops early, also write the last completed step as a frame if it is not one
+  /// yet, so that the collection ends where the run did (best effort: the stop is reported).
+  void write_last_good_frame(int done) {
+    if (done <= m_last_frame) return;
     try {
-      write_frame(out, sim, done, done * dt);
+      write_frame(m_out, m_sim, done, done * m_dt);
     } catch (const Error& e) {
       logger().warn("could not write the frame of step {}: {}", done, e.what());
     }
-  };
-  // A checkpoint after step `done`, once; a failure is logged and the run goes on.
-  auto checkpoint = [&](int done) {
-    if (done == last_checkpoint) return;
+  }
+
+  /// A checkpoint after step `done`, once; a failure is logged and the run goes on.
+  void checkpoint(int done) {
+    if (done == m_last_checkpoint) return;
     const double t0 = now_seconds();
     try {
       // Rank 0 writes the checkpoint (the state is the same on every rank).
-      r.checkpoint = is_root_rank() ? write_checkpoint(scene, sim, fluid, out, r, ses, done)
-                                    : checkpoint_path(out.out_dir(), done);
-      last_checkpoint = done;
+      m_r.checkpoint = is_root_rank()
+                           ? write_checkpoint(m_scene, m_sim, m_fluid, m_out, m_r, m_ses, done)
+                           : checkpoint_path(m_out.out_dir(), done);
+      m_last_checkpoint = done;
     } catch (const Error& e) {
       logger().error("no checkpoint after step {}: {}", done, one_line(e.what()));
     }
-    longest_checkpoint = std::max(longest_checkpoint, now_seconds() - t0);
-  };
-  for (int step = ses.first_step; step <= n; ++step) {
-    if (const auto stop = stop_request(opt, stop_file, ses, longest_step, longest_checkpoint)) {
-      progress.finish();
-      checkpoint(step - 1);
-      write_last_good_frame(step - 1);
-      if (stop->first == "stop_file" && is_root_rank()) {
-        std::error_code ec;
-        fs::remove(stop_file, ec);  // consumed: a resumed run must not stop at once
-      }
-      r.interrupted = true;
-      r.stop_reason = stop->first;
-      r.error =
-          fmt::format("{} after step {}/{} (t = {:.6g} s); the output is complete up to there; {}",
-                      stop->second, step - 1, n, (step - 1) * dt,
-                      last_checkpoint == step - 1 ? "resume with: " + resume_command(r)
+    m_longest_checkpoint = std::max(m_longest_checkpoint, now_seconds() - t0);
+  }
+
+  /// A stop asked for before `step` (signal, OUT/STOP, wall time): checkpoint, last frame,
+  /// the reason in the result; true if the run stops.
+  bool stopped_before(int step) {
+    const auto stop = stop_request(m_opt, m_stop_file, m_ses, m_longest_step, m_longest_checkpoint);
+    if (!stop) return false;
+    m_progress.finish();
+    checkpoint(step - 1);
+    write_last_good_frame(step - 1);
+    if (stop->first == "stop_file" && is_root_rank()) {
+      std::error_code ec;
+      fs::remove(m_stop_file, ec);  // consumed: a resumed run must not stop at once
+    }
+    m_r.interrupted = true;
+    m_r.stop_reason = stop->first;
+    m_r.error =
+        fmt::format("{} after step {}/{} (t = {:.6g} s); the output is complete up to there; {}",
+                    stop->second, step - 1, m_n, (step - 1) * m_dt,
+                    m_last_checkpoint == step - 1 ? "resume with: " + resume_command(m_r)
                                                   : std::string("no checkpoint could be written"));
-      return;
-    }
-    const double t = step * dt;
-    row.phases.reset();
-    const double t0 = now_seconds();
-    last_good.save(world);
-    guard.before_step(world);
-    int fluid_solves = 0;  // iterated coupling schemes
+    return true;
+  }
+
+  /// The simulation's step, its figures into the row and, on schedule, a frame. On failure
+  /// the world is back at the last good step, its frame written, the error in the result.
+  bool advance(int step, int& fluid_solves) {
+    const double t = step * m_dt;
+    solid::SolidWorld& world = m_sim.world();
+    m_row.phases.reset();
+    m_last_good.save(world);
+    m_ses.guard->before_step(world);
     try {
-      const coupling::FsiStepReport rep = sim.step(dt, row.phases);
-      if (const auto diverged = guard.after_step(world, rep)) throw SolverError(*diverged);
-      if (fluid) {
-        fluid->record(rep, sim);
-        row.fluid = fluid->stats();
+      const coupling::FsiStepReport rep = m_sim.step(m_dt, m_row.phases);
+      if (const auto diverged = m_ses.guard->after_step(world, rep)) throw SolverError(*diverged);
+      if (m_fluid) {
+        m_fluid->record(rep, m_sim);
+        m_row.fluid = m_fluid->stats();
       }
-      fluid_solves = record_report(rep, fluid, row, r);
-      if (step % every == 0 || step == n) {
-        ScopedTimer timer(row.phases, "output");
-        write_frame(out, sim, step, t);
-        last_frame = step;
+      fluid_solves = record_report(rep, m_fluid, m_row, m_r);
+      if (step % m_every == 0 || step == m_n) {
+        ScopedTimer timer(m_row.phases, "output");
+        write_frame(m_out, m_sim, step, t);
+        m_last_frame = step;
         // A frame off the schedule (the last step's) is not one of a longer run's frames.
-        if (step % every == 0) ses.last_frame = step;
+        if (step % m_every == 0) m_ses.last_frame = step;
       }
-      fill_energies(world, row);
-      fill_poses(world, row, r);
-      check_ranks_agree(row);
+      fill_energies(world, m_row);
+      fill_poses(world, m_row, m_r);
+      check_ranks_agree(m_row);
     } catch (const Error& e) {
-      progress.finish();
-      last_good.restore(world);  // the summary reports the state after the last good step
+      m_progress.finish();
+      m_last_good.restore(world);  // the summary reports the state after the last good step
       write_last_good_frame(step - 1);
-      r.error = one_line(fmt::format("step {}/{} (t = {:.6g} s) failed: {}", step, n, t, e.what()));
-      return;
+      m_r.error =
+          one_line(fmt::format("step {}/{} (t = {:.6g} s) failed: {}", step, m_n, t, e.what()));
+      return false;
     }
-    row.phases.add("total", now_seconds() - t0);
-    longest_step = std::max(longest_step, now_seconds() - t0);
-    row.step = step;
-    row.time = t;
-    row.dt = dt;
-    out.write_stats(row);
-    if (r.equilibrium) {
-      EquilibriumSummary& e = *r.equilibrium;
+    return true;
+  }
+
+  /// The step's stats row, the equilibrium totals, the progress and a scheduled checkpoint.
+  void finish_step(int step, int fluid_solves, double t0) {
+    const double t = step * m_dt;
+    m_row.phases.add("total", now_seconds() - t0);
+    m_longest_step = std::max(m_longest_step, now_seconds() - t0);
+    m_row.step = step;
+    m_row.time = t;
+    m_row.dt = m_dt;
+    m_out.write_stats(m_row);
+    if (m_r.equilibrium) {
+      EquilibriumSummary& e = *m_r.equilibrium;
       e.steps += 1;
-      e.max_iterations = std::max(e.max_iterations, row.equilibrium_iterations);
-      e.iterations += row.equilibrium_iterations;
-      e.evaluations += row.equilibrium_evaluations;
+      e.max_iterations = std::max(e.max_iterations, m_row.equilibrium_iterations);
+      e.iterations += m_row.equilibrium_iterations;
+      e.evaluations += m_row.equilibrium_evaluations;
       e.fluid_solves += fluid_solves;
     }
-    r.steps_done = step;
-    r.end_time = t;
-    progress.update(step, t);
-    if (checkpoint_every > 0 && (step % checkpoint_every == 0 || step == n)) checkpoint(step);
+    m_r.steps_done = step;
+    m_r.end_time = t;
+    m_progress.update(step, t);
+    const int every = m_scene.output.checkpoint_every;
+    if (every > 0 && (step % every == 0 || step == m_n)) checkpoint(step);
   }
-  progress.finish();
-  r.completed = true;
+
+  const Scene& m_scene;
+  coupling::FsiSimulation& m_sim;
+  RunRecorder* m_fluid;
+  OutputWriter& m_out;
+  const RunOptions& m_opt;
+  RunResult& m_r;
+  Session& m_ses;
+  const double m_dt;
+  const int m_n;
+  const int m_every;
+  Progress m_progress;
+  StepStats m_row;
+  StateSnapshot m_last_good;
+  int m_last_frame;  ///< step of the last frame written, on schedule or not
+  double m_longest_step = 0.0, m_longest_checkpoint = 0.0;
+  int m_last_checkpoint = -1;
+  const fs::path m_stop_file;
+};
+
+void run_dynamic(const Scene& scene, coupling::FsiSimulation& sim, RunRecorder* fluid,
+                 OutputWriter& out, const RunOptions& opt, RunResult& r, Session& ses) {
+  DynamicLoop(scene, sim, fluid, out, opt, r, ses).run();
 }
 
 /// The equilibrium summary a dynamic run starts with, if it iterates to equilibrium: an
@@ -797,19 +854,20 @@ nlohmann::json check_run_records(const CheckpointReader& ck, const fs::path& out
 
 }  // namespace
 
-RunResult resume_run(const ResumeOptions& ro) {
+namespace {
+
+/// Open the newest valid checkpoint of the run's folder into `ck` (older ones only with
+/// --fallback) and return the run records' resolved scene.
+/// @throws CheckpointError if there is none.
+nlohmann::json open_newest_checkpoint(const ResumeOptions& ro,
+                                      std::optional<CheckpointReader>& ck) {
   const RunOptions& opt = ro.run;
-  TETFSI_REQUIRE(InputError, !opt.out_dir.empty(), "no output folder given");
-  Session ses;
-  ses.begin = now_seconds();
   const std::vector<CheckpointFile> files = list_checkpoints(opt.out_dir);
   if (files.empty())
     throw CheckpointError(fmt::format(
         "no checkpoint to resume from in '{}' (a run writes them with --checkpoint-every N, and "
         "when it is stopped)",
         checkpoint_dir(opt.out_dir).string()));
-  // The newest valid checkpoint (older ones only with --fallback).
-  std::optional<CheckpointReader> ck;
   nlohmann::json stored;
   for (auto it = files.rbegin(); it != files.rend() && !ck; ++it) {
     try {
@@ -831,24 +889,67 @@ RunResult resume_run(const ResumeOptions& ro) {
   if (!ck)
     throw CheckpointError(
         fmt::format("no valid checkpoint in '{}'", checkpoint_dir(opt.out_dir).string()));
-  const int step = static_cast<int>(ck->get_int("run/step"));
+  return stored;
+}
 
-  // The stored scene with the allowed overrides; the physics must not change.
+/// The checkpoint's scene with the allowed overrides; the physics must not change and the run
+/// must have steps left after `step`.
+Scene resumed_scene(const ResumeOptions& ro, const CheckpointReader& ck,
+                    const nlohmann::json& stored, int step) {
   Scene scene = apply_overrides(
-      parse_scene_text(ck->get_text("run/scene"), ck->get_text("run/scene_file"), ro.overrides),
-      opt);
+      parse_scene_text(ck.get_text("run/scene"), ck.get_text("run/scene_file"), ro.overrides),
+      ro.run);
   if (auto d = first_difference(physics_part(stored), physics_part(scene.resolved)))
     throw InputError(fmt::format(
         "checkpoint '{}': the resumed scene differs in {} (a resumed run may change output.*, "
         "time.steps and time.end_time only)",
-        ck->path().string(), *d));
+        ck.path().string(), *d));
   const int n = scene.time.num_steps();
   TETFSI_REQUIRE(InputError, n > step,
                  "checkpoint '{}' is at step {}, the run's last step is {}: give --steps N (more "
                  "than {}) or --end-time T to go on",
-                 ck->path().string(), step, n, step);
-  logger().info("resuming '{}' from '{}' (step {} of {})", opt.out_dir.string(),
-                ck->path().string(), step, n);
+                 ck.path().string(), step, n, step);
+  logger().info("resuming '{}' from '{}' (step {} of {})", ro.run.out_dir.string(),
+                ck.path().string(), step, n);
+  return scene;
+}
+
+/// The simulation, the run's figures and the session as the checkpoint left them.
+void restore_run(const CheckpointReader& ck, const Scene& scene, coupling::FsiSimulation& sim,
+                 std::optional<RunRecorder>& fluid, RunResult& r, Session& ses) {
+  const solid::SolidWorld& world = sim.world();
+  load_pose_ranges(ck, world.bodies.size(), r);
+  if (ck.get_bool("run/has_contact") != r.contact.has_value())
+    ck.fail("run/has_contact: the run's scene and the checkpoint's differ in contact");
+  if (r.contact) visit_contact(*r.contact, RecordLoader{ck, "run/contact/"});
+  sim.load_state(ck);  // instead of start(): the state after the checkpoint's step
+  if (fluid) {
+    if (!ck.get_bool("run/has_recorder")) ck.fail("run/has_recorder: the run had no fluid");
+    fluid->load_state(ck);
+    sim.set_mesh_observer(fluid->mesh_observer());
+  }
+  if (ck.get_bool("run/has_equilibrium")) {
+    r.equilibrium.emplace();
+    visit_equilibrium(*r.equilibrium, RecordLoader{ck, "run/equilibrium/"});
+  }
+  ses.guard.emplace(world, divergence_scales(scene));
+  ses.guard->load_state(ck);
+  ses.first_step = static_cast<int>(ck.get_int("run/step")) + 1;
+  ses.last_frame = static_cast<int>(ck.get_int("run/last_frame"));
+  ses.wall_before = ck.get_double("run/wall_s");
+}
+
+}  // namespace
+
+RunResult resume_run(const ResumeOptions& ro) {
+  const RunOptions& opt = ro.run;
+  TETFSI_REQUIRE(InputError, !opt.out_dir.empty(), "no output folder given");
+  Session ses;
+  ses.begin = now_seconds();
+  std::optional<CheckpointReader> ck;
+  const nlohmann::json stored = open_newest_checkpoint(ro, ck);
+  const int step = static_cast<int>(ck->get_int("run/step"));
+  const Scene scene = resumed_scene(ro, *ck, stored, step);
 
   RunResult r;
   r.scene_name = scene.name;
@@ -858,40 +959,112 @@ RunResult resume_run(const ResumeOptions& ro) {
   visit_result(r, RecordLoader{*ck, "run/result/"});
   std::optional<RunRecorder> fluid;
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
-  const solid::SolidWorld& world = sim.world();
-  load_pose_ranges(*ck, world.bodies.size(), r);
-  if (ck->get_bool("run/has_contact") != r.contact.has_value())
-    ck->fail("run/has_contact: the run's scene and the checkpoint's differ in contact");
-  if (r.contact) visit_contact(*r.contact, RecordLoader{*ck, "run/contact/"});
-  sim.load_state(*ck);  // instead of start(): the state after `step`
-  if (fluid) {
-    if (!ck->get_bool("run/has_recorder")) ck->fail("run/has_recorder: the run had no fluid");
-    fluid->load_state(*ck);
-    sim.set_mesh_observer(fluid->mesh_observer());
-  }
-  if (ck->get_bool("run/has_equilibrium")) {
-    r.equilibrium.emplace();
-    visit_equilibrium(*r.equilibrium, RecordLoader{*ck, "run/equilibrium/"});
-  }
-  ses.guard.emplace(world, divergence_scales(scene));
-  ses.guard->load_state(*ck);
-  ses.first_step = step + 1;
-  ses.last_frame = static_cast<int>(ck->get_int("run/last_frame"));
-  ses.wall_before = ck->get_double("run/wall_s");
+  restore_run(*ck, scene, sim, fluid, r, ses);
 
   ses.start = now_seconds();
-  OutputWriter out(opt.out_dir, output_plan(scene), world, step);
+  OutputWriter out(opt.out_dir, output_plan(scene), sim.world(), step);
   out.load_state(*ck);
   remove_stale_stop_file(opt.out_dir);
   ck.reset();  // its memory, before the run goes on
   run_dynamic(scene, sim, fluid ? &*fluid : nullptr, out, opt, r, ses);
-  finish_run(world, fluid, out, ses, r);
+  finish_run(sim.world(), fluid, out, ses, r);
   return r;
 }
 
 std::string resume_command(const RunResult& r) {
   return "tetfsi resume " + shell_quote(r.out_dir.string());
 }
+
+namespace {
+
+/// summary.json's "bodies": name, size, the largest displacement and pose extremes of each.
+nlohmann::json bodies_json(const RunResult& r) {
+  nlohmann::json bodies = nlohmann::json::array();
+  for (const auto& b : r.bodies)
+    bodies.push_back({{"name", b.name},
+                      {"nodes", b.nodes},
+                      {"tets", b.tets},
+                      {"max_displacement", b.max_displacement},
+                      {"min_lowest", b.pose.min_lowest},
+                      {"max_rotation_deg", b.pose.max_rotation_deg}});
+  return bodies;
+}
+
+/// summary.json's "contact" (scenes with contact between bodies).
+nlohmann::json contact_json(const ContactSummary& c) {
+  nlohmann::json j;
+  j["contact"] = {{"gap", c.gap},
+                  {"min_gap", c.min_gap},
+                  {"steps_in_contact", c.steps_in_contact},
+                  {"max_pairs", c.max_pairs},
+                  {"max_force", c.max_force},
+                  {"crossings", c.crossings},
+                  {"seconds", c.seconds}};
+  return j["contact"];
+}
+
+/// summary.json's "fluid" (fluid scenes).
+nlohmann::json fluid_json(const FluidSummary& f) {
+  nlohmann::json j;
+  j["fluid"] = {{"remeshes", f.remeshes},
+                {"remesh_seconds", f.remesh_s},
+                {"ms_per_remesh", f.ms_per_remesh()},
+                {"max_remesh_seconds", f.max_remesh_s},
+                {"cells", f.cells},
+                {"vertices", f.vertices},
+                {"min_dihedral_deg", f.min_dihedral_deg},
+                {"max_slivers", f.max_slivers},
+                {"fluid_steps", f.fluid_steps},
+                {"fluid_seconds", f.fluid_s},
+                {"pressure_iterations", f.pressure_iterations},
+                {"unconverged_pressure_solves", f.unconverged_pressure_solves},
+                {"max_divergence", f.max_divergence},
+                {"max_cfl", f.max_cfl},
+                {"smoke_mass", f.smoke_mass},
+                {"kinetic_energy", f.fluid_kinetic_energy}};
+  return j["fluid"];
+}
+
+/// summary.json's "coupling" (two-way runs).
+nlohmann::json coupling_json(const CouplingSummary& c) {
+  nlohmann::json j;
+  j["coupling"] = {{"scheme", c.scheme},
+                   {"solver", c.solver},
+                   {"coupled_steps", c.coupled_steps},
+                   {"coupled_iterations", c.iterations},
+                   {"max_residual", c.max_residual},
+                   {"unconverged_solves", c.unconverged_solves},
+                   {"steps_at_round_off_floor", c.steps_at_floor},
+                   {"max_round_off_floor", c.max_floor},
+                   {"max_interface_power", c.max_interface_power},
+                   {"max_interface_imbalance", c.max_interface_imbalance},
+                   {"max_enclosed_regions", c.max_enclosed_regions},
+                   {"max_volume_drift", c.max_volume_drift},
+                   {"enclosed_volume", c.enclosed_volume},
+                   {"unpredicted_meshes", c.unpredicted_meshes},
+                   {"solid_iterations", c.solid_iterations},
+                   {"total_energy", c.total_energy}};
+  return j["coupling"];
+}
+
+/// summary.json's "equilibrium" (runs that iterate to equilibrium).
+nlohmann::json equilibrium_json(const EquilibriumSummary& e) {
+  nlohmann::json j;
+  j["equilibrium"] = {{"method", e.method},
+                      {"via", e.via},
+                      {"steps", e.steps},
+                      {"max_iterations", e.max_iterations},
+                      {"avg_iterations", e.avg_iterations()},
+                      {"evaluations_per_step", e.evaluations_per_step()},
+                      {"iterations", e.iterations},
+                      {"evaluations", e.evaluations},
+                      {"iteration_limit", e.iteration_limit}};
+  if (e.via == "coupling.scheme")
+    j["equilibrium"]["fluid_solves_per_step"] = e.fluid_solves_per_step();
+  return j["equilibrium"];
+}
+
+}  // namespace
 
 std::string summary_json(const RunResult& r) {
   nlohmann::json j;
@@ -922,81 +1095,18 @@ std::string summary_json(const RunResult& r) {
                  {"elastic", r.elastic_energy},
                  {"gravity_potential", r.gravity_potential},
                  {"total", r.kinetic_energy + r.elastic_energy + r.gravity_potential}};
-  nlohmann::json bodies = nlohmann::json::array();
-  for (const auto& b : r.bodies)
-    bodies.push_back({{"name", b.name},
-                      {"nodes", b.nodes},
-                      {"tets", b.tets},
-                      {"max_displacement", b.max_displacement},
-                      {"min_lowest", b.pose.min_lowest},
-                      {"max_rotation_deg", b.pose.max_rotation_deg}});
-  j["bodies"] = bodies;
-  if (r.contact) {
-    const ContactSummary& c = *r.contact;
-    j["contact"] = {{"gap", c.gap},
-                    {"min_gap", c.min_gap},
-                    {"steps_in_contact", c.steps_in_contact},
-                    {"max_pairs", c.max_pairs},
-                    {"max_force", c.max_force},
-                    {"crossings", c.crossings},
-                    {"seconds", c.seconds}};
-  }
-  if (r.fluid) {
-    const FluidSummary& f = *r.fluid;
-    j["fluid"] = {{"remeshes", f.remeshes},
-                  {"remesh_seconds", f.remesh_s},
-                  {"ms_per_remesh", f.ms_per_remesh()},
-                  {"max_remesh_seconds", f.max_remesh_s},
-                  {"cells", f.cells},
-                  {"vertices", f.vertices},
-                  {"min_dihedral_deg", f.min_dihedral_deg},
-                  {"max_slivers", f.max_slivers},
-                  {"fluid_steps", f.fluid_steps},
-                  {"fluid_seconds", f.fluid_s},
-                  {"pressure_iterations", f.pressure_iterations},
-                  {"unconverged_pressure_solves", f.unconverged_pressure_solves},
-                  {"max_divergence", f.max_divergence},
-                  {"max_cfl", f.max_cfl},
-                  {"smoke_mass", f.smoke_mass},
-                  {"kinetic_energy", f.fluid_kinetic_energy}};
-  }
-  if (r.coupling) {
-    const CouplingSummary& c = *r.coupling;
-    j["coupling"] = {{"scheme", c.scheme},
-                     {"solver", c.solver},
-                     {"coupled_steps", c.coupled_steps},
-                     {"coupled_iterations", c.iterations},
-                     {"max_residual", c.max_residual},
-                     {"unconverged_solves", c.unconverged_solves},
-                     {"steps_at_round_off_floor", c.steps_at_floor},
-                     {"max_round_off_floor", c.max_floor},
-                     {"max_interface_power", c.max_interface_power},
-                     {"max_interface_imbalance", c.max_interface_imbalance},
-                     {"max_enclosed_regions", c.max_enclosed_regions},
-                     {"max_volume_drift", c.max_volume_drift},
-                     {"enclosed_volume", c.enclosed_volume},
-                     {"unpredicted_meshes", c.unpredicted_meshes},
-                     {"solid_iterations", c.solid_iterations},
-                     {"total_energy", c.total_energy}};
-  }
-  if (r.equilibrium) {
-    const EquilibriumSummary& e = *r.equilibrium;
-    j["equilibrium"] = {{"method", e.method},
-                        {"via", e.via},
-                        {"steps", e.steps},
-                        {"max_iterations", e.max_iterations},
-                        {"avg_iterations", e.avg_iterations()},
-                        {"evaluations_per_step", e.evaluations_per_step()},
-                        {"iterations", e.iterations},
-                        {"evaluations", e.evaluations},
-                        {"iteration_limit", e.iteration_limit}};
-    if (e.via == "coupling.scheme")
-      j["equilibrium"]["fluid_solves_per_step"] = e.fluid_solves_per_step();
-  }
+  j["bodies"] = bodies_json(r);
+  if (r.contact) j["contact"] = contact_json(*r.contact);
+  if (r.fluid) j["fluid"] = fluid_json(*r.fluid);
+  if (r.coupling) j["coupling"] = coupling_json(*r.coupling);
+  if (r.equilibrium) j["equilibrium"] = equilibrium_json(*r.equilibrium);
   return j.dump(2) + "\n";
 }
 
-void print_summary(const RunResult& r, std::ostream& out) {
+namespace {
+
+/// The summary's first line: the scene, how far it got, in how long, on what.
+void print_headline(const RunResult& r, std::ostream& out) {
   // "2 threads", or under mpirun "2 ranks x 1 thread"
   const std::string on = fmt::format(
       "{}{} thread{}", r.ranks > 1 ? fmt::format("{} ranks x ", r.ranks) : std::string(), r.threads,
@@ -1014,6 +1124,67 @@ void print_summary(const RunResult& r, std::ostream& out) {
         r.steps_done, r.steps_planned, r.dt, r.end_time, r.wall_s, r.ms_per_step(), on,
         r.frames_written, r.frames_written == 1 ? "" : "s");
   }
+}
+
+/// The summary's fluid lines: the remeshes and the flow.
+void print_fluid_summary(const FluidSummary& f, std::ostream& out) {
+  out << fmt::format(
+      "fluid: {} remeshes, {:.3g} ms each on average (max {:.3g} ms); last mesh {} cells, {} "
+      "vertices; min dihedral {:.3g} deg, at most {} slivers\n",
+      f.remeshes, f.ms_per_remesh(), 1e3 * f.max_remesh_s, f.cells, f.vertices, f.min_dihedral_deg,
+      f.max_slivers);
+  if (f.fluid_steps > 0)
+    out << fmt::format(
+        "fluid flow: {} steps, {:.3g} ms each (transfer + forces + pressure), {:.3g} pressure "
+        "iterations per step, max divergence {:.3g} 1/s, max CFL {:.3g}; smoke mass {:.6g} "
+        "kg, kinetic energy {:.6g} J{}\n",
+        f.fluid_steps, 1e3 * f.fluid_s / f.fluid_steps,
+        static_cast<double>(f.pressure_iterations) / f.fluid_steps, f.max_divergence, f.max_cfl,
+        f.smoke_mass, f.fluid_kinetic_energy,
+        f.unconverged_pressure_solves > 0
+            ? fmt::format("; {} unconverged pressure solves", f.unconverged_pressure_solves)
+            : std::string());
+}
+
+/// The summary's coupling line.
+void print_coupling_summary(const CouplingSummary& c, std::ostream& out) {
+  out << fmt::format(
+      "coupling: {} ({}), {} coupled steps, {:.3g} iterations per step, max residual {:.3g}, "
+      "max |interface power| {:.3g} W, fluid + solid energy {:.6g} J",
+      c.scheme, c.solver, c.coupled_steps,
+      c.coupled_steps > 0 ? static_cast<double>(c.iterations) / c.coupled_steps : 0.0,
+      c.max_residual, c.max_interface_power, c.total_energy);
+  if (c.max_enclosed_regions > 0)
+    out << fmt::format("; {} enclosed region{}, {:.6g} m^3, max volume drift {:.3g}",
+                       c.max_enclosed_regions, c.max_enclosed_regions == 1 ? "" : "s",
+                       c.enclosed_volume, c.max_volume_drift);
+  if (c.unpredicted_meshes > 0)
+    out << fmt::format("; {} step(s) meshed around t^n (x* not meshable)", c.unpredicted_meshes);
+  if (c.unconverged_solves > 0)
+    out << fmt::format("; {} unconverged coupled solves", c.unconverged_solves);
+  if (c.steps_at_floor > 0)
+    out << fmt::format(
+        "; {} step(s) solved to their round-off floor (up to {:.3g}), above coupling.rel_tol",
+        c.steps_at_floor, c.max_floor);
+  out << "\n";
+}
+
+/// The summary's equilibrium line.
+void print_equilibrium_summary(const EquilibriumSummary& e, std::ostream& out) {
+  out << fmt::format(
+      "equilibrium: {} ({}), {:.3g} iterations per step on average, at most {} (limit {}), "
+      "{:.3g} residual evaluations per step",
+      e.method, e.via, e.avg_iterations(), e.max_iterations, e.iteration_limit,
+      e.evaluations_per_step());
+  if (e.via == "coupling.scheme")
+    out << fmt::format(", {:.3g} fluid solves per step", e.fluid_solves_per_step());
+  out << "\n";
+}
+
+}  // namespace
+
+void print_summary(const RunResult& r, std::ostream& out) {
+  print_headline(r, out);
   out << fmt::format("output: {}\n", r.out_dir.string());
   out << fmt::format("energy (J): kinetic {:.6g}, elastic {:.6g}, gravity {:.6g}, total {:.6g}\n",
                      r.kinetic_energy, r.elastic_energy, r.gravity_potential,
@@ -1028,58 +1199,9 @@ void print_summary(const RunResult& r, std::ostream& out) {
         c.gap, c.min_gap, c.min_gap / c.gap, c.steps_in_contact, c.max_pairs, c.max_force,
         c.crossings, c.seconds);
   }
-  if (r.fluid && r.fluid->remeshes > 0) {
-    const FluidSummary& f = *r.fluid;
-    out << fmt::format(
-        "fluid: {} remeshes, {:.3g} ms each on average (max {:.3g} ms); last mesh {} cells, {} "
-        "vertices; min dihedral {:.3g} deg, at most {} slivers\n",
-        f.remeshes, f.ms_per_remesh(), 1e3 * f.max_remesh_s, f.cells, f.vertices,
-        f.min_dihedral_deg, f.max_slivers);
-    if (f.fluid_steps > 0)
-      out << fmt::format(
-          "fluid flow: {} steps, {:.3g} ms each (transfer + forces + pressure), {:.3g} pressure "
-          "iterations per step, max divergence {:.3g} 1/s, max CFL {:.3g}; smoke mass {:.6g} "
-          "kg, kinetic energy {:.6g} J{}\n",
-          f.fluid_steps, 1e3 * f.fluid_s / f.fluid_steps,
-          static_cast<double>(f.pressure_iterations) / f.fluid_steps, f.max_divergence, f.max_cfl,
-          f.smoke_mass, f.fluid_kinetic_energy,
-          f.unconverged_pressure_solves > 0
-              ? fmt::format("; {} unconverged pressure solves", f.unconverged_pressure_solves)
-              : std::string());
-  }
-  if (r.coupling) {
-    const CouplingSummary& c = *r.coupling;
-    out << fmt::format(
-        "coupling: {} ({}), {} coupled steps, {:.3g} iterations per step, max residual {:.3g}, "
-        "max |interface power| {:.3g} W, fluid + solid energy {:.6g} J",
-        c.scheme, c.solver, c.coupled_steps,
-        c.coupled_steps > 0 ? static_cast<double>(c.iterations) / c.coupled_steps : 0.0,
-        c.max_residual, c.max_interface_power, c.total_energy);
-    if (c.max_enclosed_regions > 0)
-      out << fmt::format("; {} enclosed region{}, {:.6g} m^3, max volume drift {:.3g}",
-                         c.max_enclosed_regions, c.max_enclosed_regions == 1 ? "" : "s",
-                         c.enclosed_volume, c.max_volume_drift);
-    if (c.unpredicted_meshes > 0)
-      out << fmt::format("; {} step(s) meshed around t^n (x* not meshable)", c.unpredicted_meshes);
-    if (c.unconverged_solves > 0)
-      out << fmt::format("; {} unconverged coupled solves", c.unconverged_solves);
-    if (c.steps_at_floor > 0)
-      out << fmt::format(
-          "; {} step(s) solved to their round-off floor (up to {:.3g}), above coupling.rel_tol",
-          c.steps_at_floor, c.max_floor);
-    out << "\n";
-  }
-  if (r.equilibrium) {
-    const EquilibriumSummary& e = *r.equilibrium;
-    out << fmt::format(
-        "equilibrium: {} ({}), {:.3g} iterations per step on average, at most {} (limit {}), "
-        "{:.3g} residual evaluations per step",
-        e.method, e.via, e.avg_iterations(), e.max_iterations, e.iteration_limit,
-        e.evaluations_per_step());
-    if (e.via == "coupling.scheme")
-      out << fmt::format(", {:.3g} fluid solves per step", e.fluid_solves_per_step());
-    out << "\n";
-  }
+  if (r.fluid && r.fluid->remeshes > 0) print_fluid_summary(*r.fluid, out);
+  if (r.coupling) print_coupling_summary(*r.coupling, out);
+  if (r.equilibrium) print_equilibrium_summary(*r.equilibrium, out);
   if (r.unconverged_steps > 0)
     out << fmt::format("warning: {} step(s) with an unconverged linear solve\n",
                        r.unconverged_steps);

@@ -266,9 +266,9 @@ def self_test():
                          "// [Paper99, Eq. (1)]\n}\n}\n"}, INDEX,
          ["coupling/c.cpp:3: [Paper99, Eq. (1)] is an implementing site in ns::g, but the "
           "index's implementing site of (1) is ns::Body::step in solid/a.cpp"]),
-        ("site of a derivation-only equation", {"tools/d.cpp": "void g() {\n/* [Paper99, "
+        ("site of a derivation-only equation", {"run/d.cpp": "void g() {\n/* [Paper99, "
                                                 "Eq. (2)] */\n}\n"}, INDEX,
-         ["tools/d.cpp:2: [Paper99, Eq. (2)] is an implementing site in g, but the index's "
+         ["run/d.cpp:2: [Paper99, Eq. (2)] is an implementing site in g, but the index's "
           "implementing site of (2) has none"]),
         ("function gone", {}, INDEX.replace("ns::helper", "ns::helper2"),
          ["REFERENCES.md:9: Paper99 (3): no definition of ns::helper2 in solid/a.cpp"]),
