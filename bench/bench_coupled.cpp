@@ -19,7 +19,9 @@
 #include "core/log.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
+#include "coupling/grid_fluid.hpp"
 #include "coupling/simulation.hpp"
+#include "coupling/tet_fluid.hpp"
 #include "fluid/grid_projection.hpp"
 #include "fluid/operators.hpp"
 #include "io/output.hpp"
@@ -163,7 +165,7 @@ std::unique_ptr<LinearSolver> fluid_only_solver(const fluid::FluidParams& fp,
 /// (c) on the tet mesh: the next step's mesh, v* on it, solve_coupled against fluid::project.
 SolveFigures time_tet_solves(const Scene& scene, coupling::FsiSimulation& fsi,
                              const coupling::CoupledOptions& solve, double h) {
-  const fluid::FluidSimulation& sim = fsi.fluid();
+  const fluid::FluidSimulation& sim = *coupling::tet_fluid(fsi.fluid());
   solid::SolidWorld world = fsi.world();
   const NextStep n = next_step(world, h);
   PhaseTimes phases;
@@ -209,8 +211,9 @@ SolveFigures time_grid_solves(coupling::FsiSimulation& fsi, const coupling::Coup
   solid::SolidWorld world = fsi.world();
   NextStep n = next_step(world, h);
   const coupling::RemeshPolicy& policy = *fsi.remesh_policy();
-  coupling::GridCoupledFluid gf(*fsi.grid(), policy.domain(), policy.surfaces(), policy.names(),
-                                n.ifaces, fsi.grid_forces());
+  auto& grid = dynamic_cast<coupling::GridSimFluid&>(*fsi.fluid());
+  coupling::GridCoupledFluid gf(grid.grid(), policy.domain(), policy.surfaces(), policy.names(),
+                                n.ifaces, grid.forces_form());
   PhaseTimes phases;
   const std::unique_ptr<coupling::PredictedFluid> pred =
       gf.predict(n.positions, n.motion, h, phases);
@@ -254,7 +257,8 @@ SolveFigures time_solves(const Scene& scene, const solid::SolidWorld& world0, in
   PhaseTimes phases;
   fsi.start(phases);
   for (int k = 0; k < warm; ++k) fsi.step(h, phases);
-  return fsi.grid() ? time_grid_solves(fsi, p.solve, h) : time_tet_solves(scene, fsi, p.solve, h);
+  return coupling::grid_fluid(fsi.fluid()) ? time_grid_solves(fsi, p.solve, h)
+                                           : time_tet_solves(scene, fsi, p.solve, h);
 }
 
 nlohmann::json opt_json(const std::optional<double>& v) {

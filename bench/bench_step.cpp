@@ -21,7 +21,9 @@
 #include "core/linear_solver.hpp"
 #include "core/log.hpp"
 #include "core/timer.hpp"
+#include "coupling/grid_fluid.hpp"
 #include "coupling/simulation.hpp"
+#include "coupling/tet_fluid.hpp"
 #include "fluid/grid_projection.hpp"
 #include "fluid/operators.hpp"
 #include "io/output.hpp"
@@ -96,7 +98,7 @@ Index cells_at_start(const Scene& scene) {
   coupling::FsiSimulation sim = make_one_way(scene, build_world(scene));
   PhaseTimes unused;
   sim.start(unused);
-  return sim.mesh()->num_tets();
+  return coupling::tet_fluid(sim.fluid())->mesh().num_tets();
 }
 
 /// The floor's pressure solve on `m`: fluid::project of a random interior face field
@@ -135,7 +137,8 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
     PhaseTimes unused;
     sim.start(unused);
   }
-  logger().debug("bench step: scale {:.4g}: {} cells at t = 0", scale, sim.mesh()->num_tets());
+  logger().debug("bench step: scale {:.4g}: {} cells at t = 0", scale,
+                 coupling::tet_fluid(sim.fluid())->mesh().num_tets());
   Case c;
   c.scale = scale;
   StepFigures& mean = c.mean;
@@ -147,12 +150,13 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
     const double solid_s = rep.solid_s;
     {
       ScopedTimer timer(ph, "output");
-      const FluidFrameFields fields = frame_fields(sim.fluid());
-      write_fluid_vtu(dir / fmt::format("fluid_{:06d}.vtu", k), *sim.mesh(), compression, &fields);
+      const FluidFrameFields fields = fluid::mesh_frame_fields(*coupling::tet_fluid(sim.fluid()));
+      write_fluid_vtu(dir / fmt::format("fluid_{:06d}.vtu", k),
+                      coupling::tet_fluid(sim.fluid())->mesh(), compression, &fields);
     }
     const double step_s = now_seconds() - t0;
     logger().debug("bench step: scale {:.4g}, step {}: {:.3f} s, {} cells", scale, k + 1, step_s,
-                   sim.mesh()->num_tets());
+                   coupling::tet_fluid(sim.fluid())->mesh().num_tets());
     if (k == 0) {
       c.warmup_s = step_s;
       continue;
@@ -168,7 +172,7 @@ Case run_case(const Scene& scene, double scale, int steps, const std::filesystem
     mean.remesh_delaunay += last_remesh.seconds_delaunay / timed;
     mean.iterations += static_cast<double>(rep.fluid->iterations) / timed;
   }
-  const mesh::TetMesh& m = *sim.mesh();
+  const mesh::TetMesh& m = coupling::tet_fluid(sim.fluid())->mesh();
   c.cells = m.num_tets();
   c.vertices = m.num_vertices();
   const double t1 = now_seconds();
@@ -235,7 +239,8 @@ Case run_grid_case(const Scene& scene, double scale, int steps, const std::files
     const coupling::FsiStepReport rep = sim.step(scene.time.dt, ph);
     {
       ScopedTimer timer(ph, "output");
-      write_grid_vti(dir / fmt::format("fluid_{:06d}.vti", k), grid_frame_fields(sim), compression);
+      write_grid_vti(dir / fmt::format("fluid_{:06d}.vti", k), *sim.fluid_frame().grid(),
+                     compression);
     }
     const double step_s = now_seconds() - t0;
     if (k == 0) {
@@ -255,9 +260,9 @@ Case run_grid_case(const Scene& scene, double scale, int steps, const std::files
     c.liquid.p2g += rep.fluid->liquid_p2g_s / timed;
   }
   if (scene.fluid->params.liquid.enabled)
-    c.levels =
-        compare_liquid_level_sets(*sim.grid(), scene.fluid->params.liquid.particles_per_axis);
-  const fluid::GridCells& gc = sim.grid()->cells();
+    c.levels = compare_liquid_level_sets(*coupling::grid_fluid(sim.fluid()),
+                                         scene.fluid->params.liquid.particles_per_axis);
+  const fluid::GridCells& gc = coupling::grid_fluid(sim.fluid())->cells();
   c.vertices = spec.num_cells();  // (the grid's cells, solid ones included)
   for (Index k = 0; k < spec.num_cells(); ++k) c.cells += gc.fluid(k) ? 1 : 0;
   c.poisson_s = grid_poisson_floor(gc, scene.fluid->params, c.floor_iterations, c.floor_converged,

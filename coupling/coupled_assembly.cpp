@@ -179,16 +179,12 @@ VecX second_row(const CoupledInput& in, CoupledSystem& sys, const VecX& r_prescr
   const VecX flux = fluid::net_flux(m, v0);
   rep.divergence_before =
       nt ? fluid::net_flux(m, *in.u_star).cwiseQuotient(m.volumes).cwiseAbs().maxCoeff() : 0.0;
-  // [Chentanez06, Eq. (6)] times V: −J_freeᵀ u − C p = V D2 v* + J_prescribedᵀ v − ...
-  VecX r = r_prescribed;
-  for (Index t = 0; t < nt; ++t) r[sys.groups.cell_group[t]] += flux[t];
+  std::vector<OpenFaceTerm> open;
   for (Index f = 0; f < nf; ++f)
-    if (m.is_boundary(f) && m.face_kind[f] == FaceKind::Open) {
-      const Index g = sys.groups.cell_group[m.face_tets(f, 0)];
-      r[g] -= sys.gs[g] * m.face_areas[f] / sys.d_eff[f] * (*in.p_open)[f];
-    }
-  remove_pinned_flux(sys, r, rep);
-  return r;
+    if (m.is_boundary(f) && m.face_kind[f] == FaceKind::Open)
+      open.push_back({sys.groups.cell_group[m.face_tets(f, 0)], m.face_areas[f], sys.d_eff[f],
+                      (*in.p_open)[f]});
+  return second_row_rhs(sys, r_prescribed, flux, sys.groups.cell_group, open, rep);
 }
 
 /// Enclosed regions (only Solid faces of free bodies, lifted, no Open face) and their
@@ -267,6 +263,18 @@ void add_contact(CoupledSystem& sys, const CoupledOptions& opt) {
                  opt.contact->A.rows(), sys.ns);
   sys.Ac = opt.contact->A;
   sys.bs += opt.contact->b;
+}
+
+VecX second_row_rhs(const CoupledSystem& sys, VecX r_prescribed, const VecX& cell_flux,
+                    const VecXi& cell_group, const std::vector<OpenFaceTerm>& open,
+                    CoupledReport& rep) {
+  // [Chentanez06, Eq. (6)] times V: −J_freeᵀ u − C p = V D v* + J_prescribedᵀ v − ...
+  VecX r = std::move(r_prescribed);
+  for (Index c = 0; c < cell_flux.size(); ++c)
+    if (cell_group[c] >= 0) r[cell_group[c]] += cell_flux[c];
+  for (const OpenFaceTerm& o : open) r[o.group] -= sys.gs[o.group] * o.area / o.dual * o.p_open;
+  remove_pinned_flux(sys, r, rep);
+  return r;
 }
 
 void remove_pinned_flux(const CoupledSystem& sys, VecX& r, CoupledReport& rep) {

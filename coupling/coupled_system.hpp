@@ -294,6 +294,22 @@ struct CoupledSystem {
 CoupledSystem assemble_coupled(const CoupledInput& in, const CoupledOptions& opt,
                                CoupledReport& rep);
 
+/// The dynamic pressure on one Open face, as the second block row sees it.
+struct OpenFaceTerm {
+  Index group = -1;     ///< the pressure unknown of the face's fluid cell
+  double area = 0.0;    ///< A_f (m²)
+  double dual = 0.0;    ///< the distance from the cell's pressure sample to the face (m)
+  double p_open = 0.0;  ///< Pa
+};
+/// The right-hand side of the second block row, [Chentanez06, Eq. (6)] times V, for both
+/// discretisations (tet, grid): r_g = r_prescribed,g + Σ_{c in g} flux_c −
+/// Σ_{Open f of g} (h/ρ_g) (A_f/d_f) p_open,f, cells in order then the Open faces in order,
+/// with the net flux of every region that nothing fixes removed (remove_pinned_flux).
+/// @param cell_flux the net outward flux of v* without the free bodies' faces, per cell
+/// @param cell_group the pressure unknown of each cell (−1: not a fluid cell)
+VecX second_row_rhs(const CoupledSystem& sys, VecX r_prescribed, const VecX& cell_flux,
+                    const VecXi& cell_group, const std::vector<OpenFaceTerm>& open,
+                    CoupledReport& rep);
 /// The shared end of both assemblies (tet, grid): the second row r (per group) with the net
 /// flux of every region that nothing fixes removed (rep.pinned_regions, incompatibility).
 void remove_pinned_flux(const CoupledSystem& sys, VecX& r, CoupledReport& rep);

@@ -159,18 +159,15 @@ VecX second_row(const GridCoupledInput& in, const GridDofs& d, CoupledSystem& sy
   const VecX flux = fluid::grid_flux_excess(gc, v0);
   rep.divergence_before =
       fluid::grid_net_flux(gc, *in.u_star).cwiseAbs().maxCoeff() / g.cell_volume();
-  VecX r = r_prescribed;
-  for (Index k = 0; k < sys.ng; ++k) r[k] += flux[d.cells.cell[k]];
+  std::vector<OpenFaceTerm> open;
   for (Index f = 0; f < nf; ++f)
     if (gc.face_kind[f] == FaceKind::Open) {
       const Index c = fluid::grid_inner_cell(gc, f);
       if (c < 0) continue;
-      const Index k = d.cells.unknown[c];
-      r[k] -=
-          sys.gs[k] * g.face_area(g.face_axis(f)) / fluid::grid_face_dual(gc, f) * (*in.p_open)[f];
+      open.push_back({d.cells.unknown[c], g.face_area(g.face_axis(f)), fluid::grid_face_dual(gc, f),
+                      (*in.p_open)[f]});
     }
-  remove_pinned_flux(sys, r, rep);
-  return r;
+  return second_row_rhs(sys, r_prescribed, flux, d.cells.unknown, open, rep);
 }
 
 /// Triangles of each body's surface component (connected through shared vertices).

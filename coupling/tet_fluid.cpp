@@ -1,8 +1,10 @@
 /// @file tet_fluid.cpp
-/// TetCoupledFluid (tet_fluid.hpp): the tet fluid's side of every coupling scheme.
+/// TetCoupledFluid (tet_fluid.hpp): the tet fluid's side of every coupling scheme; TetSimFluid:
+/// the tet fluid of a simulation.
 #include "coupling/tet_fluid.hpp"
 
 #include "core/error.hpp"
+#include "core/log.hpp"
 #include "coupling/half_cells.hpp"
 #include "fluid/interface.hpp"
 #include "fluid/operators.hpp"
@@ -51,9 +53,9 @@ void TetPrediction::refuse_sealed_regions(const solid::SolidWorld& world,
   }
 }
 
-TetCoupledFluid::TetCoupledFluid(fluid::FluidSimulation& fluid, const MeshBuilder& build,
+TetCoupledFluid::TetCoupledFluid(fluid::FluidSimulation& fluid, MeshBuilder build,
                                  std::vector<BodyInterface> bodies)
-    : m_fluid(fluid), m_build(build), m_bodies(std::move(bodies)) {}
+    : m_fluid(fluid), m_build(std::move(build)), m_bodies(std::move(bodies)) {}
 
 std::unique_ptr<PredictedFluid> TetCoupledFluid::predict(
     const std::vector<MatX3>& positions, const std::vector<fluid::SolidSurfaceMotion>& motions,
@@ -70,16 +72,100 @@ fluid::FluidStepReport TetCoupledFluid::commit(std::unique_ptr<PredictedFluid> p
   return m_fluid.commit(std::move(tp->prediction()), std::move(sol.u_face), std::move(sol.p));
 }
 
-std::vector<VecX> TetCoupledFluid::current_forces(const std::vector<BodyInterface>& bodies) const {
-  const mesh::TetMesh& m0 = m_fluid.mesh();
-  const fluid::FluidParams& fp = m_fluid.params();
+namespace {
+
+/// The fluid's nodal forces on the bodies (3n each) of the pressure on the fluid's mesh: the
+/// dynamic part through J at the cells, the hydrostatic part at the face centroids.
+std::vector<VecX> mesh_forces(const fluid::FluidSimulation& fluid,
+                              const std::vector<BodyInterface>& bodies) {
+  const mesh::TetMesh& m0 = fluid.mesh();
+  const fluid::FluidParams& fp = fluid.params();
   const VecX rho = fluid::cell_fluid_density(m0, fp);
-  VecX p_dyn = m_fluid.state().p;
+  VecX p_dyn = fluid.state().p;
   for (Index t = 0; t < m0.num_tets(); ++t)
     p_dyn[t] -= fluid::hydrostatic_pressure(rho[t], fp.gravity, fp.hydrostatic_origin,
                                             m0.circumcentres.row(t).transpose());
   const InterfaceOperators ops(m0, bodies);
   return fluid_forces(ops, p_dyn, rho, fp.gravity, fp.hydrostatic_origin);
+}
+
+}  // namespace
+
+std::vector<VecX> TetCoupledFluid::current_forces(const std::vector<BodyInterface>& bodies) const {
+  return mesh_forces(m_fluid, bodies);
+}
+
+// ---- the tet fluid of a simulation -------------------------------------------------------
+
+TetSimFluid::TetSimFluid(const fluid::FluidParams& params, const RemeshPolicy& policy)
+    : m_fluid(params), m_policy(policy) {}
+
+mesh::TetMesh TetSimFluid::build_mesh(const std::vector<MatX3>& positions, PhaseTimes& phases) {
+  ScopedTimer timer(phases, "remesh");
+  mesh::RemeshReport report;
+  fluid::RefineField refine;
+  if (m_started) refine = m_fluid.refinement_field();
+  mesh::TetMesh m = m_policy.build(positions, m_started ? &refine : nullptr, &report);
+  const double seconds = timer.stop();
+  if (m_observer) m_observer(m, report, seconds, phases);
+  return m;
+}
+
+void TetSimFluid::start(const solid::SolidWorld& world, PhaseTimes& phases) {
+  m_started = false;
+  m_fluid.initialize(build_mesh(body_positions(world), phases));
+  m_started = true;
+}
+
+void TetSimFluid::rebuild_at_rest(const solid::SolidWorld& world, PhaseTimes& phases) {
+  m_fluid.initialize(build_mesh(body_positions(world), phases));
+  m_started = true;
+}
+
+FluidStepAlone TetSimFluid::step_alone(const solid::SolidWorld& world, double h, PhaseTimes& phases,
+                                       PhaseTimes& fluid_phases) {
+  const std::vector<fluid::SolidSurfaceMotion> motion = surface_motion(world, m_policy.surfaces());
+  mesh::TetMesh m = build_mesh(body_positions(world), phases);
+  FluidStepAlone r;
+  const double t0 = now_seconds();
+  r.report = m_fluid.step(std::move(m), h, motion, fluid_phases);
+  r.seconds = now_seconds() - t0;
+  return r;
+}
+
+std::unique_ptr<CoupledFluid> TetSimFluid::coupled(std::vector<BodyInterface> bodies,
+                                                   PhaseTimes& phases) {
+  MeshBuilder build = [this, &phases](const std::vector<MatX3>& x) {
+    return build_mesh(x, phases);
+  };
+  return std::make_unique<TetCoupledFluid>(m_fluid, std::move(build), std::move(bodies));
+}
+
+std::vector<VecX> TetSimFluid::body_forces(const solid::SolidWorld& world) const {
+  TETFSI_CHECK(m_started, "TetSimFluid::body_forces: the tet fluid has not started");
+  return mesh_forces(m_fluid, body_interfaces(world, m_policy.surfaces()));
+}
+
+fluid::FluidFrame TetSimFluid::frame(const solid::SolidWorld&) const {
+  fluid::FluidFrame frame;
+  if (m_started)
+    frame.geometry = fluid::MeshFrame{&m_fluid.mesh(), fluid::mesh_frame_fields(m_fluid)};
+  return frame;
+}
+
+std::string TetSimFluid::start_summary(double seconds) const {
+  const mesh::TetMesh& m = m_fluid.mesh();
+  return fmt::format("fluid mesh at t = 0: {} tets, {} vertices, {} faces, built in {:.3g} s\n",
+                     m.num_tets(), m.num_vertices(), m.num_faces(), seconds);
+}
+
+void TetSimFluid::save_state(CheckpointWriter& w, const std::string& prefix) const {
+  m_fluid.save_state(w, prefix + "fluid/");
+}
+
+void TetSimFluid::load_state(const CheckpointReader& r, const std::string& prefix) {
+  m_fluid.load_state(r, prefix + "fluid/");
+  m_started = true;
 }
 
 }  // namespace tetfsi::coupling

@@ -2,12 +2,14 @@
 /// @file tet_fluid.hpp
 /// The tet fluid behind the coupling schemes' seam (fluid_seam.hpp): the mesh rebuilt around
 /// the bodies by a MeshBuilder, fluid::FluidSimulation's predict and commit, the interface
-/// operators of the step's mesh and solve_coupled.
+/// operators of the step's mesh and solve_coupled; and the tet fluid of a simulation
+/// (TetSimFluid, sim_fluid.hpp).
 #include <functional>
 #include <memory>
 #include <vector>
 
 #include "coupling/fluid_seam.hpp"
+#include "coupling/sim_fluid.hpp"
 #include "fluid/interface.hpp"
 #include "fluid/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
@@ -47,9 +49,9 @@ class TetPrediction final : public PredictedFluid {
 
 class TetCoupledFluid final : public CoupledFluid {
  public:
-  /// @param bodies how each body's surface is numbered (body_interfaces); `fluid` and
-  ///   `build` must outlive this
-  TetCoupledFluid(fluid::FluidSimulation& fluid, const MeshBuilder& build,
+  /// @param bodies how each body's surface is numbered (body_interfaces); `fluid` must
+  ///   outlive this
+  TetCoupledFluid(fluid::FluidSimulation& fluid, MeshBuilder build,
                   std::vector<BodyInterface> bodies);
 
   const fluid::FluidParams& params() const override { return m_fluid.params(); }
@@ -62,8 +64,57 @@ class TetCoupledFluid final : public CoupledFluid {
 
  private:
   fluid::FluidSimulation& m_fluid;
-  const MeshBuilder& m_build;
+  MeshBuilder m_build;
   std::vector<BodyInterface> m_bodies;
 };
+
+class TetSimFluid final : public SimFluid {
+ public:
+  /// @param policy builds the meshes around the bodies (must outlive this)
+  TetSimFluid(const fluid::FluidParams& params, const RemeshPolicy& policy);
+
+  const char* kind() const override { return "tet"; }
+  bool started() const override { return m_started; }
+  void start(const solid::SolidWorld& world, PhaseTimes& phases) override;
+  void rebuild_at_rest(const solid::SolidWorld& world, PhaseTimes& phases) override;
+  FluidStepAlone step_alone(const solid::SolidWorld& world, double h, PhaseTimes& phases,
+                            PhaseTimes& fluid_phases) override;
+  std::unique_ptr<CoupledFluid> coupled(std::vector<BodyInterface> bodies,
+                                        PhaseTimes& phases) override;
+  double time() const override { return m_fluid.time(); }
+  Index cells() const override { return m_fluid.mesh().num_tets(); }
+  bool builds_meshes() const override { return true; }
+  void set_mesh_observer(MeshObserver observer) override { m_observer = std::move(observer); }
+  std::vector<VecX> body_forces(const solid::SolidWorld& world) const override;
+  fluid::FluidFrame frame(const solid::SolidWorld& world) const override;
+  std::string start_summary(double seconds) const override;
+  /// The fluid's records under prefix + "fluid/".
+  void save_state(CheckpointWriter& w, const std::string& prefix) const override;
+  void load_state(const CheckpointReader& r, const std::string& prefix) override;
+
+  /// The tet fluid itself (tests, benchmarks).
+  fluid::FluidSimulation& simulation() { return m_fluid; }
+  const fluid::FluidSimulation& simulation() const { return m_fluid; }
+
+ private:
+  /// The policy's mesh around the bodies at `positions` (refined as the fluid asks once it
+  /// has started), timed as the remesh phase, observed.
+  mesh::TetMesh build_mesh(const std::vector<MatX3>& positions, PhaseTimes& phases);
+
+  fluid::FluidSimulation m_fluid;
+  const RemeshPolicy& m_policy;
+  MeshObserver m_observer;
+  bool m_started = false;
+};
+
+/// The tet fluid behind `f` (tests, benchmarks), nullptr if `f` is another discretisation.
+inline fluid::FluidSimulation* tet_fluid(SimFluid* f) {
+  auto* t = dynamic_cast<TetSimFluid*>(f);
+  return t ? &t->simulation() : nullptr;
+}
+inline const fluid::FluidSimulation* tet_fluid(const SimFluid* f) {
+  auto* t = dynamic_cast<const TetSimFluid*>(f);
+  return t ? &t->simulation() : nullptr;
+}
 
 }  // namespace tetfsi::coupling

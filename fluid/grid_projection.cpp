@@ -184,36 +184,21 @@ VecX grid_flux_excess(const GridCells& gc, const VecX& u) {
 
 Regions grid_regions(const GridCells& gc) {
   const GridSpec& g = gc.grid;
-  Regions r;
-  r.cell_region = VecXi::Constant(g.num_cells(), -1);
   // Fluid cells joined through Interior faces (not across a free surface or into the air).
   const Index stride[3] = {1, g.n[0], g.n[0] * g.n[1]};
-  std::vector<Index> stack;
-  for (Index c0 = 0; c0 < g.num_cells(); ++c0) {
-    if (!gc.fluid(c0) || r.cell_region[c0] >= 0) continue;
-    const Index id = r.count();
-    r.has_open.push_back(false);
-    r.first_cell.push_back(c0);
-    r.cell_region[c0] = id;
-    stack.assign(1, c0);
-    while (!stack.empty()) {
-      const Index c = stack.back();
-      stack.pop_back();
-      const auto ijk = g.cell_ijk(c);
-      for (int a = 0; a < 3; ++a)
-        for (int side = 0; side < 2; ++side) {
-          if (side == 0 ? ijk[a] == 0 : ijk[a] + 1 == g.n[a]) continue;
-          auto fi = ijk;
-          fi[a] += side;
-          const Index d = c + (side == 0 ? -stride[a] : stride[a]);
-          if (!gc.interior(g.face(a, fi[0], fi[1], fi[2])) || !gc.fluid(d)) continue;
-          if (r.cell_region[d] < 0) {
-            r.cell_region[d] = id;
-            stack.push_back(d);
+  Regions r = connected_regions(
+      g.num_cells(), [&](Index c) { return gc.fluid(c); },
+      [&](Index c, auto&& visit) {
+        const auto ijk = g.cell_ijk(c);
+        for (int a = 0; a < 3; ++a)
+          for (int side = 0; side < 2; ++side) {
+            if (side == 0 ? ijk[a] == 0 : ijk[a] + 1 == g.n[a]) continue;
+            auto fi = ijk;
+            fi[a] += side;
+            const Index d = c + (side == 0 ? -stride[a] : stride[a]);
+            if (gc.interior(g.face(a, fi[0], fi[1], fi[2])) && gc.fluid(d)) visit(d);
           }
-        }
-    }
-  }
+      });
   for (Index f = 0; f < g.num_faces(); ++f)
     if (gc.face_kind[f] == FaceKind::Open) {
       const Index in = grid_inner_cell(gc, f);

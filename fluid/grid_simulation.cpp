@@ -565,4 +565,24 @@ void GridFluid::load_state(const CheckpointReader& r, const std::string& prefix)
   m_initialized = true;
 }
 
+GridFrameFields grid_frame_fields(const GridFluid& g) {
+  const GridCells& gc = g.cells();
+  const GridSpec& spec = gc.grid;
+  const GridState& st = g.state();
+  GridFrameFields f;
+  f.origin = spec.lo;
+  f.spacing = spec.h;
+  f.cells = spec.n;
+  f.pressure = st.p;
+  f.density = st.density;
+  f.temperature = st.temperature;
+  f.divergence = grid_net_flux(gc, st.u) / spec.cell_volume();
+  f.velocity = g.cell_velocities();
+  f.vorticity = grid_vorticity(gc, f.velocity).rowwise().norm();
+  f.solid.resize(spec.num_cells());
+  for (Index c = 0; c < spec.num_cells(); ++c) f.solid[c] = gc.open_cell(c) ? 0 : 1;
+  f.phi = gc.phi;
+  return f;
+}
+
 }  // namespace tetfsi::fluid

@@ -18,6 +18,7 @@
 
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
+#include "fluid/frame.hpp"
 #include "fluid/grid.hpp"
 #include "fluid/grid_liquid.hpp"
 #include "fluid/params.hpp"
@@ -128,5 +129,10 @@ class GridFluid {
   double m_time = 0.0;
   bool m_initialized = false;
 };
+
+/// The cell fields of the fluid's current state for a frame (fluid/frame.hpp): the grid's
+/// geometry, pressure, smoke, temperature, divergence, velocity and vorticity at the cell
+/// centres, the solid cells and the liquid's φ (the bodies' surface arrays are left empty).
+GridFrameFields grid_frame_fields(const GridFluid& g);
 
 }  // namespace tetfsi::fluid

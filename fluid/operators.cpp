@@ -80,31 +80,15 @@ VecX gradient(const TetMesh& m, const VecX& d_eff, const VecX& q, const VecX& q_
 }
 
 Regions fluid_regions(const TetMesh& m) {
-  const Index nt = m.num_tets();
-  Regions r;
-  r.cell_region = VecXi::Constant(nt, -1);
-  std::vector<Index> stack;
-  for (Index s = 0; s < nt; ++s) {
-    if (r.cell_region[s] >= 0) continue;
-    const Index id = r.count();
-    r.has_open.push_back(false);
-    r.first_cell.push_back(s);
-    r.cell_region[s] = id;
-    stack.assign(1, s);
-    while (!stack.empty()) {
-      const Index t = stack.back();
-      stack.pop_back();
-      for (int k = 0; k < 4; ++k) {
-        const Index n = m.neighbours(t, k);
-        if (n < 0) {
-          if (m.face_kind[m.tet_faces(t, k)] == FaceKind::Open) r.has_open[id] = true;
-        } else if (r.cell_region[n] < 0) {
-          r.cell_region[n] = id;
-          stack.push_back(n);
-        }
-      }
-    }
-  }
+  Regions r = connected_regions(
+      m.num_tets(), [](Index) { return true; },
+      [&](Index t, auto&& visit) {
+        for (int k = 0; k < 4; ++k)
+          if (const Index n = m.neighbours(t, k); n >= 0) visit(n);
+      });
+  for (Index f = 0; f < m.num_faces(); ++f)
+    if (m.is_boundary(f) && m.face_kind[f] == FaceKind::Open)
+      r.has_open[r.cell_region[m.face_tets(f, 0)]] = true;
   return r;
 }
 

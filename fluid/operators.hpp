@@ -28,6 +28,7 @@
 /// may lie beyond the face).
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
+#include "fluid/regions.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
@@ -47,14 +48,8 @@ VecX net_flux(const mesh::TetMesh& m, const VecX& u);
 /// faces. For test fields; faces with d_f ≈ 0 give what d_eff gives.
 VecX gradient(const mesh::TetMesh& m, const VecX& d_eff, const VecX& q, const VecX& q_open);
 
-/// Connected fluid regions (through interior faces): region id per cell (#T) and whether
-/// each region touches an Open face (has a Dirichlet condition).
-struct Regions {
-  VecXi cell_region;
-  std::vector<bool> has_open;
-  std::vector<Index> first_cell;  ///< lowest cell index of each region (its pin, if needed)
-  Index count() const { return static_cast<Index>(has_open.size()); }
-};
+/// The regions of the mesh (regions.hpp): cells joined through interior faces, has_open where
+/// a region has an Open boundary face.
 Regions fluid_regions(const mesh::TetMesh& m);
 
 /// Pressure unknowns: one per group of co-spherical cells (see the file comment).

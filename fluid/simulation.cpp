@@ -454,4 +454,19 @@ void FluidSimulation::load_state(const CheckpointReader& r, const std::string& p
   I.initialized = true;
 }
 
+MeshFrameFields mesh_frame_fields(const FluidSimulation& sim) {
+  MeshFrameFields f;
+  const FluidState& s = sim.state();
+  f.pressure = s.p;
+  f.face_velocity = s.u;
+  f.density = s.density;
+  f.temperature = s.temperature;
+  const VelocityField v = sim.velocity_field();  // one reconstruction for all three
+  f.vorticity = v.vorticity_magnitude();
+  f.divergence = divergence(sim.mesh(), s.u);
+  f.cell_velocity = v.cell_velocities();
+  f.vertex_velocity = v.vertex_velocities();
+  return f;
+}
+
 }  // namespace tetfsi::fluid

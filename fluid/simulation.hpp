@@ -13,6 +13,7 @@
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
 #include "core/types.hpp"
+#include "fluid/frame.hpp"
 #include "fluid/params.hpp"
 #include "fluid/reconstruct.hpp"
 #include "mesh/tet_mesh.hpp"
@@ -169,5 +170,9 @@ class FluidSimulation {
   struct Impl;
   std::unique_ptr<Impl> m_impl;
 };
+
+/// The fields of the fluid's current state on its mesh, for a frame (fluid/frame.hpp): one
+/// velocity reconstruction for the vorticity and the cell and vertex velocities.
+MeshFrameFields mesh_frame_fields(const FluidSimulation& sim);
 
 }  // namespace tetfsi::fluid

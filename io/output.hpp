@@ -46,6 +46,7 @@
 #include "core/enum_names.hpp"
 #include "core/timer.hpp"
 #include "core/types.hpp"
+#include "fluid/frame.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "solid/pose.hpp"
 #include "solid/solid_body.hpp"
@@ -97,17 +98,8 @@ void write_body_vtu(const std::filesystem::path& path, const solid::SolidBody& b
 ///
 /// Written to `<path>.tmp` and renamed to `path`, like write_body_vtu.
 /// @throws InputError naming the file if it cannot be written.
-/// The fluid's fields on the mesh of a frame (fluid/simulation.hpp), each sized for it.
-struct FluidFrameFields {
-  VecX pressure;          ///< #T, Pa at the circumcentres
-  VecX density;           ///< #T smoke density (kg/m³)
-  VecX temperature;       ///< #T (K)
-  VecX vorticity;         ///< #T |curl u| (1/s)
-  VecX divergence;        ///< #T (D u)_t (1/s)
-  MatX3 cell_velocity;    ///< #T × 3 reconstructed at the centroids (m/s)
-  MatX3 vertex_velocity;  ///< #V × 3 reconstructed at the vertices (m/s)
-  VecX face_velocity;     ///< #F u_f, the normal velocity along n_f (m/s)
-};
+/// The fluid's fields on the mesh of a frame, each sized for it (fluid/frame.hpp).
+using FluidFrameFields = fluid::MeshFrameFields;
 
 /// With `fields`, also: cell data `pressure`, `smoke_density`, `temperature`, `vorticity`,
 /// `divergence` and `velocity` (3 components), point data `velocity` (3 components).
@@ -133,30 +125,9 @@ void write_fluid_vtu(const std::filesystem::path& path, const mesh::TetMesh& flu
 void write_interface_vtp(const std::filesystem::path& path, const mesh::TetMesh& fluid,
                          Compression compression, const FluidFrameFields* fields = nullptr);
 
-/// One frame of the grid fluid (fluid/grid.hpp): plain data, filled by the run loop from
-/// fluid::GridFluid. Cell c = i + nx (j + ny k), x fastest (GridSpec::cell, VTK ImageData's
-/// order); #C = nx ny nz.
-struct GridFrameFields {
-  Vec3 origin = Vec3::Zero();              ///< lower corner of the fluid box (m)
-  Vec3 spacing = Vec3::Ones();             ///< cell size per axis (m)
-  std::array<Index, 3> cells = {1, 1, 1};  ///< nx, ny, nz
-  // ---- per cell (#C) ----
-  VecX pressure;                    ///< Pa (total; 0 in solid cells)
-  VecX density;                     ///< smoke density (kg/m³)
-  VecX temperature;                 ///< K
-  VecX divergence;                  ///< 1/s
-  VecX vorticity;                   ///< |curl u| (1/s)
-  MatX3 velocity;                   ///< #C × 3 at the cell centres (m/s)
-  std::vector<std::uint8_t> solid;  ///< #C: 1 where the cell is inside a body
-  VecX phi;  ///< #C the liquid's level set (m, < 0 in the liquid); empty without a free surface
-  // ---- the bodies' boundary triangles at the frame (the grid's solid interface) ----
-  MatX3 surface_points;        ///< #P × 3 (m)
-  MatX3i surface_triangles;    ///< #Tr × 3 into surface_points, outward-oriented
-  VecXi surface_body;          ///< #Tr body index
-  VecX surface_pressure;       ///< #Tr Pa, the pressure the fluid exerts on the outer side
-  VecX surface_pressure_jump;  ///< #Tr Pa, outer − inner side (NaN/0 where a side has no fluid)
-  MatX3 surface_force;         ///< #P × 3 N, the fluid's nodal force on each surface point
-};
+/// One frame of the grid fluid (fluid/frame.hpp): plain data, the cells' fields and the
+/// bodies' surface triangles.
+using GridFrameFields = fluid::GridFrameFields;
 
 /// Write the grid fluid of a frame as XML image data (`.vti`, appended raw binary), for
 /// ParaView's slices and volume rendering.

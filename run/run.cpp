@@ -172,13 +172,14 @@ class StateSnapshot {
   std::vector<std::pair<MatX3, MatX3>> m_state;
 };
 
-/// One frame: the bodies and, in a fluid scene, the fluid mesh with its fields.
+/// One frame: the bodies and, in a fluid scene, the fluid's frame (its mesh or grid with
+/// their fields) by its geometry.
 void write_frame(OutputWriter& out, const coupling::FsiSimulation& sim, int step, double t) {
-  if (sim.grid() && sim.fluid_started()) {
-    out.write_grid_frame(sim.world(), step, t, grid_frame_fields(sim));
-  } else if (sim.mesh()) {
-    const FluidFrameFields fields = frame_fields(sim.fluid());
-    out.write_frame(sim.world(), step, t, sim.mesh(), &fields);
+  const fluid::FluidFrame frame = sim.fluid_frame();
+  if (const fluid::GridFrameFields* grid = frame.grid()) {
+    out.write_grid_frame(sim.world(), step, t, *grid);
+  } else if (const fluid::MeshFrame* mesh = frame.mesh()) {
+    out.write_frame(sim.world(), step, t, mesh->mesh, &mesh->fields);
   } else {
     out.write_frame(sim.world(), step, t, nullptr);
   }
@@ -1243,15 +1244,7 @@ void validate_scene(const Scene& scene, std::ostream& out) {
   } catch (const Error& e) {
     throw InputError(one_line(fmt::format("step 0 (t = 0 s) failed: {}", e.what())));
   }
-  if (const mesh::TetMesh* m = sim.mesh()) {
-    out << fmt::format("fluid mesh at t = 0: {} tets, {} vertices, {} faces, built in {:.3g} s\n",
-                       m->num_tets(), m->num_vertices(), m->num_faces(), now_seconds() - t);
-  } else if (const fluid::GridFluid* g = sim.grid()) {
-    const VecXi& body = g->cells().cell_body;
-    const Index fluid_cells = (body.array() < 0).count();
-    out << fmt::format("fluid grid at t = 0: {} of {} cells fluid, classified in {:.3g} s\n",
-                       fluid_cells, body.size(), now_seconds() - t);
-  }
+  out << sim.fluid()->start_summary(now_seconds() - t);
 }
 
 void print_world_summary(const Scene& scene, const solid::SolidWorld& world, std::ostream& out) {

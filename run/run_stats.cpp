@@ -4,27 +4,14 @@
 #include <cmath>
 
 #include "core/log.hpp"
-#include "fluid/grid_interface.hpp"
-#include "fluid/grid_projection.hpp"
-#include "fluid/operators.hpp"
 #include "io/state_io.hpp"
 #include "io/stats_columns.hpp"
 #include "mesh/quality.hpp"
 
 namespace tetfsi::app {
 
-namespace {
-
-Index fluid_cells(const fluid::GridCells& gc) {
-  Index n = 0;
-  for (Index c = 0; c < gc.grid.num_cells(); ++c) n += gc.fluid(c) ? 1 : 0;
-  return n;
-}
-
-}  // namespace
-
 RunRecorder::RunRecorder(const coupling::FsiSimulation& sim) {
-  if (sim.grid()) {  // no mesh: the mesh columns stay empty (nan), cells are the fluid cells
+  if (!sim.fluid()->builds_meshes()) {  // no mesh: the mesh columns stay empty (nan)
     m_stats.quality = mesh::quality_columns(mesh::QualitySummary{});
     m_summary.min_dihedral_deg = NAN;
   }
@@ -67,10 +54,8 @@ void RunRecorder::record_mesh(const mesh::TetMesh& m, const mesh::RemeshReport& 
 }
 
 void RunRecorder::record(const coupling::FsiStepReport& r, const coupling::FsiSimulation& sim) {
-  if (const fluid::GridFluid* g = sim.grid()) {
-    m_stats.cells = fluid_cells(g->cells());
-    m_summary.cells = m_stats.cells;
-  }
+  m_stats.cells = sim.fluid()->cells();
+  m_summary.cells = m_stats.cells;
   if (r.coupled) {
     record_fluid_step(r.coupled->fluid, r.fluid_s, sim.fluid_time());
     record_coupled_step(*r.coupled, sim.world().time);
@@ -258,97 +243,6 @@ void RunRecorder::load_state(const CheckpointReader& r) {
     r.fail(p + "has_coupling: the checkpoint's run and this one differ in coupling");
   if (m_coupling_summary)
     visit_fields_coupling(*m_coupling_summary, RecordLoader{r, p + "coupling/"});
-}
-
-FluidFrameFields frame_fields(const fluid::FluidSimulation& sim) {
-  FluidFrameFields f;
-  const fluid::FluidState& s = sim.state();
-  f.pressure = s.p;
-  f.face_velocity = s.u;
-  f.density = s.density;
-  f.temperature = s.temperature;
-  const fluid::VelocityField v = sim.velocity_field();  // one reconstruction for all three
-  f.vorticity = v.vorticity_magnitude();
-  f.divergence = fluid::divergence(sim.mesh(), s.u);
-  f.cell_velocity = v.cell_velocities();
-  f.vertex_velocity = v.vertex_velocities();
-  return f;
-}
-
-namespace {
-
-/// The pressure read on one side of every body triangle (side-aware, a quarter of the
-/// smallest cell from the centroid along ±n); NaN where that side sees no fluid cell.
-double side_pressure(const fluid::GridCells& gc, const VecX& p, const Vec3& x) {
-  const auto st = fluid::grid_cell_stencil(gc, x);
-  if (st.empty()) return NAN;
-  double v = 0.0;
-  for (const auto& [c, w] : st) v += w * p[c];
-  return v;
-}
-
-}  // namespace
-
-GridFrameFields grid_frame_fields(const coupling::FsiSimulation& sim) {
-  const fluid::GridFluid& g = *sim.grid();
-  const fluid::GridCells& gc = g.cells();
-  const fluid::GridSpec& spec = gc.grid;
-  const fluid::GridState& st = g.state();
-  GridFrameFields f;
-  f.origin = spec.lo;
-  f.spacing = spec.h;
-  f.cells = spec.n;
-  f.pressure = st.p;
-  f.density = st.density;
-  f.temperature = st.temperature;
-  f.divergence = fluid::grid_net_flux(gc, st.u) / spec.cell_volume();
-  f.velocity = g.cell_velocities();
-  f.vorticity = fluid::grid_vorticity(gc, f.velocity).rowwise().norm();
-  f.solid.resize(spec.num_cells());
-  for (Index c = 0; c < spec.num_cells(); ++c) f.solid[c] = gc.open_cell(c) ? 0 : 1;
-  f.phi = gc.phi;
-  // the bodies' boundary triangles and the fluid's nodal forces on them
-  const solid::SolidWorld& world = sim.world();
-  const std::vector<coupling::BodySurface>& surf = sim.remesh_policy()->surfaces();
-  const std::vector<VecX> force = sim.grid_fluid_forces();
-  Index np = 0, nt = 0;
-  for (const auto& s : surf) {
-    np += s.nodes.size();
-    nt += s.triangles.rows();
-  }
-  f.surface_points.resize(np, 3);
-  f.surface_force.resize(np, 3);
-  f.surface_triangles.resize(nt, 3);
-  f.surface_body.resize(nt);
-  f.surface_pressure.resize(nt);
-  f.surface_pressure_jump.resize(nt);
-  const double eps = 0.25 * spec.h.minCoeff();
-  Index p0 = 0, t0 = 0;
-  for (size_t b = 0; b < surf.size(); ++b) {
-    const MatX3 x = world.bodies[b].positions();
-    for (Index k = 0; k < surf[b].nodes.size(); ++k) {
-      const Index node = surf[b].nodes[k];
-      f.surface_points.row(p0 + k) = x.row(node);
-      f.surface_force.row(p0 + k) = force[b].segment<3>(3 * node).transpose();
-    }
-    for (Index t = 0; t < surf[b].triangles.rows(); ++t) {
-      Vec3 v[3];
-      for (int k = 0; k < 3; ++k) {
-        f.surface_triangles(t0 + t, k) = p0 + surf[b].triangles(t, k);
-        v[k] = f.surface_points.row(p0 + surf[b].triangles(t, k)).transpose();
-      }
-      const Vec3 n = (v[1] - v[0]).cross(v[2] - v[0]).normalized();
-      const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
-      const double out = side_pressure(gc, st.p, c + eps * n);
-      const double in = side_pressure(gc, st.p, c - eps * n);
-      f.surface_body[t0 + t] = static_cast<int>(b);
-      f.surface_pressure[t0 + t] = out;
-      f.surface_pressure_jump[t0 + t] = std::isfinite(in) ? out - in : NAN;
-    }
-    p0 += surf[b].nodes.size();
-    t0 += surf[b].triangles.rows();
-  }
-  return f;
 }
 
 }  // namespace tetfsi::app

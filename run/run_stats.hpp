@@ -2,8 +2,7 @@
 /// @file run_stats.hpp
 /// The figures of a run with a fluid, kept once from the simulation's reports
 /// (coupling::FsiSimulation): the stats.csv columns of the last step (FluidStepStats,
-/// CoupledStepStats) and the summaries over the run (FluidSummary, CouplingSummary); and the
-/// fields of a fluid frame.
+/// CoupledStepStats) and the summaries over the run (FluidSummary, CouplingSummary).
 #include <optional>
 #include <string>
 
@@ -94,12 +93,5 @@ class RunRecorder {
   std::optional<CoupledStepStats> m_coupled_stats;
   std::optional<CouplingSummary> m_coupling_summary;
 };
-
-/// The fields of the fluid's current state, for a frame.
-FluidFrameFields frame_fields(const fluid::FluidSimulation& sim);
-/// The fields of a grid fluid's frame (grid scenes): the cells' fields, the bodies' boundary
-/// triangles with the pressure on each side and the fluid's nodal forces (J of the scene's
-/// fluid.grid.pressure_forces, total pressure).
-GridFrameFields grid_frame_fields(const coupling::FsiSimulation& sim);
 
 }  // namespace tetfsi::app

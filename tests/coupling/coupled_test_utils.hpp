@@ -7,7 +7,9 @@
 #include <utility>
 #include <vector>
 
+#include "coupling/grid_fluid.hpp"
 #include "coupling/simulation.hpp"
+#include "coupling/tet_fluid.hpp"
 #include "fluid/simulation.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/world.hpp"
@@ -25,8 +27,10 @@ struct CoupledRig {
 
   /// The bodies: the rig's own before start(), the simulation's after.
   solid::SolidWorld& world() { return sim ? sim->world() : m_world; }
-  /// The fluid (after start()).
-  fluid::FluidSimulation& fluid() { return sim->fluid(); }
+  /// The tet fluid (after start(), tet rigs).
+  fluid::FluidSimulation& fluid() { return *coupling::tet_fluid(sim->fluid()); }
+  /// The grid fluid (after start(), grid rigs).
+  fluid::GridFluid& grid_fluid() { return *coupling::grid_fluid(sim->fluid()); }
   const std::vector<coupling::BodySurface>& surfaces() const {
     return sim->remesh_policy()->surfaces();
   }

@@ -46,11 +46,11 @@ TEST_CASE("liquid coupled: a soft slab under a liquid column of height H feels r
     REQUIRE(rep.fluid.liquid_volume ==
             doctest::Approx(0.4 * 0.4 * surface - 0.2 * 0.2 * 0.06).epsilon(0.02));
     // no liquid cell inside the body: every cell holding a pressure unknown is outside it
-    const fluid::GridCells& gc = r.sim->grid()->cells();
+    const fluid::GridCells& gc = r.grid_fluid().cells();
     Index inside = 0;
     for (Index c = 0; c < gc.grid.num_cells(); ++c) inside += gc.fluid(c) && gc.cell_body[c] >= 0;
     REQUIRE(inside == 0);
-    const VecX f = r.sim->grid_fluid_forces()[0];
+    const VecX f = r.sim->fluid_forces()[0];
     f_top = 0;
     for (Index v = 0; v < rest.rows(); ++v)
       if (rest(v, 2) > top - 1e-9) f_top += f[3 * v + 2];

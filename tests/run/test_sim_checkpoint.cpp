@@ -14,6 +14,8 @@
 #include <vector>
 
 #include "core/checkpoint.hpp"
+#include "coupling/grid_fluid.hpp"
+#include "coupling/tet_fluid.hpp"
 #include "run/run.hpp"
 #include "scene/scene.hpp"
 #include "tests/test_util.hpp"
@@ -49,23 +51,25 @@ void check_same(const coupling::FsiSimulation& a, const coupling::FsiSimulation&
     CHECK(same_bits(a.world().bodies[i].displacement, b.world().bodies[i].displacement));
     CHECK(same_bits(a.world().bodies[i].velocity, b.world().bodies[i].velocity));
   }
-  if (a.mesh()) {
-    REQUIRE(b.mesh());
-    CHECK(same_bits(a.mesh()->vertices, b.mesh()->vertices));
-    CHECK(same_bits(a.mesh()->tets, b.mesh()->tets));
-    const fluid::FluidState &x = a.fluid().state(), &y = b.fluid().state();
+  if (const fluid::FluidSimulation* fa = coupling::tet_fluid(a.fluid())) {
+    const fluid::FluidSimulation* fb = coupling::tet_fluid(b.fluid());
+    REQUIRE(fb);
+    CHECK(same_bits(fa->mesh().vertices, fb->mesh().vertices));
+    CHECK(same_bits(fa->mesh().tets, fb->mesh().tets));
+    const fluid::FluidState &x = fa->state(), &y = fb->state();
     CHECK(same_bits(x.u, y.u));
     CHECK(same_bits(x.p, y.p));
     CHECK(same_bits(x.density, y.density));
     CHECK(same_bits(x.temperature, y.temperature));
-    CHECK(a.fluid().time() == b.fluid().time());
+    CHECK(fa->time() == fb->time());
   }
-  if (a.grid()) {
-    REQUIRE(b.grid());
-    CHECK(same_bits(a.grid()->state().u, b.grid()->state().u));
-    CHECK(same_bits(a.grid()->state().p, b.grid()->state().p));
-    CHECK(same_bits(a.grid()->state().density, b.grid()->state().density));
-    CHECK(same_bits(a.grid()->cells().cell_body, b.grid()->cells().cell_body));
+  if (const fluid::GridFluid* ga = coupling::grid_fluid(a.fluid())) {
+    const fluid::GridFluid* gb = coupling::grid_fluid(b.fluid());
+    REQUIRE(gb);
+    CHECK(same_bits(ga->state().u, gb->state().u));
+    CHECK(same_bits(ga->state().p, gb->state().p));
+    CHECK(same_bits(ga->state().density, gb->state().density));
+    CHECK(same_bits(ga->cells().cell_body, gb->cells().cell_body));
   }
 }
 
@@ -120,7 +124,8 @@ void check_restart(const Case& c) {
   first.save_state(w);
   w.write(file);
   const CheckpointReader r(file);
-  if (first.mesh()) check_same_mesh(*first.mesh(), mesh::load_mesh(r, "sim/fluid/mesh/"));
+  if (const fluid::FluidSimulation* f = coupling::tet_fluid(first.fluid()))
+    check_same_mesh(f->mesh(), mesh::load_mesh(r, "sim/fluid/mesh/"));
 
   coupling::FsiSimulation resumed = make(s);
   resumed.load_state(r);
