@@ -14,7 +14,6 @@ Usage: check_layers.py SOURCE_DIR   (exit 1 and one line per violation)
 
 import os
 import sys
-import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cxx_scan  # noqa: E402
@@ -95,36 +94,13 @@ def self_test():
          ['coupling/a.cpp:1: #include "tests/test_util.hpp": coupling/ may include only']),
         ("commented out", {"core/a.cpp": '/*\n#include "cli/x.hpp"\n*/\n'}, []),
     ]
-    failed = 0
-    for name, files, expected in cases:
-        with tempfile.TemporaryDirectory() as d:
-            for rel, text in files.items():
-                os.makedirs(os.path.dirname(os.path.join(d, rel)), exist_ok=True)
-                with open(os.path.join(d, rel), "w", encoding="utf-8") as f:
-                    f.write(text)
-            got = check(d)
-        ok = len(got) == len(expected) and all(g.startswith(e) for g, e in zip(got, expected))
-        if not ok:
-            failed += 1
-            print(f"self-test '{name}': expected {expected}, got {got}")
-    print(f"self-test: {len(cases) - failed} of {len(cases)} cases as expected")
-    return 1 if failed else 0
+    return cxx_scan.self_test_trees(cases, check)
 
 
 def main(argv):
-    if argv[1:] == ["--self-test"]:
-        return self_test()
-    if len(argv) != 2 or not os.path.isdir(argv[1]):
-        print("usage: check_layers.py SOURCE_DIR | --self-test", file=sys.stderr)
-        return 2
-    errors = check(argv[1])
-    for e in errors:
-        print(e)
-    if errors:
-        print(f"{len(errors)} include(s) against the layering")
-        return 1
-    print("layers: no layer includes a header of a layer above it")
-    return 0
+    return cxx_scan.check_main(argv, "check_layers.py", check, self_test,
+                               "layers: no layer includes a header of a layer above it",
+                               "{n} include(s) against the layering")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Small lexical scanner for the repository checks (check_equation_index.py, check_layers.py).
+"""Small lexical scanner for the repository checks (check_equation_index.py, check_layers.py,
+check_docs.py), and what the checks share: their self-test runner and command line.
 
 Not a C++ parser: it splits a source file into code, comments and string literals, and finds
 the function bodies of a .cpp file (their qualified names and extents) by brace matching. That
@@ -234,3 +235,46 @@ def _classify(head):
 def read(path):
     with open(path, encoding="utf-8") as f:
         return Source(path, f.read())
+
+
+# ---- what the repository checks share -----------------------------------------------------
+
+def self_test_trees(cases, check):
+    """Run `check(root)` on made-up trees: `cases` are (name, {relative path: text}, expected
+    line prefixes). Prints each case that did not give its expected lines; returns the exit
+    code (1 if any failed)."""
+    import os
+    import tempfile
+    failed = 0
+    for name, files, expected in cases:
+        with tempfile.TemporaryDirectory() as d:
+            for rel, text in files.items():
+                os.makedirs(os.path.dirname(os.path.join(d, rel)) or d, exist_ok=True)
+                with open(os.path.join(d, rel), "w", encoding="utf-8") as f:
+                    f.write(text)
+            got = check(d)
+        ok = len(got) == len(expected) and all(g.startswith(e) for g, e in zip(got, expected))
+        if not ok:
+            failed += 1
+            print(f"self-test '{name}': expected {expected}, got {got}")
+    print(f"self-test: {len(cases) - failed} of {len(cases)} cases as expected")
+    return 1 if failed else 0
+
+
+def check_main(argv, script, check, self_test, ok_line, failed_line):
+    """The command line every check shares: SOURCE_DIR, or --self-test."""
+    import os
+    import sys
+    if argv[1:] == ["--self-test"]:
+        return self_test()
+    if len(argv) != 2 or not os.path.isdir(argv[1]):
+        print(f"usage: {script} SOURCE_DIR | --self-test", file=sys.stderr)
+        return 2
+    errors = check(argv[1])
+    for e in errors:
+        print(e)
+    if errors:
+        print(failed_line.format(n=len(errors)))
+        return 1
+    print(ok_line)
+    return 0
