@@ -4,7 +4,7 @@
 /// solid velocities uⁿ⁺¹ of every free body and the fluid pressure pⁿ⁺¹ from one system.
 ///
 /// Unknowns: the free bodies' node velocities (stacked, 3 per node) and one pressure per
-/// group of co-spherical cells (fluid/operators.hpp; a group's cells share the pressure, so
+/// group of co-spherical cells (fluid/tet/operators.hpp; a group's cells share the pressure, so
 /// J's columns are summed per group). With C = diag(h/ρ_g) L, L = −V D2 G the pressure
 /// matrix between groups (SPD up to its constants), the paper's system (7)
 ///
@@ -64,9 +64,9 @@
 #include "core/enum_names.hpp"
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
-#include "fluid/interface.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/interface.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "solid/contact.hpp"
 

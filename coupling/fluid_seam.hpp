@@ -17,7 +17,7 @@
 #include "core/types.hpp"
 #include "coupling/coupled_system.hpp"
 #include "fluid/params.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "solid/world.hpp"
 
 namespace tetfsi::coupling {

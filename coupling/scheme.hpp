@@ -34,7 +34,7 @@
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
 #include "coupling/fluid_seam.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/world.hpp"
 

@@ -9,7 +9,7 @@
 #include "core/error.hpp"
 #include "coupling/coupled_system.hpp"
 #include "coupling/half_cells.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 #include "solid/integrator.hpp"
 #include "tests/coupling/coupled_test_utils.hpp"
 #include "tests/solid/solid_test_utils.hpp"

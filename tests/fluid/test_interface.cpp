@@ -1,4 +1,4 @@
-/// Tests of fluid/interface.cpp (the operators the coupled solver, the schemes and the fluid's
+/// Tests of fluid/tet/interface.cpp (the operators the coupled solver, the schemes and the fluid's
 /// boundary values use): J = (V D1 H)ᵀ to round-off and the interface power
 /// balance [DESIGN.md §3, VALIDATION.md "Interface power balance"]; a rigid motion moves no
 /// net volume through the interface; a uniform pressure gives no net force; hydrostatic
@@ -10,7 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
-#include "fluid/interface.hpp"
+#include "fluid/tet/interface.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 #include "tests/test_util.hpp"
 

@@ -1,4 +1,4 @@
-/// Tests of fluid/operators.cpp and fluid/reconstruct.cpp: the divergence of uniform flow
+/// Tests of fluid/tet/operators.cpp and fluid/tet/reconstruct.cpp: the divergence of uniform flow
 /// vanishes; the projection leaves every cell divergence-free and removes gradient fields
 /// entirely (with and without co-spherical cells, with Open faces); multigrid iterations stay
 /// flat under refinement; both velocity reconstructions are exact for uniform flow, and
@@ -12,8 +12,8 @@
 
 #include "core/linear_solver.hpp"
 #include "core/parallel.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/reconstruct.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/reconstruct.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 
 using namespace tetfsi;

@@ -1,4 +1,4 @@
-/// Tests of fluid/simulation.cpp and fluid/transfer.cpp, the fluid cases of VALIDATION.md:
+/// Tests of fluid/tet/simulation.cpp and fluid/tet/transfer.cpp, the fluid cases of VALIDATION.md:
 /// hydrostatics (and uniform smoke buoyancy) at rest, free stream across remeshing, extruded
 /// Taylor–Green dissipation under refinement, rigid-rotation angular-momentum drift, jet mass
 /// balance, no smoke in a sealed cavity, back-traces that never cross a solid.
@@ -12,10 +12,11 @@
 #include <Eigen/Geometry>
 
 #include "fluid/forces.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/reconstruct.hpp"
-#include "fluid/simulation.hpp"
-#include "fluid/transfer.hpp"
+#include "fluid/tet/confinement.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/reconstruct.hpp"
+#include "fluid/tet/simulation.hpp"
+#include "fluid/tet/transfer.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 
 using namespace tetfsi;

@@ -1,4 +1,4 @@
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -22,18 +22,10 @@
 #include <vector>
 
 #include "core/types.hpp"
+#include "fluid/body_interface.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
-
-/// How the fluid mesh's Solid faces refer to one body: the surface the mesh was built from
-/// (triangles in its compact vertex numbering, as in mesh::SolidSurface) and the body node of
-/// each compact vertex.
-struct BodyInterface {
-  MatX3i triangles;     ///< #Ts × 3, compact surface vertex indices
-  VecXi surface_node;   ///< #Vs: body node of each compact surface vertex
-  Index num_nodes = 0;  ///< nodes of the body (its DOF block is 3 × this)
-};
 
 /// One Solid face of the mesh with the body nodes its triangle's vertices are.
 struct InterfaceFace {

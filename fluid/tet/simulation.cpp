@@ -1,4 +1,4 @@
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,10 +6,11 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "fluid/forces.hpp"
-#include "fluid/interface.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/reconstruct.hpp"
-#include "fluid/transfer.hpp"
+#include "fluid/tet/confinement.hpp"
+#include "fluid/tet/interface.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/reconstruct.hpp"
+#include "fluid/tet/transfer.hpp"
 
 namespace tetfsi::fluid {
 

@@ -1,4 +1,4 @@
-#include "fluid/grid_interface.hpp"
+#include "fluid/grid/interface.hpp"
 
 #include <algorithm>
 #include <cmath>

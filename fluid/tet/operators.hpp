@@ -29,6 +29,7 @@
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
 #include "fluid/regions.hpp"
+#include "fluid/step.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
@@ -80,22 +81,6 @@ SparseMatrix pressure_matrix(const mesh::TetMesh& m, const VecX& d_eff, const Pr
 Index apply_pressure_gradient(const mesh::TetMesh& m, const VecX& d_eff, const PressureGroups& g,
                               const VecX& q, const VecX& q_open, VecX& u,
                               const VecX* cell_source = nullptr);
-
-struct ProjectionReport {
-  bool converged = false;
-  int iterations = 0;
-  double residual = 0.0;           ///< true relative residual of the pressure solve
-  double divergence_before = 0.0;  ///< max_t |(D u*)_t| (1/s)
-  double divergence_after = 0.0;   ///< max_t |(D u)_t| (1/s)
-  Index pinned_regions = 0;        ///< regions without an Open face (pressure pinned)
-  /// Largest |Σ_t V_t (D u*)_t| / Σ_t |V_t (D u*)_t| over pinned regions: the net boundary flux
-  /// of a closed region, which incompressibility cannot absorb; it is removed (spread over the
-  /// region's cells in proportion to volume) before the solve and reported here.
-  double incompatibility = 0.0;
-  Index groups = 0;          ///< pressure unknowns (≤ #T)
-  Index internal_faces = 0;  ///< faces inside groups
-  double assembly_s = 0.0, setup_s = 0.0, solve_s = 0.0;
-};
 
 /// The projection [Chentanez06, Eq. (2)] with q = (h/ρ) p: solve M q = −V D u* + (Open-face
 /// terms) on the groups, then u = u* − G q on interior and Open faces (internal faces of a
