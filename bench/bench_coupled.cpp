@@ -22,8 +22,8 @@
 #include "coupling/grid_fluid.hpp"
 #include "coupling/simulation.hpp"
 #include "coupling/tet_fluid.hpp"
-#include "fluid/grid_projection.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/grid/projection.hpp"
+#include "fluid/tet/operators.hpp"
 #include "io/output.hpp"
 #include "mesh/remesh.hpp"
 #include "run/run.hpp"
@@ -210,11 +210,9 @@ SolveFigures time_grid_solves(coupling::FsiSimulation& fsi, const coupling::Coup
                               double h) {
   solid::SolidWorld world = fsi.world();
   NextStep n = next_step(world, h);
-  const coupling::RemeshPolicy& policy = *fsi.remesh_policy();
-  auto& grid = dynamic_cast<coupling::GridSimFluid&>(*fsi.fluid());
-  coupling::GridCoupledFluid gf(grid.grid(), policy.domain(), policy.surfaces(), policy.names(),
-                                n.ifaces, grid.forces_form());
   PhaseTimes phases;
+  const std::unique_ptr<coupling::CoupledFluid> fluid = fsi.fluid()->coupled(n.ifaces, phases);
+  coupling::CoupledFluid& gf = *fluid;
   const std::unique_ptr<coupling::PredictedFluid> pred =
       gf.predict(n.positions, n.motion, h, phases);
   const auto& gp = dynamic_cast<const coupling::GridPredicted&>(*pred);

@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "core/timer.hpp"
-#include "fluid/grid_liquid.hpp"
-#include "fluid/liquid_openvdb.hpp"
+#include "fluid/grid/liquid.hpp"
+#include "fluid/grid/liquid_openvdb.hpp"
 
 namespace tetfsi::app {
 

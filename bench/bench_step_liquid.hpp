@@ -2,12 +2,12 @@
 /// @file bench_step_liquid.hpp
 /// `tetfsi bench step` on a liquid scene (fluid.liquid on the grid): the liquid's phases per
 /// step and, on the last step's particles, its level set [ZhuBridson05] against OpenVDB's
-/// particles → level set (fluid/liquid_openvdb.hpp) on the same particles.
+/// particles → level set (fluid/grid/liquid_openvdb.hpp) on the same particles.
 #include <iosfwd>
 
 #include <nlohmann/json_fwd.hpp>
 
-#include "fluid/grid_simulation.hpp"
+#include "fluid/grid/simulation.hpp"
 
 namespace tetfsi::app {
 

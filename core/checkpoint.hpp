@@ -1,7 +1,7 @@
 #pragma once
 /// @file checkpoint.hpp
 /// A checkpoint file: named records of exact binary arrays, each with its own CRC-32, written
-/// atomically (DESIGN.md §2; `tetfsi run --checkpoint-every`, `tetfsi resume`).
+/// atomically (docs/dev/architecture.md; `tetfsi run --checkpoint-every`, `tetfsi resume`).
 ///
 /// Layout (little-endian, version k_checkpoint_version):
 ///

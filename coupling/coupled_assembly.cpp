@@ -7,7 +7,7 @@
 #include "core/error.hpp"
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 
 namespace tetfsi::coupling {
 

@@ -10,8 +10,8 @@
 #include "core/linear_solver.hpp"
 #include "core/log.hpp"
 #include "core/timer.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/simulation.hpp"
 
 namespace tetfsi::coupling {
 

@@ -4,7 +4,7 @@
 /// solid velocities uⁿ⁺¹ of every free body and the fluid pressure pⁿ⁺¹ from one system.
 ///
 /// Unknowns: the free bodies' node velocities (stacked, 3 per node) and one pressure per
-/// group of co-spherical cells (fluid/operators.hpp; a group's cells share the pressure, so
+/// group of co-spherical cells (fluid/tet/operators.hpp; a group's cells share the pressure, so
 /// J's columns are summed per group). With C = diag(h/ρ_g) L, L = −V D2 G the pressure
 /// matrix between groups (SPD up to its constants), the paper's system (7)
 ///
@@ -12,7 +12,7 @@
 ///     [ −D1 H        (h/ρ) D2 G  ] [p] = [ D2 v* − s/V ]
 ///
 /// is, after multiplying its second block row by the group volumes V (J = (V D1 H)ᵀ), the
-/// symmetric quasi-definite system (DESIGN.md §4)
+/// symmetric quasi-definite system (docs/method/coupling.md)
 ///
 ///     [ A     −J ] [u]   [ b            ]
 ///     [ −Jᵀ   −C ] [p] = [ V D2 v* − s  ]
@@ -64,9 +64,9 @@
 #include "core/enum_names.hpp"
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
-#include "fluid/interface.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/interface.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "solid/contact.hpp"
 
@@ -129,7 +129,8 @@ struct CoupledOptions {
   /// schur_amg on the grid fluid: precondition with hypre's structured multigrid
   /// (make_pfmg_preconditioner: P's 7-point part, the bodies' couplings beyond it on the
   /// diagonal) instead of BoomerAMG on the whole P. Off by default: cheaper set-up and
-  /// V-cycles, but 2–6× the iterations where stiff bodies couple many cells (docs/method/grid_fluid.md).
+  /// V-cycles, but 2–6× the iterations where stiff bodies couple many cells
+  /// (docs/method/grid_fluid.md).
   bool grid_multigrid = false;
   /// schur_amg: if set, the AMG setup of the first solve is kept here and reused by later
   /// solves with this cache (see SolveCache: only for the same P).

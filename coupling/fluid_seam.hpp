@@ -1,10 +1,10 @@
 #pragma once
 /// @file fluid_seam.hpp
-/// The fluid as every coupling scheme sees it, whatever its discretisation (DESIGN.md §2):
-/// a CoupledFluid predicts the step around the bodies at given positions (the tet fluid
-/// rebuilds its mesh there, the grid fluid reclassifies its cells), the PredictedFluid of the
-/// step solves the coupled system [Chentanez06, Eq. (7)] with the bodies' Eq. (4) and applies
-/// H, and the CoupledFluid commits the solution. Two implementations:
+/// The fluid as every coupling scheme sees it, whatever its discretisation
+/// (docs/dev/architecture.md): a CoupledFluid predicts the step around the bodies at given
+/// positions (the tet fluid rebuilds its mesh there, the grid fluid reclassifies its cells), the
+/// PredictedFluid of the step solves the coupled system [Chentanez06, Eq. (7)] with the bodies' Eq.
+/// (4) and applies H, and the CoupledFluid commits the solution. Two implementations:
 ///  - TetCoupledFluid (tet_fluid.cpp): fluid::FluidSimulation on the dynamic tet mesh,
 ///    fluid::InterfaceOperators, solve_coupled (coupled_system.hpp);
 ///  - GridCoupledFluid (grid_coupled.hpp): fluid::GridFluid on the MAC grid,
@@ -17,7 +17,7 @@
 #include "core/types.hpp"
 #include "coupling/coupled_system.hpp"
 #include "fluid/params.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "solid/world.hpp"
 
 namespace tetfsi::coupling {

@@ -10,7 +10,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/timer.hpp"
-#include "fluid/grid_projection.hpp"
+#include "fluid/grid/projection.hpp"
 
 namespace tetfsi::coupling {
 

@@ -27,9 +27,9 @@
 #include "core/enum_names.hpp"
 #include "coupling/fluid_seam.hpp"
 #include "coupling/scheme.hpp"
-#include "fluid/grid.hpp"
-#include "fluid/grid_interface.hpp"
-#include "fluid/grid_simulation.hpp"
+#include "fluid/grid/grid.hpp"
+#include "fluid/grid/interface.hpp"
+#include "fluid/grid/simulation.hpp"
 
 namespace tetfsi::coupling {
 

@@ -6,7 +6,7 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
-#include "fluid/grid_interface.hpp"
+#include "fluid/grid/interface.hpp"
 
 namespace tetfsi::coupling {
 

@@ -11,7 +11,7 @@
 
 #include "coupling/grid_coupled.hpp"
 #include "coupling/sim_fluid.hpp"
-#include "fluid/grid_simulation.hpp"
+#include "fluid/grid/simulation.hpp"
 
 namespace tetfsi::coupling {
 

@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "core/types.hpp"
-#include "fluid/interface.hpp"
+#include "fluid/tet/interface.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::coupling {

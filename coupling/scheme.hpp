@@ -1,7 +1,7 @@
 #pragma once
 /// @file scheme.hpp
-/// A coupling scheme: one two-way step of the fluid and the solid bodies (DESIGN.md §2).
-/// Every scheme is a part behind the same interface, in its own file:
+/// A coupling scheme: one two-way step of the fluid and the solid bodies
+/// (docs/dev/architecture.md). Every scheme is a part behind the same interface, in its own file:
 ///
 ///  - **simultaneous** (scheme_simultaneous.cpp) [Chentanez06, §3.3]: every deformable body's
 ///    linearised trapezoidal system (Eq. (4)) is assembled at dⁿ; the fluid mesh is rebuilt
@@ -34,7 +34,7 @@
 #include "core/timer.hpp"
 #include "coupling/coupled_system.hpp"
 #include "coupling/fluid_seam.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/world.hpp"
 

@@ -6,8 +6,8 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "coupling/half_cells.hpp"
-#include "fluid/interface.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/tet/interface.hpp"
+#include "fluid/tet/operators.hpp"
 
 namespace tetfsi::coupling {
 

@@ -10,8 +10,8 @@
 
 #include "coupling/fluid_seam.hpp"
 #include "coupling/sim_fluid.hpp"
-#include "fluid/interface.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/interface.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::coupling {

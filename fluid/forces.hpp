@@ -1,28 +1,14 @@
 #pragma once
 /// @file forces.hpp
-/// Body forces on the face velocities (DESIGN.md §2 step 4): buoyancy and vorticity
-/// confinement [Fedkiw01, Eqs. (8), (11)], and the smoke/heat sources.
-/// Forces are evaluated per cell and applied to a face as n_f · (mean of its cells' values).
+/// The body force every discretisation of the fluid shares: buoyancy [Fedkiw01, Eq. (8)],
+/// evaluated per cell (each discretisation applies it to its faces; vorticity confinement is
+/// each one's own: tet/confinement.hpp, the grid's in grid/simulation.cpp).
 #include "core/types.hpp"
 #include "fluid/params.hpp"
-#include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
 
 /// Per-cell buoyancy acceleration (#T × 3, m/s²): (−α ρ_smoke + β (T − T_amb)) up.
 MatX3 buoyancy(const FluidParams& p, const VecX& density, const VecX& temperature);
-
-/// Per-cell vorticity confinement acceleration (#T × 3, m/s²): ε Δx (N × ω) with
-/// N = ∇|ω| / |∇|ω||, Δx the cell's size (cell_sizes); |ω| is
-/// averaged to the vertices and differentiated per tet.
-/// @param vertex_velocity #V × 3 reconstructed velocities
-MatX3 vorticity_confinement(const mesh::TetMesh& m, const MatX3& vertex_velocity, double epsilon);
-
-/// u_f += h n_f · ½ (a_t1 + a_t2) on interior faces and h n_f · a_t1 on Open faces
-/// (prescribed-velocity faces are left alone).
-void add_cell_acceleration(const mesh::TetMesh& m, const MatX3& accel, double h, VecX& u);
-
-/// Mean edge length of each cell (#T, m).
-VecX cell_sizes(const mesh::TetMesh& m);
 
 }  // namespace tetfsi::fluid

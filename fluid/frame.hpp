@@ -33,7 +33,7 @@ struct MeshFrame {
   MeshFrameFields fields;
 };
 
-/// One frame of a regular-grid fluid (grid.hpp): plain data, filled from fluid::GridFluid
+/// One frame of a regular-grid fluid (grid/grid.hpp): plain data, filled from fluid::GridFluid
 /// (grid_frame_fields) and the bodies (the simulation's grid fluid). Cell c = i + nx (j + ny k), x
 /// fastest (GridSpec::cell, VTK ImageData's order); #C = nx ny nz.
 struct GridFrameFields {

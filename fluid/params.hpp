@@ -53,7 +53,7 @@ struct RefineParams {
   double vorticity_threshold = 0.0;  ///< |ω| above which a cell counts (1/s); 0: ignore ω
 };
 
-/// Velocity reconstruction inside a tet from the face normal components (reconstruct.hpp).
+/// Velocity reconstruction inside a tet from the face normal components (tet/reconstruct.hpp).
 enum class Reconstruction {
   VertexLeastSquares,  ///< least squares of the face components around each vertex, then
                        ///< barycentric interpolation (continuous; exact for uniform flow)
@@ -73,7 +73,7 @@ Reconstruction parse_reconstruction(const std::string& name);
 const char* to_string(Reconstruction r);
 
 /// How the transfer (advection) carries velocity and scalars from the old mesh to the new one
-/// (transfer.hpp).
+/// (tet/transfer.hpp).
 enum class TransferScheme {
   SemiLagrangian,  ///< one RK2 back-trace per sample, first order [Stam99], [KFCO06, §4]
   MacCormack,      ///< + the back-and-forth error estimate on the old mesh, sampled at the new
@@ -88,12 +88,12 @@ inline constexpr EnumNames<TransferScheme, 3> k_transfer_scheme_names{
       {TransferScheme::Bfecc, "bfecc"}}}};
 const char* to_string(TransferScheme s);
 
-/// How the transfer reads a cell scalar (smoke, temperature) at a traced point (transfer.hpp).
+/// How the transfer reads a cell scalar (smoke, temperature) at a traced point (tet/transfer.hpp).
 enum class ScalarInterpolation {
   VertexFit,  ///< linear between vertex values fitted to the cells around each vertex
-              ///< (reconstruct.hpp cell_to_vertex_linear): continuous
+              ///< (tet/reconstruct.hpp cell_to_vertex_linear): continuous
   Quadratic,  ///< vertex values and gradients of quadratic fits, interpolated exactly
-              ///< for quadratic fields (reconstruct.hpp vertex_quadratic_fit): continuous
+              ///< for quadratic fields (tet/reconstruct.hpp vertex_quadratic_fit): continuous
 };
 
 inline constexpr EnumNames<ScalarInterpolation, 2> k_scalar_interpolation_names{
@@ -102,7 +102,7 @@ inline constexpr EnumNames<ScalarInterpolation, 2> k_scalar_interpolation_names{
       {ScalarInterpolation::Quadratic, "quadratic"}}}};
 const char* to_string(ScalarInterpolation s);
 
-/// A region the liquid fills at the start (grid_liquid.hpp): the intersection of whichever of
+/// A region the liquid fills at the start (grid/liquid.hpp): the intersection of whichever of
 /// a box [lo, hi] (when lo < hi), a sphere (when radius > 0) and the inside of a closed
 /// surface (when `surface` is set) it has, at least one.
 struct LiquidRegion {
@@ -130,7 +130,7 @@ struct LiquidSource {
   double stop = std::numeric_limits<double>::infinity();
 };
 
-/// A liquid with a free surface on the grid (grid_liquid.hpp): FLIP particles carry it, the
+/// A liquid with a free surface on the grid (grid/liquid.hpp): FLIP particles carry it, the
 /// surface is their level set, p = 0 in the air.
 struct LiquidParams {
   bool enabled = false;
@@ -180,7 +180,7 @@ struct FluidParams {
   /// keeps more angular momentum in rigid rotation than vertex least squares.
   Reconstruction reconstruction = Reconstruction::Whitney;
   /// How the transfer carries smoke density and temperature, and the face velocities
-  /// (transfer.hpp). Measured (docs/results/fluid.md, transfer): BFECC keeps 7× more of a
+  /// (tet/transfer.hpp). Measured (docs/results/fluid.md, transfer): BFECC keeps 7× more of a
   /// rotating blob's peak than semi-Lagrangian at 119k cells, clamped (no new extrema), so it
   /// is the scalars' default; the second-order velocity options are not the default (they
   /// lose more on the coarse Taylor–Green and gain energy in the fine rotation).
@@ -192,10 +192,10 @@ struct FluidParams {
   /// cells (51 % with the linear reading), a fifth of the L1 error and more of the mass.
   ScalarInterpolation scalar_interpolation = ScalarInterpolation::Quadratic;
   /// The transfer takes the old pressure's acceleration at the midpoint of each back-trace
-  /// rather than at its end (transfer.hpp): second order in time along curved paths.
+  /// rather than at its end (tet/transfer.hpp): second order in time along curved paths.
   bool pressure_along_path = false;
   /// δ: cells joined by an interior face with d_f ≤ δ × (its mean edge) share one pressure
-  /// unknown (co-spherical cells, A_f/d_f = ∞; operators.hpp). Larger values merge cells
+  /// unknown (co-spherical cells, A_f/d_f = ∞; tet/operators.hpp). Larger values merge cells
   /// whose circumcentres differ, which costs accuracy near solids (measured: a uniform
   /// acceleration left 0.5 h|a| at δ = 0.01, 6e-12 at 1e-6).
   double min_dual_fraction = 1e-6;

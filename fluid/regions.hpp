@@ -4,8 +4,8 @@
 /// through the faces the pressure couples (a region without a Dirichlet face — Open, or a free
 /// surface — has its pressure level fixed by nothing and gets one pin). The flood fill is one
 /// algorithm for every discretisation; each says which cells are fluid and which neighbours a
-/// cell is joined to (the tet mesh: fluid_regions, operators.hpp; the MAC grid: grid_regions,
-/// grid_projection.hpp).
+/// cell is joined to (the tet mesh: fluid_regions, tet/operators.hpp; the MAC grid: grid_regions,
+/// grid/projection.hpp).
 #include <vector>
 
 #include "core/types.hpp"

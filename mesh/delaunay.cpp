@@ -78,9 +78,9 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<int, K>;
 using Cb = CGAL::Triangulation_cell_base_with_info_3<int, K>;
 using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
-// Sequential: CGAL's parallel insertion measured slower on this machine (DESIGN.md §6); it is
-// an option of Delaunay::build (ParallelDT below).
-// Vertex ids must be set before a removal: the infinite vertex has id −1.
+// Sequential: CGAL's parallel insertion measured slower on this machine (docs/dev/architecture.md,
+// measured facts); it is an option of Delaunay::build (ParallelDT below). Vertex ids must be set
+// before a removal: the infinite vertex has id −1.
 using DT = CGAL::Delaunay_triangulation_3<K, Tds, CGAL::Default, AddressFreeRemoval>;
 using Point = K::Point_3;
 /// CGAL's concurrent triangulation (TBB; a lock grid over the points' box): its range

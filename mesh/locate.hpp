@@ -2,8 +2,8 @@
 /// @file locate.hpp
 /// Point location in a TetMesh: which tet contains a point, and where in it. Used by the
 /// semi-Lagrangian transfer to find, for every face centre of the new mesh, the old tet its
-/// back-traced point lies in (DESIGN.md §2 step 3) — so it must be fast for ~10⁶ queries
-/// with good hints, and right for every query.
+/// back-traced point lies in (docs/dev/architecture.md, one time step, step 3) — so it must be fast
+/// for ~10⁶ queries with good hints, and right for every query.
 #include <memory>
 
 #include "core/types.hpp"

@@ -3,7 +3,8 @@
 /// Mesh-quality diagnostics for tet meshes: per-cell shape figures, per-face dual lengths
 /// and Laplacian weights A_f/d_f, and a summary with percentiles and histograms. A
 /// Laplacian with weights A_f/d_f on nearly co-spherical cells is badly conditioned
-/// (DESIGN.md §6), so these figures are what a user checks to trust a dynamic mesh.
+/// (docs/dev/architecture.md, measured facts), so these figures are what a user checks to trust a
+/// dynamic mesh.
 ///
 /// Reference values: a regular tet has every dihedral angle acos(1/3) = 70.529°,
 /// radius–edge ratio R / l_min = sqrt(6)/4 = 0.6124 and shape measure 1.

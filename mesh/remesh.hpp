@@ -1,7 +1,7 @@
 #pragma once
 /// @file remesh.hpp
 /// The fluid remesher: every time step a new Delaunay tet mesh of the fluid domain around
-/// the current solid boundary triangles (DESIGN.md §2 step 2, §3, §6). The implementation is
+/// the current solid boundary triangles (docs/method/dynamic_mesh.md). The implementation is
 /// in mesh/remesh*.cpp, one function per stage of the internal RemeshContext
 /// (remesh_stages.hpp); CGAL only in delaunay.cpp.
 ///

@@ -12,7 +12,7 @@
 ///    points *into*, or −1 on the boundary. So on the boundary n_f points out of the fluid —
 ///    for a solid-interface face, from the fluid into the solid;
 ///  - `tet_face_signs(t, k)` = +1 if n_f of face `tet_faces(t, k)` points out of t, −1 if into
-///    it: the divergence is (D u)_t = (1/V_t) Σ_k s_tk A_f u_f [DESIGN.md §3];
+///    it: the divergence is (D u)_t = (1/V_t) Σ_k s_tk A_f u_f [docs/method/tet_fluid.md];
 ///  - dual length d_f = (c_t2 − c_t1) · n_f for interior faces (≥ 0 on a Delaunay mesh), and
 ///    d_f = (x_f − c_t1) · n_f for boundary faces (x_f the face centroid): the signed distance
 ///    from the tet's circumcentre to the face plane, used for Dirichlet (open) faces;

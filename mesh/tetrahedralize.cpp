@@ -31,7 +31,8 @@ using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Point = Kernel::Point_3;
 using CgalSurface = CGAL::Surface_mesh<Point>;
 using Domain = CGAL::Polyhedral_mesh_domain_with_features_3<Kernel, CgalSurface>;
-// Sequential: on this machine the parallel mesher measured slower (DESIGN.md §6).
+// Sequential: on this machine the parallel mesher measured slower (docs/dev/architecture.md,
+// measured facts).
 using Triangulation = CGAL::Mesh_triangulation_3<Domain, CGAL::Default, CGAL::Sequential_tag>::type;
 using C3t3 = CGAL::Mesh_complex_3_in_triangulation_3<Triangulation, Domain::Corner_index,
                                                      Domain::Curve_index>;

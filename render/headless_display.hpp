@@ -1,10 +1,10 @@
 #pragma once
 /// @file headless_display.hpp
 /// An X display for VTK's OpenGL renderer. Debian's VTK 9.1 renders only through X (its
-/// vtkXOpenGLRenderWindow; no EGL or OSMesa build, DESIGN.md §6), so `tetfsi render` needs a
-/// display even off screen: the one in `DISPLAY` if it answers, else an `Xvfb` server started
-/// here on a free display number (`-displayfd`) and stopped again when this object goes away.
-/// Mesa's software rasteriser (llvmpipe, `libgl1-mesa-dri`) draws into it.
+/// vtkXOpenGLRenderWindow; no EGL or OSMesa build, docs/dev/architecture.md, measured facts), so
+/// `tetfsi render` needs a display even off screen: the one in `DISPLAY` if it answers, else an
+/// `Xvfb` server started here on a free display number (`-displayfd`) and stopped again when this
+/// object goes away. Mesa's software rasteriser (llvmpipe, `libgl1-mesa-dri`) draws into it.
 #include <sys/types.h>
 #include <string>
 

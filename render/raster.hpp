@@ -2,7 +2,7 @@
 /// @file raster.hpp
 /// A small RGB picture drawn pixel by pixel, with a built-in 5 × 8 bitmap font, written as
 /// PNG. For charts made without an X server or OpenGL (Debian's VTK renders only through X,
-/// DESIGN.md §6). VTK (vtkPNGWriter) stays inside raster.cpp.
+/// docs/dev/architecture.md, measured facts). VTK (vtkPNGWriter) stays inside raster.cpp.
 ///
 /// Coordinates are pixels, x to the right and y *down*, (0, 0) the top-left pixel. Every
 /// drawing call clips to the picture.

@@ -795,7 +795,8 @@ class Parser {
   /// non-kinematic body; `dynamic`: its mode. Only called for a scene with a fluid.
   CouplingSpec coupling_spec(const Node* n, bool deformable, bool dynamic) const {
     CouplingSpec c;
-    c.two_way = deformable && dynamic;  // the default, DESIGN.md §2: the simultaneous solve
+    c.two_way =
+        deformable && dynamic;  // the default, docs/dev/architecture.md: the simultaneous solve
     if (n) read(*n, coupling_keys(), c);
     return c;
   }
@@ -1043,9 +1044,9 @@ Scene parse_scene(const json& j, const fs::path& file) {
     }
   }
 
-  // The default integrator, chosen by measurement (`tetfsi bench integrators`, docs/method/solid.md "Choosing
-  // integrators"): the Newton-iterated trapezoidal rule keeps a swing's energy to 1e-3 where
-  // the paper's linearisation damps it away. Two-way scenes step their bodies with
+  // The default integrator, chosen by measurement (`tetfsi bench integrators`, docs/method/solid.md
+  // "Choosing integrators"): the Newton-iterated trapezoidal rule keeps a swing's energy to 1e-3
+  // where the paper's linearisation damps it away. Two-way scenes step their bodies with
   // coupling.scheme; a given solid.trapezoid asks for the linearized rule.
   {
     const bool given_solid = Parser::has(root, "solid");

@@ -152,7 +152,7 @@
 #include "core/types.hpp"
 #include "coupling/coupled_step.hpp"
 #include "coupling/grid_coupled.hpp"
-#include "fluid/grid.hpp"
+#include "fluid/grid/grid.hpp"
 #include "fluid/params.hpp"
 #include "io/output.hpp"
 #include "mesh/remesh.hpp"

@@ -457,7 +457,8 @@ const Section<SolidSpec>& solid_keys() {
            {.key = "tangent",
             .doc = "the Jacobian K' of every integrator: `exact` (d²W/dx²), or `definite`: its "
                    "initial-stress term keeps only the tensile principal stresses, so the "
-                   "step's matrix stays positive definite when elements are crushed (docs/method/contact.md "
+                   "step's matrix stays positive definite when elements are crushed "
+                   "(docs/method/contact.md "
                    "\"Bodies that touch\"). Default: `definite` with `contact`, else `exact`",
             .default_text = "by scene"},
            solid::k_tangent_names, TETFSI_AT(tangent)),
@@ -1341,12 +1342,13 @@ const Section<fluid::LiquidParams>& liquid_keys() {
                 .doc = "FLIP share of the particles' velocity update; 0: PIC (more damping)",
                 .range = between(0, 1)},
                TETFSI_AT(flip)),
-       bind<L>({.key = "density_correction",
-                .type = KeyType::Number,
-                .doc = "share of a deep cell's particle-density error (beyond 10 %) the "
-                       "projection corrects per step; 0: off (docs/method/liquids.md: when to use it)",
-                .range = between(0, 1)},
-               TETFSI_AT(density_correction)),
+       bind<L>(
+           {.key = "density_correction",
+            .type = KeyType::Number,
+            .doc = "share of a deep cell's particle-density error (beyond 10 %) the "
+                   "projection corrects per step; 0: off (docs/method/liquids.md: when to use it)",
+            .range = between(0, 1)},
+           TETFSI_AT(density_correction)),
        bind<L>({.key = "hold_volume",
                 .type = KeyType::Boolean,
                 .doc = "shift the level set each step so that it holds the volume the particles "

@@ -27,7 +27,7 @@ namespace tetfsi::solid {
 /// `Trapezoid::Midpoint` is the opt-in alternative: K evaluated at the midpoint
 /// (dⁿ + dⁿ⁺¹)/2 instead of at dⁿ⁺¹, i.e. K' weighted h/4 instead of h/2 in A and b
 /// (Newmark γ = 1/2, β = 1/4, "average acceleration"). On a linear undamped system it
-/// conserves E exactly (VALIDATION.md "Solid": no amplitude decay); it does not damp
+/// conserves E exactly (docs/dev/validation_plan.md "Solid": no amplitude decay); it does not damp
 /// unresolved modes. Both keep the form A uⁿ⁺¹ − J pⁿ⁺¹ = b the coupling needs.
 enum class Trapezoid {
   Paper,     ///< [Chentanez06, Eqs. (4), (15)–(18)]: K(dⁿ⁺¹) linearised, weight h/2

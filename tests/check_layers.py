@@ -3,8 +3,10 @@
 
 Layers: core <- mesh <- {fluid, solid} <- coupling <- io <- scene <- run <- {render, bench}
 <- cli (the application's rooms above coupling); fluid and solid never include each other,
-nor do render and bench, and no layer includes tests/. Every quoted #include in these folders
-is resolved — `"<layer>/x.hpp"` by its first folder, any other
+nor do render and bench, and no layer includes tests/. Inside fluid/, the two discretisations
+fluid/tet/ and fluid/grid/ never include each other, and what they share (fluid/ itself)
+includes neither. Every quoted #include in these folders is resolved — `"<layer>/x.hpp"` by
+its first folder, any other
 quoted include relative to the including file — and must land in the file's own layer or one
 below.
 
@@ -50,6 +52,24 @@ def target_layer(root, including, target):
     return top if top in TOP_LEVEL and os.path.exists(here) else None
 
 
+# Inside fluid/: what each part may include of fluid/ ("" is fluid/ itself, what both share).
+FLUID_PARTS = {"": {""}, "tet": {"", "tet"}, "grid": {"", "grid"}}
+
+
+def fluid_part(rel):
+    """The part of fluid/ a path inside it belongs to: "tet", "grid" or "" (shared)."""
+    parts = rel.replace(os.sep, "/").split("/")
+    return parts[1] if len(parts) > 2 and parts[1] in FLUID_PARTS else ""
+
+
+def fluid_target(root, including, target):
+    """The path (relative to root) of a quoted include that lands in fluid/."""
+    if target.split("/")[0] == "fluid":
+        return target
+    return os.path.relpath(os.path.normpath(os.path.join(os.path.dirname(including), target)),
+                           root)
+
+
 def check(root):
     errors = []
     for layer in ALLOWED:
@@ -68,6 +88,14 @@ def check(root):
                         errors.append(f"{rel}:{line}: #include \"{target}\": {layer}/ may "
                                       f"include only {', '.join(sorted(ALLOWED[layer]))} "
                                       f"({ORDER})")
+                    elif layer == "fluid" and to == "fluid":
+                        mine = fluid_part(rel)
+                        theirs = fluid_part(fluid_target(root, full, target))
+                        if theirs not in FLUID_PARTS[mine]:
+                            errors.append(f"{rel}:{line}: #include \"{target}\": "
+                                          f"fluid/{mine + '/' if mine else ''} may not include "
+                                          f"fluid/{theirs}/ (fluid/tet and fluid/grid never "
+                                          f"include each other; fluid/ includes neither)")
     return errors
 
 
@@ -93,13 +121,27 @@ def self_test():
         ("tests", {"coupling/a.cpp": '#include "tests/test_util.hpp"\n'},
          ['coupling/a.cpp:1: #include "tests/test_util.hpp": coupling/ may include only']),
         ("commented out", {"core/a.cpp": '/*\n#include "cli/x.hpp"\n*/\n'}, []),
+        ("fluid parts", {"fluid/tet/a.cpp": '#include "fluid/params.hpp"\n#include "b.hpp"\n',
+                         "fluid/tet/b.hpp": "",
+                         "fluid/grid/c.cpp": '#include "fluid/grid/d.hpp"\n#include "../e.hpp"\n',
+                         "fluid/e.hpp": ""}, []),
+        ("tet includes grid", {"fluid/tet/a.cpp": '#include "fluid/grid/grid.hpp"\n'},
+         ['fluid/tet/a.cpp:1: #include "fluid/grid/grid.hpp": fluid/tet/ may not include '
+          'fluid/grid/']),
+        ("grid includes tet", {"fluid/grid/a.hpp": '#include "../tet/b.hpp"\n',
+                               "fluid/tet/b.hpp": ""},
+         ['fluid/grid/a.hpp:1: #include "../tet/b.hpp": fluid/grid/ may not include fluid/tet/']),
+        ("shared includes tet", {"fluid/a.hpp": '#include "fluid/tet/mesh.hpp"\n'},
+         ['fluid/a.hpp:1: #include "fluid/tet/mesh.hpp": fluid/ may not include fluid/tet/']),
     ]
     return cxx_scan.self_test_trees(cases, check)
 
 
 def main(argv):
     return cxx_scan.check_main(argv, "check_layers.py", check, self_test,
-                               "layers: no layer includes a header of a layer above it",
+                               "layers: no layer includes a header of a layer above it; "
+                               "fluid/tet and fluid/grid include only their own and what they "
+                               "share",
                                "{n} include(s) against the layering")
 
 

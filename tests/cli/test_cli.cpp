@@ -550,8 +550,8 @@ TEST_CASE("tetfsi --help, --version and usage errors") {
 }
 
 TEST_CASE("the shipped csm1 scene: point A of the last frame within 3% of Turek-Hron CSM1") {
-  // The user's view of VALIDATION.md "Solid" CSM1: run data/scenes/csm1.json as shipped
-  // (560 x 32 x 1 cells, ≈ 15 s), read the last frame with VTK, take the node whose rest
+  // The user's view of docs/dev/validation_plan.md "Solid" CSM1: run data/scenes/csm1.json as
+  // shipped (560 x 32 x 1 cells, ≈ 15 s), read the last frame with VTK, take the node whose rest
   // position is A = (0.6, 0.2, 0) and compare its displacement with the reference
   // u_x = −7.187e-3 m, u_y = −66.10e-3 m [Turek & Hron 2006]. Measured: 0.51% / 0.23%.
   TempDir dir("csm1");

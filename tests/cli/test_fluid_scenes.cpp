@@ -1,9 +1,9 @@
 // The two shipped fluid scenes, data/scenes/smoke_jet.json and smoke_plume.json, run through
 // the `tetfsi` executable as a user would, at coarse mesh sizes and for a few steps (about a
 // second each), and checked against properties the physics guarantees: the jet's mass balance
-// (VALIDATION.md "Fluid", jet mass balance), the projection, smoke bounds, buoyant rise. The
-// frames are read with VTK and the cell volumes and centroids computed here from the points,
-// so that the checks share no code with what they check. TETFSI_EXE is the built executable
+// (docs/dev/validation_plan.md "Fluid", jet mass balance), the projection, smoke bounds, buoyant
+// rise. The frames are read with VTK and the cell volumes and centroids computed here from the
+// points, so that the checks share no code with what they check. TETFSI_EXE is the built executable
 // (tests/CMakeLists.txt, tetfsi_runs_cli).
 #include <doctest/doctest.h>
 

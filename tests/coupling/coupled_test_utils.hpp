@@ -10,7 +10,7 @@
 #include "coupling/grid_fluid.hpp"
 #include "coupling/simulation.hpp"
 #include "coupling/tet_fluid.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 #include "mesh/remesh.hpp"
 #include "solid/world.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"

@@ -1,6 +1,6 @@
 /// Tests of the simultaneous coupled solve (coupling/coupled_system.cpp) and the coupled
-/// step (coupling/coupled_step.cpp) [Chentanez06, Eqs. (6)–(8)], [VALIDATION.md, "Coupled
-/// fluid–solid"].
+/// step (coupling/coupled_step.cpp) [Chentanez06, Eqs. (6)–(8)], [docs/dev/validation_plan.md,
+/// "Coupled fluid–solid"].
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -9,7 +9,7 @@
 #include "core/error.hpp"
 #include "coupling/coupled_system.hpp"
 #include "coupling/half_cells.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 #include "solid/integrator.hpp"
 #include "tests/coupling/coupled_test_utils.hpp"
 #include "tests/solid/solid_test_utils.hpp"
@@ -181,7 +181,8 @@ struct SphereResult {
   double acc_error() const { return (acc - expect) / expect; }
 };
 
-// [VALIDATION.md "Released sphere"]: C_m = ½ (1 + 2χ)/(1 − χ), χ = (a/R)³ (Stokes 1843).
+// [docs/dev/validation_plan.md "Released sphere"]: C_m = ½ (1 + 2χ)/(1 − χ), χ = (a/R)³ (Stokes
+// 1843).
 constexpr double k_sphere_a = 0.1, k_sphere_R = 0.2;
 double exact_cm() {
   const double chi = std::pow(k_sphere_a / k_sphere_R, 3);
@@ -525,8 +526,8 @@ double lid_sag(const solid::SolidBody& b, double z_lid) {
 TEST_CASE(
     "closed region: a piston closing a liquid column with a rigid closed far end does not "
     "move") {
-  // [VALIDATION.md "Closed region"]: the lid of a closed box of water, pushed down, would sag
-  // by `dry` on its elastic seals alone; on the incompressible water it can only bend at
+  // [docs/dev/validation_plan.md "Closed region"]: the lid of a closed box of water, pushed down,
+  // would sag by `dry` on its elastic seals alone; on the incompressible water it can only bend at
   // constant volume.
   const double h = 0.01, load = 2000;
   const Vec3 clo(0.33, 0.33, 0.23), chi(0.67, 0.67, 0.57);  // the cavity, widened by 0.01

@@ -153,7 +153,8 @@ TEST_SUITE("unit") {
   }
 }  // TEST_SUITE
 
-// ---- docs/results/solid.md's measurement: how much the integrator and the contact each dissipate ----
+// ---- docs/results/solid.md's measurement: how much the integrator and the contact each dissipate
+// ----
 
 namespace {
 

@@ -1,7 +1,7 @@
 /// @file test_grid_coupled.cpp
 /// The coupled solve on the MAC grid (coupling/grid_coupled.hpp): the released sphere's added
-/// mass [VALIDATION.md "Released sphere"] in both J forms with grid convergence, the interface
-/// power balance, and the schemes on the grid.
+/// mass [docs/dev/validation_plan.md "Released sphere"] in both J forms with grid convergence, the
+/// interface power balance, and the schemes on the grid.
 #include <doctest/doctest.h>
 
 #include <cmath>

@@ -9,7 +9,7 @@
 #include "core/error.hpp"
 #include "coupling/scheme.hpp"
 #include "coupling/tet_fluid.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 #include "mesh/generate.hpp"
 #include "tests/coupling/coupled_test_utils.hpp"
 #include "tests/solid/solid_test_utils.hpp"

@@ -7,7 +7,7 @@
 
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/remesh.hpp"
 #include "mesh/tet_mesh.hpp"

@@ -1,4 +1,4 @@
-// The MAC grid and its classification against solids (fluid/grid.hpp).
+// The MAC grid and its classification against solids (fluid/grid/grid.hpp).
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -7,7 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
-#include "fluid/grid.hpp"
+#include "fluid/grid/grid.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/volume_mesh.hpp"
 
@@ -164,11 +164,11 @@ TEST_CASE("MAC grid: bad grids and unresolved bodies are one-line errors naming 
                        doctest::Contains("body 1: it leaves the fluid box"), InputError);
 }
 
-// ---- the projection (fluid/grid_projection.hpp) -------------------------------------------
+// ---- the projection (fluid/grid/projection.hpp) -------------------------------------------
 
 #include <random>
 
-#include "fluid/grid_projection.hpp"
+#include "fluid/grid/projection.hpp"
 
 TEST_CASE("MAC grid projection: a random field around a sphere becomes divergence-free") {
   const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1.5, 1, 1), {24, 16, 16});
@@ -336,9 +336,9 @@ TEST_CASE("MAC grid projection: a thin sheet across a channel holds a pressure d
   }
 }
 
-// ---- the interface operators (fluid/grid_interface.hpp) -----------------------------------
+// ---- the interface operators (fluid/grid/interface.hpp) -----------------------------------
 
-#include "fluid/grid_interface.hpp"
+#include "fluid/grid/interface.hpp"
 
 namespace {
 
@@ -429,9 +429,9 @@ TEST_CASE("MAC grid interface: H moves with the body, J_consistent = (V D1 H)ᵀ
   }
 }
 
-// ---- advection (fluid/grid_advect.hpp) ----------------------------------------------------
+// ---- advection (fluid/grid/advect.hpp) ----------------------------------------------------
 
-#include "fluid/grid_advect.hpp"
+#include "fluid/grid/advect.hpp"
 
 TEST_CASE("MAC grid advection: a free stream stays exact, a sealed shell stays smoke-free") {
   const GridSpec g = GridSpec::from_cells(Vec3::Zero(), Vec3(1.5, 1, 1), {24, 16, 16});
@@ -486,9 +486,9 @@ TEST_CASE("MAC grid advection: a free stream stays exact, a sealed shell stays s
   }
 }
 
-// ---- the grid fluid's step (fluid/grid_simulation.hpp) ------------------------------------
+// ---- the grid fluid's step (fluid/grid/simulation.hpp) ------------------------------------
 
-#include "fluid/grid_simulation.hpp"
+#include "fluid/grid/simulation.hpp"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// A liquid with a free surface on the MAC grid (fluid/grid_liquid.hpp): a still pool, the
+// A liquid with a free surface on the MAC grid (fluid/grid/liquid.hpp): a still pool, the
 // dam break against Martin & Moyce (1952), the ghost-fluid pressure and the volume.
 #include <doctest/doctest.h>
 
@@ -12,8 +12,8 @@
 #include "core/error.hpp"
 #include "core/parallel.hpp"
 #include "core/timer.hpp"
-#include "fluid/grid_liquid.hpp"
-#include "fluid/grid_simulation.hpp"
+#include "fluid/grid/liquid.hpp"
+#include "fluid/grid/simulation.hpp"
 #include "mesh/generate.hpp"
 
 using namespace tetfsi;

@@ -1,8 +1,8 @@
-/// Tests of fluid/interface.cpp (the operators the coupled solver, the schemes and the fluid's
+/// Tests of fluid/tet/interface.cpp (the operators the coupled solver, the schemes and the fluid's
 /// boundary values use): J = (V D1 H)ᵀ to round-off and the interface power
-/// balance [DESIGN.md §3, VALIDATION.md "Interface power balance"]; a rigid motion moves no
-/// net volume through the interface; a uniform pressure gives no net force; hydrostatic
-/// pressure gives Archimedes' buoyancy; bad references are one-line errors.
+/// balance [docs/method/tet_fluid.md, docs/dev/validation_plan.md "Interface power balance"]; a
+/// rigid motion moves no net volume through the interface; a uniform pressure gives no net force;
+/// hydrostatic pressure gives Archimedes' buoyancy; bad references are one-line errors.
 #include <doctest/doctest.h>
 
 #include <random>
@@ -10,7 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "core/error.hpp"
-#include "fluid/interface.hpp"
+#include "fluid/tet/interface.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 #include "tests/test_util.hpp"
 
@@ -67,7 +67,7 @@ TEST_CASE("J = (V D1 H)^T exactly, and the interface power balance") {
       jmax = std::max(jmax, std::abs(it.value()));
   MESSAGE("max |J - (V D1 H)^T| = " << dmax << " (max |J| = " << jmax << ")");
   CHECK(dmax <= 1e-15 * jmax);
-  // pᵀ Jᵀ u = pᵀ V D1 H u for random p, u [VALIDATION.md "Interface power balance"]
+  // pᵀ Jᵀ u = pᵀ V D1 H u for random p, u [docs/dev/validation_plan.md "Interface power balance"]
   std::mt19937 rng(4);
   std::normal_distribution<double> N;
   for (int trial = 0; trial < 3; ++trial) {

@@ -1,5 +1,5 @@
-// The liquid's level set from its particles (fluid/grid_liquid.hpp) against a plain
-// evaluation of its definition, and OpenVDB's particles → level set (fluid/liquid_openvdb.hpp)
+// The liquid's level set from its particles (fluid/grid/liquid.hpp) against a plain
+// evaluation of its definition, and OpenVDB's particles → level set (fluid/grid/liquid_openvdb.hpp)
 // against the exact union of spheres.
 #include <doctest/doctest.h>
 
@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "core/error.hpp"
-#include "fluid/grid_liquid.hpp"
-#include "fluid/liquid_openvdb.hpp"
+#include "fluid/grid/liquid.hpp"
+#include "fluid/grid/liquid_openvdb.hpp"
 
 using namespace tetfsi;
 using namespace tetfsi::fluid;

@@ -1,4 +1,4 @@
-/// Tests of fluid/operators.cpp and fluid/reconstruct.cpp: the divergence of uniform flow
+/// Tests of fluid/tet/operators.cpp and fluid/tet/reconstruct.cpp: the divergence of uniform flow
 /// vanishes; the projection leaves every cell divergence-free and removes gradient fields
 /// entirely (with and without co-spherical cells, with Open faces); multigrid iterations stay
 /// flat under refinement; both velocity reconstructions are exact for uniform flow, and
@@ -12,8 +12,8 @@
 
 #include "core/linear_solver.hpp"
 #include "core/parallel.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/reconstruct.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/reconstruct.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 
 using namespace tetfsi;
@@ -90,7 +90,7 @@ TEST_CASE("projection: every cell divergence-free after projecting a random fiel
   MESSAGE("divergence " << r.divergence_before << " -> " << r.divergence_after << " in "
                         << r.iterations << " AMG iterations, " << r.groups << " unknowns for "
                         << m.num_tets() << " cells");
-  // VALIDATION.md "Projection": below 1e-8 of the pre-projection divergence.
+  // docs/dev/validation_plan.md "Projection": below 1e-8 of the pre-projection divergence.
   CHECK(r.divergence_after <= 1e-8 * r.divergence_before);
   for (Index f = 0; f < m.num_faces(); ++f)
     if (m.is_boundary(f)) REQUIRE(u[f] == 0.0);  // walls and the solid keep their value

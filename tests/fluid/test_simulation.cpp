@@ -1,7 +1,8 @@
-/// Tests of fluid/simulation.cpp and fluid/transfer.cpp, the fluid cases of VALIDATION.md:
-/// hydrostatics (and uniform smoke buoyancy) at rest, free stream across remeshing, extruded
-/// Taylor–Green dissipation under refinement, rigid-rotation angular-momentum drift, jet mass
-/// balance, no smoke in a sealed cavity, back-traces that never cross a solid.
+/// Tests of fluid/tet/simulation.cpp and fluid/tet/transfer.cpp, the fluid cases of
+/// docs/dev/validation_plan.md: hydrostatics (and uniform smoke buoyancy) at rest, free stream
+/// across remeshing, extruded Taylor–Green dissipation under refinement, rigid-rotation
+/// angular-momentum drift, jet mass balance, no smoke in a sealed cavity, back-traces that never
+/// cross a solid.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -12,10 +13,11 @@
 #include <Eigen/Geometry>
 
 #include "fluid/forces.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/reconstruct.hpp"
-#include "fluid/simulation.hpp"
-#include "fluid/transfer.hpp"
+#include "fluid/tet/confinement.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/reconstruct.hpp"
+#include "fluid/tet/simulation.hpp"
+#include "fluid/tet/transfer.hpp"
 #include "tests/fluid/fluid_test_utils.hpp"
 
 using namespace tetfsi;
@@ -46,9 +48,9 @@ mesh::DomainPatch patch(const char* name, FaceKind kind, int side, Vec2 lo, Vec2
 }  // namespace
 
 TEST_CASE("hydrostatics: a liquid at rest under gravity stays at rest, p = rho g depth") {
-  // VALIDATION.md "Hydrostatics". Closed box with a sphere obstacle, water, 3 steps; with the
-  // default transfer and with every second-order option (a linear pressure has no difference
-  // along the path, a field at rest no transfer error).
+  // docs/dev/validation_plan.md "Hydrostatics". Closed box with a sphere obstacle, water, 3 steps;
+  // with the default transfer and with every second-order option (a linear pressure has no
+  // difference along the path, a field at rest no transfer error).
   for (const bool second_order : {false, true}) {
     CAPTURE(second_order);
     const mesh::TetMesh m =
@@ -106,8 +108,8 @@ TEST_CASE("uniform smoke under buoyancy stays at rest (a uniform force is a pure
 
 namespace {
 
-/// VALIDATION.md "Free stream across remeshing": a uniform flow U x̂ (inflow −x, open +x)
-/// through five different meshes in a row with the fluid parameters p (patches set here);
+/// docs/dev/validation_plan.md "Free stream across remeshing": a uniform flow U x̂ (inflow −x, open
+/// +x) through five different meshes in a row with the fluid parameters p (patches set here);
 /// returns max |u − U n| over the steps and checks the fluxes every step.
 double free_stream_error(FluidParams p) {
   mesh::FluidDomain d = box_domain(Vec3::Zero(), Vec3(2, 1, 1));
@@ -204,8 +206,8 @@ void taylor_green_study(const std::vector<Reconstruction>& kinds) {
 }  // namespace
 
 TEST_CASE("Taylor-Green: numerical dissipation decreases under refinement") {
-  // VALIDATION.md "Extruded 2D Taylor–Green": a steady Euler solution; report the kinetic
-  // energy lost per unit time and its decrease under refinement (h ∝ size: fixed CFL).
+  // docs/dev/validation_plan.md "Extruded 2D Taylor–Green": a steady Euler solution; report the
+  // kinetic energy lost per unit time and its decrease under refinement (h ∝ size: fixed CFL).
   taylor_green_study({Reconstruction::Whitney});
 }
 
@@ -278,8 +280,8 @@ double rotation_drift(double size, int steps, Reconstruction k, Index* cells,
 }  // namespace
 
 TEST_CASE("rigid rotation in a spherical cavity: angular momentum drift per revolution") {
-  // VALIDATION.md "Rigid rotation" (a spherical container instead of a cylinder: rigid
-  // rotation is steady in any container of revolution about the axis). Semi-Lagrangian
+  // docs/dev/validation_plan.md "Rigid rotation" (a spherical container instead of a cylinder:
+  // rigid rotation is steady in any container of revolution about the axis). Semi-Lagrangian
   // advection carries each vector unrotated and the projection then removes its radial part,
   // so the loss per revolution falls with the step (≈ 1 − cos(Ω h) per step) and the cell size.
   Index cells = 0;
@@ -513,7 +515,8 @@ TEST_CASE("transfer table: blob and rotation and Taylor-Green at two resolutions
 }
 
 TEST_CASE("jet: inflow flux = outflow flux every step - no smoke in a sealed cavity") {
-  // VALIDATION.md "Jet mass balance" with a hollow shell in the jet whose cavity is sealed.
+  // docs/dev/validation_plan.md "Jet mass balance" with a hollow shell in the jet whose cavity is
+  // sealed.
   mesh::FluidDomain d = box_domain(Vec3::Zero(), Vec3(2, 1, 1));
   d.patches.push_back(patch("jet", FaceKind::Inflow, 0, Vec2(0.35, 0.35), Vec2(0.65, 0.65)));
   d.patches.push_back(patch("out", FaceKind::Open, 1, Vec2(0, 0), Vec2(1, 1)));
@@ -582,8 +585,8 @@ TEST_CASE("walk_segment stops at the fluid boundary and never crosses a solid") 
 
 TEST_CASE(
     "a rigidly moving solid: its faces carry no net flux and the fluid stays divergence-free") {
-  // Solid-face velocities n_f · Σ_a w_a v_a [DESIGN.md §3] of a rigid motion (translation +
-  // rotation) integrate to zero over the closed surface: the body keeps its volume.
+  // Solid-face velocities n_f · Σ_a w_a v_a [docs/method/tet_fluid.md] of a rigid motion
+  // (translation + rotation) integrate to zero over the closed surface: the body keeps its volume.
   const Vec3 c(0.5, 0.5, 0.5);
   const mesh::SolidSurface s = sphere_surface(c, 0.2, 2);
   const mesh::TetMesh m =

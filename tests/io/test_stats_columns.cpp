@@ -78,8 +78,8 @@ TEST_CASE("the checkpoint keeps the last step's figures under their records' nam
                                  "remesh_s"});
   CHECK(records(fluid_step_columns()) ==
         std::vector<std::string>{"pressure_iterations", "pressure_residual", "divergence_before",
-                                 "divergence", "fluid_kinetic_energy", "smoke_mass",
-                                 "inflow_flux", "outflow_flux", "solid_flux", "max_speed", "cfl",
+                                 "divergence", "fluid_kinetic_energy", "smoke_mass", "inflow_flux",
+                                 "outflow_flux", "solid_flux", "max_speed", "cfl",
                                  "traces_clamped"});
   CHECK(records(coupled_columns()) ==
         std::vector<std::string>{"iterations", "residual", "interface_power", "total_energy",

@@ -62,8 +62,8 @@ TEST_SUITE("unit") {
     // (kinetic + elastic + gravity, 1.07 J at the start) is bounded but not monotone: at
     // step 14, after the upper sheet's corners were caught crossing the lower one's edges,
     // its elastic energy peaks at 2.2 J for one step (the constraints' planes, taken where
-    // the pairs first touched, hold the corners up while they drape; docs/method/contact.md "Bodies that
-    // touch") and is back to 0.17 J the next; from step 15 on it stays below the start.
+    // the pairs first touched, hold the corners up while they drape; docs/method/contact.md "Bodies
+    // that touch") and is back to 0.17 J the next; from step 15 on it stays below the start.
     TempDir dir("contact_sheets_drop");
     const Shipped run = run_shipped("sheets_drop", dir);
     const RunResult& r = run.r;
@@ -117,8 +117,9 @@ TEST_SUITE("unit") {
     // surfaces keep more than a third of the gap at every step (measured 0.457 d̂, at the
     // impact), the energy never exceeds its start, and it rebounds by the bodies' elasticity
     // (restitution 0): measured 0.038 m (0.067 m at h = 0.01 s, 0.086–0.088 m at 0.005 and
-    // 0.0025 s: the paper's linearised trapezoid damps the rest at 1/30, docs/method/contact.md "Bodies that
-    // touch"). Before the definite tangent (solid.tangent) it diverged 5 steps after landing.
+    // 0.0025 s: the paper's linearised trapezoid damps the rest at 1/30, docs/method/contact.md
+    // "Bodies that touch"). Before the definite tangent (solid.tangent) it diverged 5 steps after
+    // landing.
     TempDir dir("contact_ball_block");
     const Shipped run = run_shipped("ball_block", dir);
     const RunResult& r = run.r;

@@ -33,7 +33,8 @@ std::string read_text(const fs::path& p) {
   return ss.str();
 }
 
-/// docs/user/scene_keys.md's generated blocks by section name: "<!-- keys:begin NAME -->" ... through
+/// docs/user/scene_keys.md's generated blocks by section name: "<!-- keys:begin NAME -->" ...
+/// through
 /// "<!-- keys:end -->\n".
 std::map<std::string, std::string> readme_blocks(const std::string& text) {
   const std::string begin = "<!-- keys:begin ", end = "<!-- keys:end -->\n";
@@ -114,8 +115,9 @@ TEST_CASE("docs/user/scene_keys.md's scene key tables are the generated ones") {
                       << section_markdown(s));
   }
   for (const auto& [name, text] : blocks)
-    CHECK_MESSAGE(names.count(name) == 1,
-                  "docs/user/scene_keys.md has a table of an unknown section '" << name << "'; remove it");
+    CHECK_MESSAGE(
+        names.count(name) == 1,
+        "docs/user/scene_keys.md has a table of an unknown section '" << name << "'; remove it");
   // --markdown is the blocks, in order, one blank line apart.
   std::string all;
   for (const KeySection& s : scene_key_sections()) {

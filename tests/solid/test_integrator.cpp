@@ -274,8 +274,8 @@ TEST_SUITE("unit") {
   }
 
   TEST_CASE("midpoint trapezoid: undamped energy is conserved with no amplitude decay") {
-    // VALIDATION.md "Solid": the undamped trapezoidal rule conserves the energy of a linear
-    // system to solver tolerance. With K at the midpoint (Trapezoid::Midpoint), a linear
+    // docs/dev/validation_plan.md "Solid": the undamped trapezoidal rule conserves the energy of a
+    // linear system to solver tolerance. With K at the midpoint (Trapezoid::Midpoint), a linear
     // system gives M(u1 − u0)/h = −K (d0 + d1)/2, d1 − d0 = h/2 (u0 + u1); multiplying by
     // (d1 − d0) gives E1 = E0 exactly, at any h. Pinned box, random velocities, 20 steps per
     // period of its lowest mode and 2000 steps in all, so every mode is badly resolved.

@@ -91,7 +91,8 @@ TEST_SUITE("unit") {
     }
     MESSAGE("patch test: max relative position error " << max_err << " after " << rep.iterations
                                                        << " Newton iterations");
-    CHECK(max_err <= 1e-8);  // VALIDATION.md "Consistency": exact up to solver tolerance
+    CHECK(max_err <=
+          1e-8);  // docs/dev/validation_plan.md "Consistency": exact up to solver tolerance
     // Interior nodal forces vanish (relative to E · L², L = 1 m).
     const VecX K = body.elasticity().forces(body.positions());
     for (Index i : interior) CHECK(K.segment<3>(3 * i).norm() <= 1e-8 * mat.youngs_modulus);
@@ -182,8 +183,8 @@ TEST_SUITE("unit") {
   }
 
   TEST_CASE("Turek-Hron CSM1 on fine meshes: within 3% of the reference") {
-    // VALIDATION.md "Solid": within 3% on the finest mesh that runs in under a minute, with
-    // two coarser meshes showing convergence. Square cells, 8 → 32 cells through the
+    // docs/dev/validation_plan.md "Solid": within 3% on the finest mesh that runs in under a
+    // minute, with two coarser meshes showing convergence. Square cells, 8 → 32 cells through the
     // thickness; the finest (111k DOFs, CHOLMOD) takes ≈ 15 s here. Measured: 13.6%/7.0%,
     // 3.4%/1.7%, 0.52%/0.24% (u_x/u_y).
     std::vector<double> ex, ey;

@@ -119,7 +119,7 @@ TEST_SUITE("unit") {
       const double jac_err = (K_fd - Kd).norm() / Kd.norm();
       MESSAGE("trial " << trial << ": FD gradient rel. error " << grad_err
                        << ", FD Jacobian rel. error " << jac_err);
-      CHECK(grad_err < 1e-6);  // VALIDATION.md "Consistency": < 1e-6
+      CHECK(grad_err < 1e-6);  // docs/dev/validation_plan.md "Consistency": < 1e-6
       CHECK(jac_err < 1e-6);
       CHECK((Kd - Kd.transpose()).norm() == 0.0);  // K' = ∂²W/∂x² is symmetric
     }

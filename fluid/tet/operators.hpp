@@ -4,7 +4,7 @@
 /// [Chentanez06, §3.3], [KFCO06, §3]: normal velocity u_f per face along n_f, pressure per
 /// tet at its circumcentre.
 ///
-///  - divergence (D u)_t = (1/V_t) Σ_k s_tk A_f u_f                         [DESIGN.md §3]
+///  - divergence (D u)_t = (1/V_t) Σ_k s_tk A_f u_f [docs/method/tet_fluid.md]
 ///  - gradient on an interior face (G q)_f = (q_t2 − q_t1) / d̃_f, on an Open face
 ///    (q_open − q_t1) / d̃_f; other boundary faces carry a prescribed velocity (Neumann)
 ///  - the pressure matrix M = −V D G (SPD once a Dirichlet face or a pin fixes the
@@ -29,6 +29,7 @@
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
 #include "fluid/regions.hpp"
+#include "fluid/step.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
@@ -80,22 +81,6 @@ SparseMatrix pressure_matrix(const mesh::TetMesh& m, const VecX& d_eff, const Pr
 Index apply_pressure_gradient(const mesh::TetMesh& m, const VecX& d_eff, const PressureGroups& g,
                               const VecX& q, const VecX& q_open, VecX& u,
                               const VecX* cell_source = nullptr);
-
-struct ProjectionReport {
-  bool converged = false;
-  int iterations = 0;
-  double residual = 0.0;           ///< true relative residual of the pressure solve
-  double divergence_before = 0.0;  ///< max_t |(D u*)_t| (1/s)
-  double divergence_after = 0.0;   ///< max_t |(D u)_t| (1/s)
-  Index pinned_regions = 0;        ///< regions without an Open face (pressure pinned)
-  /// Largest |Σ_t V_t (D u*)_t| / Σ_t |V_t (D u*)_t| over pinned regions: the net boundary flux
-  /// of a closed region, which incompressibility cannot absorb; it is removed (spread over the
-  /// region's cells in proportion to volume) before the solve and reported here.
-  double incompatibility = 0.0;
-  Index groups = 0;          ///< pressure unknowns (≤ #T)
-  Index internal_faces = 0;  ///< faces inside groups
-  double assembly_s = 0.0, setup_s = 0.0, solve_s = 0.0;
-};
 
 /// The projection [Chentanez06, Eq. (2)] with q = (h/ρ) p: solve M q = −V D u* + (Open-face
 /// terms) on the groups, then u = u* − G q on interior and Open faces (internal faces of a

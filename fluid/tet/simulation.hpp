@@ -1,9 +1,9 @@
 #pragma once
 /// @file simulation.hpp
-/// The fluid on the dynamic tet mesh, one step at a time (DESIGN.md §2 steps 3–6 without the
-/// coupling): transfer = semi-Lagrangian advection from the old mesh onto the new one,
-/// forces and sources, boundary conditions, pressure projection [Chentanez06, Eqs. (1)–(2)],
-/// [KFCO06]. Solids are kinematic here: their surface velocities are given (one-way); the
+/// The fluid on the dynamic tet mesh, one step at a time (docs/dev/architecture.md, one time step,
+/// steps 3–6 without the coupling): transfer = semi-Lagrangian advection from the old mesh onto the
+/// new one, forces and sources, boundary conditions, pressure projection [Chentanez06, Eqs.
+/// (1)–(2)], [KFCO06]. Solids are kinematic here: their surface velocities are given (one-way); the
 /// simultaneous coupling (coupling/) replaces the projection by the coupled solve.
 #include <functional>
 #include <memory>
@@ -15,7 +15,8 @@
 #include "core/types.hpp"
 #include "fluid/frame.hpp"
 #include "fluid/params.hpp"
-#include "fluid/reconstruct.hpp"
+#include "fluid/step.hpp"
+#include "fluid/tet/reconstruct.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
@@ -30,49 +31,9 @@ struct FluidState {
   static FluidState at_rest(const mesh::TetMesh& m, double ambient_temperature);
 };
 
-/// The velocity of every solid surface vertex, per body, in the vertex numbering of the
-/// mesh::SolidSurface the mesh was built from (TetMesh::face_body / face_triangle refer to
-/// it). The triangles are needed to interpolate at the Solid faces.
-struct SolidSurfaceMotion {
-  MatX3i triangles;  ///< #Ts × 3, as in mesh::SolidSurface
-  MatX3 velocity;    ///< #Vs × 3 (m/s)
-};
-
-/// Diagnostics of one fluid step (stats.csv columns).
-struct FluidStepReport {
-  bool converged = true;           ///< the pressure solve converged
-  int iterations = 0;              ///< pressure-solve iterations
-  double residual = 0.0;           ///< its true relative residual
-  double divergence_before = 0.0;  ///< max_t |(D u*)_t| before the projection (1/s)
-  double divergence_after = 0.0;   ///< max_t |(D u)_t| after it (1/s)
-  double kinetic_energy = 0.0;     ///< ½ ρ Σ_t V_t |u_t|², u_t reconstructed at centroids (J)
-  double smoke_mass = 0.0;         ///< Σ_t V_t ρ_smoke,t (kg)
-  double inflow_flux = 0.0;        ///< −Σ A_f u_f over Inflow faces (m³/s, > 0 into the box)
-  double outflow_flux = 0.0;       ///< Σ A_f u_f over Open faces (m³/s, > 0 out of the box)
-  double solid_flux = 0.0;         ///< Σ A_f u_f over Solid faces (m³/s)
-  double max_speed = 0.0;          ///< max |u_f| (m/s)
-  double cfl = 0.0;                ///< max over cells of h |u_t| / (cell edge)
-  Index traces_clamped = 0;        ///< back-traces stopped at a wall / solid / the box
-  /// A liquid with a free surface (grid_liquid.hpp; 0 without): its volume (m³), surface
-  /// area (m²) and particles.
-  double liquid_volume = 0.0;
-  /// (volume − expected) / expected, expected = the first volume + the particles emitted
-  /// less those gone through Open faces, at their seeding volume (cell / per_axis³)
-  double liquid_volume_drift = 0.0;
-  double liquid_area = 0.0;
-  /// The shift of the level set that held the volume this step (m, > 0: the surface moved
-  /// into the liquid; fluid.liquid.hold_volume, 0 without it)
-  double liquid_shift = 0.0;
-  Index liquid_particles = 0;
-  /// Seconds of the step's surface tracking (inside the transfer phase): the particles'
-  /// move, separation and sources; the level set, free surface and density correction; the
-  /// particles' velocity to the faces and its extrapolation.
-  double liquid_advect_s = 0.0, liquid_surface_s = 0.0, liquid_p2g_s = 0.0;
-};
-
-/// The fluid's part of a step up to its pressure (DESIGN.md §2 steps 3–4) on the new mesh:
-/// the intermediate velocity v* with every prescribed boundary velocity set, ready for a
-/// projection — FluidSimulation's own, or the simultaneous coupled solve [Chentanez06,
+/// The fluid's part of a step up to its pressure (docs/dev/architecture.md, one time step, steps
+/// 3–4) on the new mesh: the intermediate velocity v* with every prescribed boundary velocity set,
+/// ready for a projection — FluidSimulation's own, or the simultaneous coupled solve [Chentanez06,
 /// Eq. (7)], which replaces the Solid faces of deformable bodies by H uⁿ⁺¹.
 struct FluidPrediction {
   mesh::TetMesh mesh;
@@ -88,13 +49,6 @@ struct FluidPrediction {
 /// The fluid density of every cell (#T, kg/m³): `enclosed_density` in regions bounded only by
 /// Solid faces when it is set, `density` elsewhere.
 VecX cell_fluid_density(const mesh::TetMesh& m, const FluidParams& p);
-
-/// Hydrostatic part ρ g·(x − origin) of a liquid's pressure (Pa) at x (0 if the fluid has no
-/// gravity).
-inline double hydrostatic_pressure(double rho, const Vec3& gravity, const Vec3& origin,
-                                   const Vec3& x) {
-  return rho * gravity.dot(x - origin);
-}
 
 /// A function "desired edge length at x" for mesh::Sizing::refine (≤ 0: no request).
 using RefineField = std::function<double(const Vec3&)>;

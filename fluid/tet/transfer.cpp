@@ -1,4 +1,4 @@
-#include "fluid/transfer.hpp"
+#include "fluid/tet/transfer.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -7,7 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/parallel.hpp"
-#include "fluid/reconstruct.hpp"
+#include "fluid/tet/reconstruct.hpp"
 
 namespace tetfsi::fluid {
 

@@ -1,4 +1,4 @@
-#include "fluid/liquid_openvdb.hpp"
+#include "fluid/grid/liquid_openvdb.hpp"
 
 #include <cmath>
 

@@ -1,12 +1,12 @@
 #pragma once
-/// @file grid_advect.hpp
+/// @file grid/advect.hpp
 /// Semi-Lagrangian advection on the MAC grid [Stam99]: every face centre and cell centre is
 /// traced back through the velocity (RK2), the trace stopped just before the first body
 /// triangle it would cross and at the box, and the value read there with side-aware
 /// trilinear interpolation (only values the end point sees, grid_cell_stencil) — so nothing
 /// is read through a thin sheet or into a sealed shell.
 #include "core/types.hpp"
-#include "fluid/grid.hpp"
+#include "fluid/grid/grid.hpp"
 
 namespace tetfsi::fluid {
 

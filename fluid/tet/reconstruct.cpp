@@ -1,4 +1,4 @@
-#include "fluid/reconstruct.hpp"
+#include "fluid/tet/reconstruct.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>

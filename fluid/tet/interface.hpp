@@ -6,8 +6,8 @@
 ///
 ///  - H (#F × 3N): solid node velocities → normal velocities of the fluid's Solid faces,
 ///    (H u)_f = n_f · Σ_k w_k u_{a_k} over the vertices a_k of the body triangle the face lies
-///    on, w the barycentric weights of the face centroid (TetMesh::face_bary) [DESIGN.md §3];
-///    rows of the other faces are empty;
+///    on, w the barycentric weights of the face centroid (TetMesh::face_bary)
+///    [docs/method/tet_fluid.md]; rows of the other faces are empty;
 ///  - J (3N × #T): cell pressures → solid nodal forces, the pressure of the cell t next to
 ///    face f pushing node a_k with w_k A_f p_t n_f (n_f points from the fluid into the solid);
 ///  - D1 (#T × #F): the boundary part of the divergence, (D1 u)_t = (1/V_t) Σ_{f ∈ t, Solid}
@@ -18,22 +18,14 @@
 ///
 /// Solid DOFs: the bodies' nodes stacked in body order, 3 per node (interleaved), so body b's
 /// node i is DOF block `node_offsets()[b] + i`. A second fluid discretisation (a MAC grid)
-/// provides the same three operators for its own cells and faces (DESIGN.md §7).
+/// provides the same three operators for its own cells and faces (docs/dev/architecture.md).
 #include <vector>
 
 #include "core/types.hpp"
+#include "fluid/body_interface.hpp"
 #include "mesh/tet_mesh.hpp"
 
 namespace tetfsi::fluid {
-
-/// How the fluid mesh's Solid faces refer to one body: the surface the mesh was built from
-/// (triangles in its compact vertex numbering, as in mesh::SolidSurface) and the body node of
-/// each compact vertex.
-struct BodyInterface {
-  MatX3i triangles;     ///< #Ts × 3, compact surface vertex indices
-  VecXi surface_node;   ///< #Vs: body node of each compact surface vertex
-  Index num_nodes = 0;  ///< nodes of the body (its DOF block is 3 × this)
-};
 
 /// One Solid face of the mesh with the body nodes its triangle's vertices are.
 struct InterfaceFace {
@@ -99,7 +91,7 @@ void InterfaceOperators::for_each_J_entry(Visit&& visit) const {
   for (const InterfaceFace& i : m_faces) {
     const Index f = i.face, t = m.face_tets(f, 0);
     for (int k = 0; k < 3; ++k)
-      for (int d = 0; d < 3; ++d)  // force on node a: w_a A_f p_t n_f [DESIGN.md §3]
+      for (int d = 0; d < 3; ++d)  // force on node a: w_a A_f p_t n_f [docs/method/tet_fluid.md]
         visit(f, t, i.body, 3 * i.node[k] + d, i.dof[k] + d,
               i.weight[k] * m.face_areas[f] * m.face_normals(f, d));
   }

@@ -1,7 +1,7 @@
 #pragma once
-/// @file grid_interface.hpp
+/// @file grid/interface.hpp
 /// The fluid–solid interface operators on the MAC grid [Chentanez06, §3.4, last paragraph],
-/// the grid's counterpart of interface.hpp (same DOF stacking: body b's node i is DOF block
+/// the grid's counterpart of tet/interface.hpp (same DOF stacking: body b's node i is DOF block
 /// node_offsets()[b] + i, 3 per node):
 ///
 ///  - H (#F × 3N): (H u)_f = e_a · Σ_k w_k u_{a_k} on every Solid face f of axis a, w the
@@ -23,8 +23,8 @@
 #include <vector>
 
 #include "core/types.hpp"
-#include "fluid/grid.hpp"
-#include "fluid/interface.hpp"
+#include "fluid/body_interface.hpp"
+#include "fluid/grid/grid.hpp"
 
 namespace tetfsi::fluid {
 

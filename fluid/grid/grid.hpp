@@ -222,7 +222,7 @@ struct GridCells {
   VecXi face_patch;                       ///< #F: domain patch of a box face, −1 otherwise
   std::vector<SurfacePoint> face_solid;   ///< #F: the crossing of a Solid face (body −1: none)
   GridSolids solids;
-  /// A free surface (grid_liquid.hpp; both empty without one): #C, 1 for an air cell (a
+  /// A free surface (grid/liquid.hpp; both empty without one): #C, 1 for an air cell (a
   /// non-solid cell outside the liquid: p = 0, no unknown), and the liquid's level set φ at
   /// the cell centres (m, < 0 in the liquid) that places the surface between them.
   std::vector<std::uint8_t> air;

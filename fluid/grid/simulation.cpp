@@ -1,4 +1,4 @@
-#include "fluid/grid_simulation.hpp"
+#include "fluid/grid/simulation.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,10 +10,10 @@
 #include "core/log.hpp"
 #include "core/parallel.hpp"
 #include "fluid/forces.hpp"
-#include "fluid/grid_advect.hpp"
-#include "fluid/grid_interface.hpp"
-#include "fluid/grid_liquid.hpp"
-#include "fluid/grid_projection.hpp"
+#include "fluid/grid/advect.hpp"
+#include "fluid/grid/interface.hpp"
+#include "fluid/grid/liquid.hpp"
+#include "fluid/grid/projection.hpp"
 
 namespace tetfsi::fluid {
 
@@ -163,7 +163,7 @@ MatX3 grid_vorticity(const GridCells& gc, const MatX3& uc) {
 namespace {
 
 /// Per-cell vorticity confinement ε h (N × ω), N = ∇|ω| / |∇|ω|| [Fedkiw01, Eq. (11)] on the
-/// grid's cell-centred velocity (see forces.hpp for the tet mesh's).
+/// grid's cell-centred velocity (see tet/confinement.hpp for the tet mesh's).
 MatX3 grid_confinement(const GridCells& gc, const MatX3& uc, double epsilon) {
   const GridSpec& g = gc.grid;
   const Index nc = g.num_cells();

@@ -1,4 +1,4 @@
-#include "fluid/simulation.hpp"
+#include "fluid/tet/simulation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,10 +6,11 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "fluid/forces.hpp"
-#include "fluid/interface.hpp"
-#include "fluid/operators.hpp"
-#include "fluid/reconstruct.hpp"
-#include "fluid/transfer.hpp"
+#include "fluid/tet/confinement.hpp"
+#include "fluid/tet/interface.hpp"
+#include "fluid/tet/operators.hpp"
+#include "fluid/tet/reconstruct.hpp"
+#include "fluid/tet/transfer.hpp"
 
 namespace tetfsi::fluid {
 
@@ -105,7 +106,8 @@ struct FluidSimulation::Impl {
       }
     }
     if (solids.empty()) return;
-    // Solid faces: (H u)_f with the surface vertices as the bodies' nodes [DESIGN.md §3]
+    // Solid faces: (H u)_f with the surface vertices as the bodies' nodes
+    // [docs/method/tet_fluid.md]
     std::vector<BodyInterface> bodies(solids.size());
     std::vector<VecX> v(solids.size());
     for (size_t b = 0; b < solids.size(); ++b) {

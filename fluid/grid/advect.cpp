@@ -1,4 +1,4 @@
-#include "fluid/grid_advect.hpp"
+#include "fluid/grid/advect.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/parallel.hpp"
-#include "fluid/grid_interface.hpp"
+#include "fluid/grid/interface.hpp"
 
 namespace tetfsi::fluid {
 

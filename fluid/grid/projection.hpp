@@ -1,5 +1,5 @@
 #pragma once
-/// @file grid_projection.hpp
+/// @file grid/projection.hpp
 /// The pressure projection on the MAC grid [Chentanez06, Eq. (2)], [Fedkiw01, §3]: one
 /// pressure unknown per fluid cell, the 7-point Laplacian between fluid cells joined by an
 /// Interior face, Dirichlet on Open box faces (the face half a cell from the centre) and at a
@@ -11,13 +11,14 @@
 ///  - u_f ← u_f − (q_c2 − q_c1) / h_a on Interior faces, u_f ← u_f ∓ (q_open − q_c) / (h_a/2)
 ///    on Open faces, q = (h/ρ) p
 ///  - regions (fluid cells connected through Interior faces) without an Open face get one
-///    pin and their net boundary flux removed first, as on the tet mesh (operators.hpp).
+///    pin and their net boundary flux removed first, as on the tet mesh (tet/operators.hpp).
 #include <vector>
 
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
-#include "fluid/grid.hpp"
-#include "fluid/operators.hpp"
+#include "fluid/grid/grid.hpp"
+#include "fluid/regions.hpp"
+#include "fluid/step.hpp"
 
 namespace tetfsi::fluid {
 

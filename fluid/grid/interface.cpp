@@ -1,4 +1,4 @@
-#include "fluid/grid_interface.hpp"
+#include "fluid/grid/interface.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -75,7 +75,7 @@ SparseMatrix GridInterface::D1() const {
 }
 
 SparseMatrix GridInterface::J_consistent() const {
-  // J = (V D1 H)ᵀ [DESIGN.md §3, on the grid]
+  // J = (V D1 H)ᵀ [docs/method/grid_fluid.md]
   const SparseMatrix VD1H = (m_gc->grid.cell_volume() * D1()) * H();
   return SparseMatrix(VD1H.transpose());
 }

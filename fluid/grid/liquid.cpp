@@ -1,4 +1,4 @@
-#include "fluid/grid_liquid.hpp"
+#include "fluid/grid/liquid.hpp"
 
 #include <algorithm>
 #include <array>

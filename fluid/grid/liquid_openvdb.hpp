@@ -1,10 +1,10 @@
 #pragma once
-/// @file liquid_openvdb.hpp
+/// @file grid/liquid_openvdb.hpp
 /// OpenVDB's particles → level set (openvdb::tools::ParticlesToLevelSet [Museth13]), beside
-/// the liquid's own [ZhuBridson05] level set (grid_liquid.hpp), for `tetfsi bench step` to
+/// the liquid's own [ZhuBridson05] level set (grid/liquid.hpp), for `tetfsi bench step` to
 /// compare the two on the same particles. OpenVDB stays inside the .cpp.
 #include "core/types.hpp"
-#include "fluid/grid.hpp"
+#include "fluid/grid/grid.hpp"
 
 namespace tetfsi::fluid {
 

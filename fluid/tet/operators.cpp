@@ -1,4 +1,4 @@
-#include "fluid/operators.hpp"
+#include "fluid/tet/operators.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -63,7 +63,7 @@ VecX net_flux(const TetMesh& m, const VecX& u) {
 }
 
 VecX divergence(const TetMesh& m, const VecX& u) {
-  return net_flux(m, u).cwiseQuotient(m.volumes);  // [DESIGN.md §3] (D u)_t
+  return net_flux(m, u).cwiseQuotient(m.volumes);  // [docs/method/tet_fluid.md] (D u)_t
 }
 
 VecX gradient(const TetMesh& m, const VecX& d_eff, const VecX& q, const VecX& q_open) {

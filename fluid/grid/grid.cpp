@@ -1,4 +1,4 @@
-#include "fluid/grid.hpp"
+#include "fluid/grid/grid.hpp"
 
 #include <algorithm>
 #include <cmath>

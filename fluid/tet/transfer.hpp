@@ -1,8 +1,8 @@
 #pragma once
 /// @file transfer.hpp
-/// Transfer = advection from the old mesh onto the new one (DESIGN.md §2 step 3),
-/// semi-Lagrangian and so unconditionally stable [Stam99], [KFCO06, §4]: every face centre
-/// of the new mesh is traced back through the old mesh's reconstructed velocity (RK2) and
+/// Transfer = advection from the old mesh onto the new one (docs/dev/architecture.md, one time
+/// step, step 3), semi-Lagrangian and so unconditionally stable [Stam99], [KFCO06, §4]: every face
+/// centre of the new mesh is traced back through the old mesh's reconstructed velocity (RK2) and
 /// takes the normal component of the old field there; cell scalars (smoke, temperature) are
 /// traced from the cell centroids and read there through vertex jets fitted quadratically to
 /// the old cells (ScalarInterpolation::Quadratic, reconstruct.hpp vertex_quadratic_fit: exact

@@ -1,7 +1,7 @@
 #pragma once
-/// @file grid_simulation.hpp
+/// @file grid/simulation.hpp
 /// The fluid on the MAC grid, one step at a time, with the same seam as the tet fluid
-/// (simulation.hpp): predict (advection, forces, sources, boundary values → v*), a projection
+/// (tet/simulation.hpp): predict (advection, forces, sources, boundary values → v*), a projection
 /// (its own, or a coupled solve), commit. Solids are given by their surfaces at t + h and
 /// their surface velocities (one-way here).
 ///
@@ -19,10 +19,10 @@
 #include "core/linear_solver.hpp"
 #include "core/timer.hpp"
 #include "fluid/frame.hpp"
-#include "fluid/grid.hpp"
-#include "fluid/grid_liquid.hpp"
+#include "fluid/grid/grid.hpp"
+#include "fluid/grid/liquid.hpp"
 #include "fluid/params.hpp"
-#include "fluid/simulation.hpp"
+#include "fluid/step.hpp"
 
 namespace tetfsi::fluid {
 
@@ -94,7 +94,7 @@ class GridFluid {
   /// @throws CheckpointError naming the record if the fields do not fit the grid.
   void load_state(const CheckpointReader& r, const std::string& prefix);
 
-  /// A liquid with a free surface (FluidParams::liquid; grid_liquid.hpp).
+  /// A liquid with a free surface (FluidParams::liquid; grid/liquid.hpp).
   bool has_liquid() const;
   /// Replace the state (tests: an initial velocity). @throws InputError on a size mismatch.
   void set_state(GridState s);

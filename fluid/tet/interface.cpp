@@ -1,4 +1,4 @@
-#include "fluid/interface.hpp"
+#include "fluid/tet/interface.hpp"
 
 #include "core/error.hpp"
 

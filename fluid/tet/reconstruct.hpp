@@ -1,6 +1,7 @@
 #pragma once
 /// @file reconstruct.hpp
-/// Velocity vectors from face normal components (DESIGN.md §2 step 3) [KFCO06, §4]:
+/// Velocity vectors from face normal components (docs/dev/architecture.md, one time step, step 3)
+/// [KFCO06, §4]:
 ///  - VertexLeastSquares: at each vertex v, U_v = argmin Σ_{f ∋ v} A_f (n_f · U − u_f)²
 ///    (a 3 × 3 solve; every face around the vertex, boundary faces with their prescribed
 ///    values), then u(x) = Σ_i λ_i U_i inside a tet. Continuous; exact for uniform flow.

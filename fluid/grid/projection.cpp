@@ -1,4 +1,4 @@
-#include "fluid/grid_projection.hpp"
+#include "fluid/grid/projection.hpp"
 
 #include <algorithm>
 #include <array>

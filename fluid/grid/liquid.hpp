@@ -1,10 +1,10 @@
 #pragma once
-/// @file grid_liquid.hpp
+/// @file grid/liquid.hpp
 /// A liquid with a free surface on the MAC grid [Chentanez06, §4]: FLIP particles carry the
 /// liquid and its velocity [ZhuBridson05], its surface is the level set φ the particles
 /// define at the cell centres [ZhuBridson05], the air cells (φ ≥ 0) have p = 0 and the
 /// projection places the surface inside a cell with the ghost fluid [Gibou02, Enright03]
-/// (grid_projection.hpp). One step (GridFluid):
+/// (grid/projection.hpp). One step (GridFluid):
 ///
 ///  1. move the particles through the last velocity (RK2), stopped before a body triangle
 ///     they would enter and at the box (a particle leaving through an Open face is gone);
@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "core/types.hpp"
-#include "fluid/grid.hpp"
+#include "fluid/grid/grid.hpp"
 #include "fluid/params.hpp"
 
 namespace tetfsi::fluid {
