@@ -152,7 +152,10 @@ Vec3 vec3_of(const json& v) {
   return x;
 }
 
-RunIndex read_run(const fs::path& dir) {
+namespace {
+
+/// @throws InputError unless `dir` is a folder.
+void check_run_folder(const fs::path& dir) {
   std::error_code ec;
   if (!fs::exists(dir, ec))
     throw InputError(fmt::format(
@@ -163,7 +166,11 @@ RunIndex read_run(const fs::path& dir) {
         fmt::format("'{}' is not a folder: give the output folder of a run (OUT of "
                     "`tetfsi run SCENE --out OUT`)",
                     dir.string()));
-  RunIndex run;
+}
+
+/// The run's resolved scene (scene.resolved.json) into `run.scene`.
+void read_resolved_scene(const fs::path& dir, RunIndex& run) {
+  std::error_code ec;
   run.dir = dir;
   const fs::path resolved = dir / "scene.resolved.json";
   if (!fs::exists(resolved, ec))
@@ -178,6 +185,11 @@ RunIndex read_run(const fs::path& dir) {
     throw InputError(
         fmt::format("{}: not readable JSON ({})", resolved.string(), one_line(e.what())));
   }
+}
+
+/// What the pictures need of the scene: the bodies' names, the fluid box, the jet's height,
+/// the smoke it emits.
+void read_scene_facts(const fs::path& dir, RunIndex& run) {
   const json& s = run.scene;
   run.name = s.value("name", dir.filename().string());
   if (s.contains("bodies"))
@@ -206,8 +218,12 @@ RunIndex read_run(const fs::path& dir) {
     for (const json& src : fl.value("sources", json::array()))
       run.emitted_smoke = std::max(run.emitted_smoke, src.value("smoke", 0.0));
   }
+}
 
-  // Frames: the steps of the bodies' collections (the fluid's without bodies).
+/// The frames: the steps of the bodies' collections (the fluid's without bodies), each with
+/// its files; a frame not every collection lists yet is left out.
+void read_frames(const fs::path& dir, RunIndex& run) {
+  std::error_code ec;
   std::map<int, FrameFiles> by_step;
   auto add_stream = [&](const fs::path& pvd, int body) {
     if (!fs::exists(pvd, ec))
@@ -246,6 +262,16 @@ RunIndex read_run(const fs::path& dir) {
   if (run.frames.empty())
     throw InputError(
         fmt::format("'{}' has no frames yet: its .pvd collections list none", dir.string()));
+}
+
+}  // namespace
+
+RunIndex read_run(const fs::path& dir) {
+  check_run_folder(dir);
+  RunIndex run;
+  read_resolved_scene(dir, run);
+  read_scene_facts(dir, run);
+  read_frames(dir, run);
   return run;
 }
 

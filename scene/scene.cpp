@@ -978,15 +978,12 @@ void check_integration_keys(const Parser& p, const Parser::Node& root, const Sce
 
 // ---------------------------------------------------------------------------------------------
 
-Scene parse_scene(const json& j, const fs::path& file) {
-  const Parser p(file);
-  using Node = Parser::Node;
-  const Node root{j, ""};
-  Scene s;
-  s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
-  s.name = file.empty() ? std::string("scene") : file.stem().string();
-  p.read(root, top_level_keys(), s);  // name, description, mode, gravity
+namespace {
 
+using Node = Parser::Node;
+
+/// The scene's `time` section and its consistency (end_time or steps, a sane step count).
+void parse_time(const Parser& p, const Node& root, Scene& s) {
   if (Parser::has(root, "time")) {
     const Node t = Parser::child(root, "time");
     if (t.j.is_object() && Parser::has(t, "end_time") && Parser::has(t, "steps"))
@@ -998,17 +995,11 @@ Scene parse_scene(const json& j, const fs::path& file) {
     p.fail("time", fmt::format("end_time / dt = {:.3g} steps is more than 1e9: check the units",
                                *s.time.end_time / s.time.dt));
   }
-  if (Parser::has(root, "output")) p.read(Parser::child(root, "output"), output_keys(), s.output);
-  if (Parser::has(root, "solver")) p.read(Parser::child(root, "solver"), solver_keys(), s.solver);
-  if (Parser::has(root, "solid")) s.solid = p.solid(Parser::child(root, "solid"));
-  if (Parser::has(root, "static")) p.read(Parser::child(root, "static"), static_keys(), s.statics);
-  if (Parser::has(root, "contact")) {
-    s.contact.emplace();
-    p.read(Parser::child(root, "contact"), contact_keys(), *s.contact);
-  }
+}
 
-  // A fluid-only scene (smoke in a box) needs no body; otherwise there is nothing to simulate.
-  const bool has_fluid = Parser::has(root, "fluid");
+/// The bodies; a fluid-only scene (smoke in a box) needs none, otherwise there is nothing to
+/// simulate.
+void parse_bodies(const Parser& p, const Node& root, bool has_fluid, Scene& s) {
   static const json no_bodies = json::array();
   const Node bodies = has_fluid && !Parser::has(root, "bodies") ? Node{no_bodies, "bodies"}
                                                                 : p.require(root, "bodies");
@@ -1019,14 +1010,10 @@ Scene parse_scene(const json& j, const fs::path& file) {
   });
   if (bodies.j.empty() && !has_fluid)
     p.fail("bodies", "a scene needs at least one body (or a 'fluid' section)");
+}
 
-  if (Parser::has(root, "obstacles")) {
-    p.for_each(Parser::child(root, "obstacles"), "expected an array",
-               [&](const Node& e, std::size_t i) { s.obstacles.push_back(p.obstacle(e, i)); });
-  }
-
-  if (has_fluid) s.fluid = p.fluid(Parser::child(root, "fluid"), s.gravity);
-
+/// The coupling of a fluid scene: the given `coupling` section or the default for its bodies.
+void parse_coupling(const Parser& p, const Node& root, bool has_fluid, Scene& s) {
   const bool has_coupling = Parser::has(root, "coupling");
   if (has_coupling && !has_fluid)
     p.fail("coupling",
@@ -1043,25 +1030,29 @@ Scene parse_scene(const json& j, const fs::path& file) {
       s.coupling = p.coupling_spec(nullptr, deformable, dynamic);
     }
   }
+}
 
+/// The defaults that depend on the rest of the scene: the integrator and the tangent.
+void default_integrator(const Node& root, Scene& s) {
   // The default integrator, chosen by measurement (`tetfsi bench integrators`, docs/method/solid.md
   // "Choosing integrators"): the Newton-iterated trapezoidal rule keeps a swing's energy to 1e-3
   // where the paper's linearisation damps it away. Two-way scenes step their bodies with
   // coupling.scheme; a given solid.trapezoid asks for the linearized rule.
-  {
-    const bool given_solid = Parser::has(root, "solid");
-    const auto given = [&](const char* key) {
-      return given_solid && Parser::has(Parser::child(root, "solid"), key);
-    };
-    if (!given("integrator") && !given("trapezoid") && !s.contact && !s.two_way() &&
-        s.mode == Mode::Dynamic)
-      s.solid.integrator = solid::Integrator::Newton;
-    // Bodies in contact are crushed where they meet: the exact K' is then indefinite and the
-    // ball of ball_block diverged (at h = 0.005 s as at 1/30 s); see StvkElasticity.
-    if (!given("tangent") && s.contact) s.solid.tangent = solid::Tangent::Definite;
-  }
+  const bool given_solid = Parser::has(root, "solid");
+  const auto given = [&](const char* key) {
+    return given_solid && Parser::has(Parser::child(root, "solid"), key);
+  };
+  if (!given("integrator") && !given("trapezoid") && !s.contact && !s.two_way() &&
+      s.mode == Mode::Dynamic)
+    s.solid.integrator = solid::Integrator::Newton;
+  // Bodies in contact are crushed where they meet: the exact K' is then indefinite and the
+  // ball of ball_block diverged (at h = 0.005 s as at 1/30 s); see StvkElasticity.
+  if (!given("tangent") && s.contact) s.solid.tangent = solid::Tangent::Definite;
+}
 
-  // Contact between bodies acts inside the linearised step's solve (solid/contact.hpp).
+/// Contact between bodies acts inside the linearised step's solve (solid/contact.hpp): the
+/// scheme and the integrator must allow it.
+void check_contact(const Parser& p, const Scene& s) {
   if (s.contact && s.mode == Mode::Dynamic) {
     if (s.two_way() && s.coupling->params.scheme != coupling::Scheme::Simultaneous)
       p.fail("contact", fmt::format("contact between bodies works with coupling.scheme "
@@ -1072,6 +1063,43 @@ Scene parse_scene(const json& j, const fs::path& file) {
                                     "(the default with contact), not '{}'",
                                     solid::to_string(s.solid.integrator)));
   }
+}
+
+}  // namespace
+
+Scene parse_scene(const json& j, const fs::path& file) {
+  const Parser p(file);
+  using Node = Parser::Node;
+  const Node root{j, ""};
+  Scene s;
+  s.file = file.empty() ? fs::path() : fs::absolute(file).lexically_normal();
+  s.name = file.empty() ? std::string("scene") : file.stem().string();
+  p.read(root, top_level_keys(), s);  // name, description, mode, gravity
+
+  parse_time(p, root, s);
+  if (Parser::has(root, "output")) p.read(Parser::child(root, "output"), output_keys(), s.output);
+  if (Parser::has(root, "solver")) p.read(Parser::child(root, "solver"), solver_keys(), s.solver);
+  if (Parser::has(root, "solid")) s.solid = p.solid(Parser::child(root, "solid"));
+  if (Parser::has(root, "static")) p.read(Parser::child(root, "static"), static_keys(), s.statics);
+  if (Parser::has(root, "contact")) {
+    s.contact.emplace();
+    p.read(Parser::child(root, "contact"), contact_keys(), *s.contact);
+  }
+
+  const bool has_fluid = Parser::has(root, "fluid");
+  parse_bodies(p, root, has_fluid, s);
+
+  if (Parser::has(root, "obstacles")) {
+    p.for_each(Parser::child(root, "obstacles"), "expected an array",
+               [&](const Node& e, std::size_t i) { s.obstacles.push_back(p.obstacle(e, i)); });
+  }
+
+  if (has_fluid) s.fluid = p.fluid(Parser::child(root, "fluid"), s.gravity);
+
+  parse_coupling(p, root, has_fluid, s);
+
+  default_integrator(root, s);
+  check_contact(p, s);
 
   check_integration_keys(p, root, s);
 
