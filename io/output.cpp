@@ -158,8 +158,8 @@ void write_xml_atomic(vtkXMLWriter* writer, vtkDataObject* data, const fs::path&
   if (!ok || writer->GetErrorCode() != vtkErrorCode::NoError) {
     std::error_code ec;
     fs::remove(tmp, ec);
-    std::string why = errors.first_message().empty() ? vtk_error_text(writer->GetErrorCode())
-                                                     : errors.first_message();
+    std::string why = errors.first_message();
+    if (why.empty()) why = vtk_error_text(writer->GetErrorCode());
     throw InputError(fmt::format("cannot write '{}': {}", path.string(), why));
   }
   rename_into_place(tmp, path);
@@ -740,8 +740,9 @@ StatsWriter::~StatsWriter() {
 }
 
 void StatsWriter::write(const StepStats& r) {
-  std::string line = fmt::format("{}", r.step);  // step_head_columns: step, time, dt
-  line += fmt::format(",{:.17g},{:.17g}", r.time, r.dt);
+  std::string line;
+  append_stats(line, step_head_columns(), r);
+  line.erase(0, 1);  // the row's first column has no ',' before it
   for (const auto& p : phase_columns(m_fluid, m_coupled))
     line += fmt::format(",{:.6g}", r.phases.get(p));
   append_stats(line, step_columns(), r);

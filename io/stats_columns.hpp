@@ -73,19 +73,9 @@ void append_nan(std::string& line, const std::vector<StatsColumn<R>>& table);
 std::string stats_columns_markdown();
 
 /// Visit every column of `table` that has a checkpoint record as f(record, field&) — the form
-/// io/state_io.hpp's RecordSaver / RecordLoader take.
-template <class R, class F>
-void visit_records(const std::vector<StatsColumn<R>>& table, R& r, F&& f) {
-  for (const StatsColumn<R>& c : table) {
-    if (!c.record) continue;
-    if (auto* m = std::get_if<int R::*>(&c.field))
-      f(c.record, r.**m);
-    else if (auto* d = std::get_if<double R::*>(&c.field))
-      f(c.record, r.**d);
-  }
-}
-template <class R, class F>
-void visit_records(const std::vector<StatsColumn<R>>& table, const R& r, F&& f) {
+/// io/state_io.hpp's RecordSaver / RecordLoader take. `S` is R or const R.
+template <class R, class S, class F>
+void visit_records(const std::vector<StatsColumn<R>>& table, S& r, F&& f) {
   for (const StatsColumn<R>& c : table) {
     if (!c.record) continue;
     if (auto* m = std::get_if<int R::*>(&c.field))

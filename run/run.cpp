@@ -916,8 +916,9 @@ Scene resumed_scene(const ResumeOptions& ro, const CheckpointReader& ck,
 }
 
 /// The simulation, the run's figures and the session as the checkpoint left them.
-void restore_run(const CheckpointReader& ck, const Scene& scene, coupling::FsiSimulation& sim,
-                 std::optional<RunRecorder>& fluid, RunResult& r, Session& ses) {
+void restore_run(const CheckpointReader& ck, int step, const Scene& scene,
+                 coupling::FsiSimulation& sim, std::optional<RunRecorder>& fluid, RunResult& r,
+                 Session& ses) {
   const solid::SolidWorld& world = sim.world();
   load_pose_ranges(ck, world.bodies.size(), r);
   if (ck.get_bool("run/has_contact") != r.contact.has_value())
@@ -935,7 +936,7 @@ void restore_run(const CheckpointReader& ck, const Scene& scene, coupling::FsiSi
   }
   ses.guard.emplace(world, divergence_scales(scene));
   ses.guard->load_state(ck);
-  ses.first_step = static_cast<int>(ck.get_int("run/step")) + 1;
+  ses.first_step = step + 1;
   ses.last_frame = static_cast<int>(ck.get_int("run/last_frame"));
   ses.wall_before = ck.get_double("run/wall_s");
 }
@@ -960,7 +961,7 @@ RunResult resume_run(const ResumeOptions& ro) {
   visit_result(r, RecordLoader{*ck, "run/result/"});
   std::optional<RunRecorder> fluid;
   coupling::FsiSimulation sim = build_simulation(scene, r, fluid);
-  restore_run(*ck, scene, sim, fluid, r, ses);
+  restore_run(*ck, step, scene, sim, fluid, r, ses);
 
   ses.start = now_seconds();
   OutputWriter out(opt.out_dir, output_plan(scene), sim.world(), step);
@@ -993,65 +994,58 @@ nlohmann::json bodies_json(const RunResult& r) {
 
 /// summary.json's "contact" (scenes with contact between bodies).
 nlohmann::json contact_json(const ContactSummary& c) {
-  nlohmann::json j;
-  j["contact"] = {{"gap", c.gap},
-                  {"min_gap", c.min_gap},
-                  {"steps_in_contact", c.steps_in_contact},
-                  {"max_pairs", c.max_pairs},
-                  {"max_force", c.max_force},
-                  {"crossings", c.crossings},
-                  {"seconds", c.seconds}};
-  return j["contact"];
+  return {{"gap", c.gap},
+          {"min_gap", c.min_gap},
+          {"steps_in_contact", c.steps_in_contact},
+          {"max_pairs", c.max_pairs},
+          {"max_force", c.max_force},
+          {"crossings", c.crossings},
+          {"seconds", c.seconds}};
 }
 
 /// summary.json's "fluid" (fluid scenes).
 nlohmann::json fluid_json(const FluidSummary& f) {
-  nlohmann::json j;
-  j["fluid"] = {{"remeshes", f.remeshes},
-                {"remesh_seconds", f.remesh_s},
-                {"ms_per_remesh", f.ms_per_remesh()},
-                {"max_remesh_seconds", f.max_remesh_s},
-                {"cells", f.cells},
-                {"vertices", f.vertices},
-                {"min_dihedral_deg", f.min_dihedral_deg},
-                {"max_slivers", f.max_slivers},
-                {"fluid_steps", f.fluid_steps},
-                {"fluid_seconds", f.fluid_s},
-                {"pressure_iterations", f.pressure_iterations},
-                {"unconverged_pressure_solves", f.unconverged_pressure_solves},
-                {"max_divergence", f.max_divergence},
-                {"max_cfl", f.max_cfl},
-                {"smoke_mass", f.smoke_mass},
-                {"kinetic_energy", f.fluid_kinetic_energy}};
-  return j["fluid"];
+  return {{"remeshes", f.remeshes},
+          {"remesh_seconds", f.remesh_s},
+          {"ms_per_remesh", f.ms_per_remesh()},
+          {"max_remesh_seconds", f.max_remesh_s},
+          {"cells", f.cells},
+          {"vertices", f.vertices},
+          {"min_dihedral_deg", f.min_dihedral_deg},
+          {"max_slivers", f.max_slivers},
+          {"fluid_steps", f.fluid_steps},
+          {"fluid_seconds", f.fluid_s},
+          {"pressure_iterations", f.pressure_iterations},
+          {"unconverged_pressure_solves", f.unconverged_pressure_solves},
+          {"max_divergence", f.max_divergence},
+          {"max_cfl", f.max_cfl},
+          {"smoke_mass", f.smoke_mass},
+          {"kinetic_energy", f.fluid_kinetic_energy}};
 }
 
 /// summary.json's "coupling" (two-way runs).
 nlohmann::json coupling_json(const CouplingSummary& c) {
-  nlohmann::json j;
-  j["coupling"] = {{"scheme", c.scheme},
-                   {"solver", c.solver},
-                   {"coupled_steps", c.coupled_steps},
-                   {"coupled_iterations", c.iterations},
-                   {"max_residual", c.max_residual},
-                   {"unconverged_solves", c.unconverged_solves},
-                   {"steps_at_round_off_floor", c.steps_at_floor},
-                   {"max_round_off_floor", c.max_floor},
-                   {"max_interface_power", c.max_interface_power},
-                   {"max_interface_imbalance", c.max_interface_imbalance},
-                   {"max_enclosed_regions", c.max_enclosed_regions},
-                   {"max_volume_drift", c.max_volume_drift},
-                   {"enclosed_volume", c.enclosed_volume},
-                   {"unpredicted_meshes", c.unpredicted_meshes},
-                   {"solid_iterations", c.solid_iterations},
-                   {"total_energy", c.total_energy}};
-  return j["coupling"];
+  return {{"scheme", c.scheme},
+          {"solver", c.solver},
+          {"coupled_steps", c.coupled_steps},
+          {"coupled_iterations", c.iterations},
+          {"max_residual", c.max_residual},
+          {"unconverged_solves", c.unconverged_solves},
+          {"steps_at_round_off_floor", c.steps_at_floor},
+          {"max_round_off_floor", c.max_floor},
+          {"max_interface_power", c.max_interface_power},
+          {"max_interface_imbalance", c.max_interface_imbalance},
+          {"max_enclosed_regions", c.max_enclosed_regions},
+          {"max_volume_drift", c.max_volume_drift},
+          {"enclosed_volume", c.enclosed_volume},
+          {"unpredicted_meshes", c.unpredicted_meshes},
+          {"solid_iterations", c.solid_iterations},
+          {"total_energy", c.total_energy}};
 }
 
 /// summary.json's "equilibrium" (runs that iterate to equilibrium).
 nlohmann::json equilibrium_json(const EquilibriumSummary& e) {
-  nlohmann::json j;
-  j["equilibrium"] = {{"method", e.method},
+  nlohmann::json j = {{"method", e.method},
                       {"via", e.via},
                       {"steps", e.steps},
                       {"max_iterations", e.max_iterations},
@@ -1060,9 +1054,8 @@ nlohmann::json equilibrium_json(const EquilibriumSummary& e) {
                       {"iterations", e.iterations},
                       {"evaluations", e.evaluations},
                       {"iteration_limit", e.iteration_limit}};
-  if (e.via == "coupling.scheme")
-    j["equilibrium"]["fluid_solves_per_step"] = e.fluid_solves_per_step();
-  return j["equilibrium"];
+  if (e.via == "coupling.scheme") j["fluid_solves_per_step"] = e.fluid_solves_per_step();
+  return j;
 }
 
 }  // namespace

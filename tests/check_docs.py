@@ -23,7 +23,7 @@ import cxx_scan  # noqa: E402
 LAYOUT = os.path.join("docs", "dev", "code_layout.md")
 OUTSIDE = re.compile(r"\.\./shared|\bDESIGN\.md|\bVALIDATION\.md|\bSTYLE\.md|\bseeds/")
 TEXT_EXT = (".md", ".cpp", ".hpp", ".py", ".sh", ".txt", ".cmake", ".json")
-SKIP_DIRS = {".git", "build", "build-sanitize", "out", "data"}
+SKIP_DIRS = {".git", "build", "build-sanitize", "out"}
 # A file path in backticks, possibly with one {a,b} group: `fluid/grid/grid.{hpp,cpp}`.
 PATH = re.compile(r"`([A-Za-z0-9_./-]+?)(?:\{([A-Za-z0-9_,.]+)\})?`")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
@@ -76,8 +76,7 @@ def check_layout(root):
 
 def text_files(root):
     for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = sorted(d for d in dirnames if d not in SKIP_DIRS and
-                             os.path.relpath(os.path.join(dirpath, d), root) not in SKIP_DIRS)
+        dirnames[:] = sorted(d for d in dirnames if d not in SKIP_DIRS)
         for f in sorted(filenames):
             if f.endswith(TEXT_EXT) or f in ("Makefile", "CMakeLists.txt", "run"):
                 yield os.path.join(dirpath, f)
