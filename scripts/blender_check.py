@@ -20,8 +20,8 @@ What is checked, in Blender, against the manifest OUT/export.json:
      box (Blender takes it from the grids' 8³ leaf nodes, not from the active voxels) holds the
      manifest's active voxels and exceeds them by less than one leaf (8 voxels).
  (b) the meshes: each PLY imports with the manifest's vertex and triangle counts (Blender 3.4's
-     PLY importer keeps the file's vertices: it merges none), every face a triangle, every
-     coordinate finite.
+     PLY importer keeps the file's vertices: it merges none), every face a triangle, and the
+     vertices exactly the file's (read here with numpy: same order, same axes, no rescaling).
  (c) the picture: the frame rendered with Cycles on the CPU (a camera framing the smoke and the
      meshes, a sun, a Principled Volume reading `density`) to PATH, and the same view without
      the volume to PATH's `_nosmoke.png`; both PNGs read back and compared (check_image below).
@@ -285,6 +285,45 @@ def check_volume_bounds(obj, frame, h, voxel_shift):
     return lo_d, hi_d, off
 
 
+PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "<i2",
+             "int16": "<i2", "ushort": "<u2", "uint16": "<u2", "int": "<i4", "int32": "<i4",
+             "uint": "<u4", "uint32": "<u4", "float": "<f4", "float32": "<f4",
+             "double": "<f8", "float64": "<f8"}
+
+
+def read_ply_points(path):
+    """The vertices' x, y, z of a binary little-endian PLY whose vertex element comes first
+    and has scalar properties only (as write_ply writes them), else None: what Blender's
+    importer is compared against."""
+    with open(path, "rb") as f:
+        header = []
+        while True:
+            line = f.readline()
+            if not line:
+                return None
+            line = line.decode("ascii", "replace").strip()
+            header.append(line.split())
+            if line == "end_header":
+                break
+        if ["format", "binary_little_endian", "1.0"] not in header:
+            return None
+        elements = [i for i, w in enumerate(header) if w[:1] == ["element"]]
+        if not elements or header[elements[0]][1] != "vertex":
+            return None
+        count = int(header[elements[0]][2])
+        fields = []
+        for w in header[elements[0] + 1:]:
+            if w[:1] != ["property"]:
+                break
+            if len(w) != 3 or w[1] not in PLY_TYPES:
+                return None  # a list property in the vertex element: not our layout
+            fields.append((w[2], PLY_TYPES[w[1]]))
+        data = np.fromfile(f, dtype=np.dtype(fields), count=count)
+    if len(data) != count or not {"x", "y", "z"} <= set(data.dtype.names):
+        return None
+    return np.stack([data["x"], data["y"], data["z"]], axis=1).astype(float)
+
+
 def load_meshes(out, frame):
     """(b) Each PLY of the frame imported and counted; returns [(name, obj)]."""
     objects = []
@@ -312,9 +351,20 @@ def load_meshes(out, frame):
         mesh.vertices.foreach_get("co", co)
         if not np.isfinite(co).all():
             raise CheckFailed(f"{path}: non-finite vertex coordinates")
+        # Blender's vertices are the file's, in its order and axes (no merging, no axis swap).
+        points = read_ply_points(path)
+        if points is not None:
+            off = float(np.abs(co.reshape(-1, 3) - points).max()) if nv else 0.0
+            # float32 in Blender: a file of doubles is rounded to float.
+            if len(points) != nv or off > 1e-6 * max(1.0, float(np.abs(points).max())):
+                raise CheckFailed(f"{path}: Blender's vertices differ from the file's "
+                                  f"(by up to {off:.3g} m)" if len(points) == nv else
+                                  f"{path}: the file has {len(points)} vertices")
         obj.name = m["name"]
         objects.append((m["name"], obj))
-        print(f"{PREFIX} {m['file']}: {nv} vertices, {nf} triangles")
+        print(f"{PREFIX} {m['file']}: {nv} vertices, {nf} triangles"
+              + (", the file's coordinates" if points is not None else
+                 " (coordinates not compared: not write_ply's layout)"))
     return objects
 
 
@@ -341,9 +391,15 @@ def smoke_material(density):
 def surface_material(name, color, roughness):
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    # Built node by node: the default tree depends on the active object (a Principled Volume
+    # when it is a volume).
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for n in list(nodes):
+        nodes.remove(n)
+    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.inputs["Base Color"].default_value = (*color, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness
+    links.new(bsdf.outputs["BSDF"], nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
     return mat
 
 

@@ -2,8 +2,9 @@
 # ctest `blender_check` (label blender; `make test-blender`): a short smoke_sheets run exported
 # for renderers (output.export vdb + ply), its last frame loaded, checked and rendered by
 # Blender headless (scripts/blender_check.py), the picture kept at WORK/smoke_sheets.png.
-# Then the same check on a manifest with one wrong vertex count must fail with exit code 1:
-# a failed check inside Blender reaches the caller.
+# Then the whole export loaded as sequences (scripts/blender_load_export.py) into
+# WORK/sequences.blend, and the check on a manifest with one wrong vertex count must fail
+# with exit code 1: a failed check inside Blender reaches the caller.
 # Usage: run_blender_check.sh TETFSI_EXE SOURCE_DIR WORK_DIR
 # Exit 77 (ctest SKIP_RETURN_CODE) when Blender is not installed; $BLENDER overrides `blender`.
 set -euo pipefail
@@ -34,6 +35,12 @@ SECONDS=0
 }
 blender_s=$SECONDS
 grep '^blender_check:' "$work/blender.log"
+
+# The whole export as sequences (scripts/blender_load_export.py), saved as a .blend.
+"$blender" -b --factory-startup -noaudio --python-exit-code 2 \
+  -P "$src/scripts/blender_load_export.py" -- "$run" --blend "$work/sequences.blend" \
+  >"$work/load.log" 2>&1 || { tail -n 20 "$work/load.log"; echo "blender_load_export failed"; exit 1; }
+grep '^blender_load_export:' "$work/load.log"
 
 # A wrong manifest must fail the check (exit code 1, one FAIL line), not pass silently.
 mkdir -p "$work/bad"
