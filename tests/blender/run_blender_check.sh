@@ -14,14 +14,14 @@ if ! command -v "$blender" >/dev/null; then
   echo "blender_check: skipped: no '$blender' on PATH (make test-blender installs Debian's)"
   exit 77
 fi
-steps=${TETFSI_BLENDER_STEPS:-20}
+steps=${TETFSI_BLENDER_STEPS:-40}  # t = 0.8 s: the smoke has reached the first sheet
 
 run=$work/run
 rm -rf "$run" "$work/bad"
 mkdir -p "$work"
 SECONDS=0
 "$tetfsi" run "$src/data/scenes/smoke_sheets.json" --out "$run" --progress off \
-  --steps "$steps" --set output.every=5 --set 'output.export=["vdb","ply"]'
+  --steps "$steps" --set output.every=10 --set 'output.export=["vdb","ply"]'
 run_s=$SECONDS
 
 check=(--factory-startup -noaudio --python-exit-code 2 -P "$src/scripts/blender_check.py" --)
