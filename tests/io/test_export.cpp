@@ -1,7 +1,8 @@
 /// @file test_export.cpp
 /// Tests of the renderer export (io/export.hpp): PLY surfaces written and read back, the tet
 /// fluid's voxel sampling (mass, volume, exact linear velocity, the same bits at any thread
-/// count), the grid fluid's cells as voxels.
+/// count), `.vdb` files written and summarised by OpenVDB's reader, the grid fluid's cells as
+/// voxels.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -108,6 +109,14 @@ double tet_smoke_mass(const TetVolume& f) {
     m += f.density[t] * e.determinant() / 6.0;
   }
   return m;
+}
+
+const VdbGridSummary& grid_named(const std::vector<VdbGridSummary>& grids,
+                                 const std::string& name) {
+  const auto it = std::find_if(grids.begin(), grids.end(),
+                               [&](const VdbGridSummary& g) { return g.name == name; });
+  REQUIRE(it != grids.end());
+  return *it;
 }
 
 /// The grid fluid of a 4 × 3 × 2 box (spacing 0.1, 0.2, 0.25 from (1, 2, 3)) with two solid
@@ -417,4 +426,101 @@ TEST_CASE("voxel_frame_of: the grid's cells are the voxels") {
   CHECK(v.temperature == g.temperature);
   CHECK(v.phi == g.phi);
   CHECK(v.ambient_temperature == 290.0);
+}
+
+// ---- OpenVDB -------------------------------------------------------------------------------
+
+TEST_CASE("write_vdb and read_vdb_summary: grids, active voxels, ranges, bounds, metadata") {
+  TempDir dir("export_vdb");
+  const TetVolume f = jittered_cube(6, linear_velocity);
+  VoxelOptions o;
+  o.voxel_size = 1.0 / 12;
+  const VoxelFrame v = voxelize(f, o);
+  for (const double threshold : {0.0, 1.5}) {
+    CAPTURE(threshold);
+    const fs::path p = dir.path / "fluid_000007.vdb";
+    const std::vector<VdbGridSummary> written = write_vdb(p, v, {42, 0.125, "cube", threshold});
+    CHECK(!fs::exists(dir.path / "fluid_000007.vdb.tmp"));
+    const VdbFileSummary r = read_vdb_summary(p);
+    CHECK(r.step == 42);
+    CHECK(r.time == 0.125);
+    REQUIRE(r.grids.size() == 4);
+    std::set<std::string> names;
+    for (const VdbGridSummary& g : r.grids) names.insert(g.name);
+    CHECK(names == std::set<std::string>{"density", "temperature", "velocity", "pressure"});
+    Index above = 0;
+    for (Index c = 0; c < v.size(); ++c) above += v.density[c] > threshold ? 1 : 0;
+    CHECK(above > 100);
+    const VdbGridSummary& d = grid_named(r.grids, "density");
+    CHECK(d.type == "float");
+    CHECK(d.grid_class == "fog volume");
+    CHECK(d.unit == "kg/m^3");
+    CHECK(d.active_voxels == above);
+    CHECK(d.max == rel(v.density.maxCoeff(), 1e-7));
+    const VdbGridSummary& u = grid_named(r.grids, "velocity");
+    CHECK(u.type == "vec3s");
+    CHECK(u.unit == "m/s");
+    CHECK(u.active_voxels == above);
+    CHECK(u.max == rel(v.velocity.rowwise().norm().maxCoeff(), 1e-6));
+    CHECK(grid_named(r.grids, "temperature").unit == "K");
+    CHECK(grid_named(r.grids, "pressure").unit == "Pa");
+    // the fluid fills the unit cube; above ρ = 1.5 it is x > 0.5: the tets' centroids there
+    // are at x > 0.52 and those of the cells before at x < 0.48 (jitter included)
+    const std::array<double, 6> box = {threshold > 0 ? 0.5 : 0.0, 0, 0, 1, 1, 1};
+    for (std::size_t a = 0; a < 6; ++a) CHECK(std::abs(d.bounds[a] - box[a]) < 1e-12);
+    // what write_vdb returns is what the reader sees
+    REQUIRE(written.size() == 4);
+    for (const VdbGridSummary& w : written) {
+      const VdbGridSummary& g = grid_named(r.grids, w.name);
+      CHECK(g.active_voxels == w.active_voxels);
+      CHECK(g.min == w.min);
+      CHECK(g.max == w.max);
+      CHECK(g.bounds == w.bounds);
+    }
+    if (threshold == 0.0) {
+      CHECK(d.active_voxels == v.size());
+      CHECK(vdb_grid_integral(p, "density") == rel(v.smoke_mass(), 1e-6));
+    }
+  }
+}
+
+TEST_CASE("write_vdb: a grid fluid's liquid as a level set, velocity on the liquid's voxels") {
+  TempDir dir("export_vdb_liquid");
+  const VoxelFrame v = voxel_frame_of(small_grid(), 290.0);
+  const fs::path p = dir.path / "liquid.vdb";
+  write_vdb(p, v, {3, 0.5, "grid", 1e-4});
+  const VdbFileSummary r = read_vdb_summary(p);
+  REQUIRE(r.grids.size() == 5);
+  // no smoke: density and temperature are empty
+  CHECK(grid_named(r.grids, "density").active_voxels == 0);
+  CHECK(grid_named(r.grids, "temperature").active_voxels == 0);
+  // the liquid is the lower layer (φ = −0.175 there, 0.075 above) but its solid cell 5
+  const VdbGridSummary& u = grid_named(r.grids, "velocity");
+  CHECK(u.active_voxels == 11);
+  CHECK(u.max == rel(Vec3(11, -11, 5.5).norm(), 1e-6));
+  CHECK(grid_named(r.grids, "pressure").active_voxels == 11);
+  // world bounds: the lower layer of cells, [1, 1.4] × [2, 2.6] × [3, 3.25]
+  const std::array<double, 6> lower = {1, 2, 3, 1.4, 2.6, 3.25};
+  for (int a = 0; a < 6; ++a) CHECK(u.bounds[static_cast<std::size_t>(a)] == rel(lower[a], 1e-12));
+  // surface: every cell is within 3 h = 0.75 of the surface
+  const VdbGridSummary& s = grid_named(r.grids, "surface");
+  CHECK(s.grid_class == "level set");
+  CHECK(s.unit == "m");
+  CHECK(s.active_voxels == 24);
+  CHECK(s.min == rel(-0.175, 1e-6));
+  CHECK(s.max == rel(0.075, 1e-6));
+  CHECK(s.bounds[5] == rel(3.5, 1e-12));
+  CHECK_THROWS_AS(vdb_grid_integral(p, "velocity"), InputError);
+  CHECK(message_of<InputError>([&] { vdb_grid_integral(p, "smoke"); }).find("smoke") !=
+        std::string::npos);
+}
+
+TEST_CASE("read_vdb_summary: a missing or foreign file is an InputError naming it") {
+  TempDir dir("export_vdb_read");
+  const fs::path text = dir.path / "not_a.vdb";
+  std::ofstream(text) << "hello\n";
+  CHECK(message_of<InputError>([&] { read_vdb_summary(text); }).find("not_a.vdb") !=
+        std::string::npos);
+  CHECK(message_of<InputError>([&] { read_vdb_summary(dir.path / "gone.vdb"); }).find("gone.vdb") !=
+        std::string::npos);
 }
