@@ -2,7 +2,7 @@
 /// Tests of the renderer export (io/export.hpp): PLY surfaces written and read back, the tet
 /// fluid's voxel sampling (mass, volume, exact linear velocity, the same bits at any thread
 /// count), `.vdb` files written and summarised by OpenVDB's reader, the grid fluid's cells as
-/// voxels.
+/// voxels, one frame's files and the manifest export.json.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -523,4 +523,83 @@ TEST_CASE("read_vdb_summary: a missing or foreign file is an InputError naming i
         std::string::npos);
   CHECK(message_of<InputError>([&] { read_vdb_summary(dir.path / "gone.vdb"); }).find("gone.vdb") !=
         std::string::npos);
+}
+
+// ---- frames and the manifest -----------------------------------------------------------------
+
+TEST_CASE("export_frame and ExportManifest: the files, the JSON round trip, truncate") {
+  TempDir dir("export_frame");
+  const TetVolume f = jittered_cube(3, linear_velocity);
+  VoxelOptions o;
+  o.voxel_size = 0.2;
+  const VoxelFrame v = voxelize(f, o);
+  const std::vector<NamedSurface> surfaces = {{"block", body_export_surface(make_block())}};
+  ExportRequest request;
+  request.vdb = request.ply = true;
+  request.scene = "cube";
+  ExportManifest manifest(dir.path / "export.json", "cube");
+  for (int frame = 0; frame < 3; ++frame)
+    manifest.add(export_frame(dir.path, frame, 10 * frame, 0.1 * frame, surfaces, &v, request));
+  CHECK(fs::exists(dir.path / "vdb/fluid_000002.vdb"));
+  CHECK(fs::exists(dir.path / "ply/block_000002.ply"));
+  const ExportedFrame& last = manifest.frames().back();
+  CHECK(last.vdb_file == "vdb/fluid_000002.vdb");
+  CHECK(last.step == 20);
+  CHECK(last.grids.size() == 4);
+  CHECK(last.smoke_mass == v.smoke_mass());
+  REQUIRE(last.meshes.size() == 1);
+  CHECK(last.meshes[0].file == "ply/block_000002.ply");
+  CHECK(last.meshes[0].triangles == 44);
+  // export.json reads back to the same frames
+  const nlohmann::json j = nlohmann::json::parse(test::read_text(dir.path / "export.json"));
+  CHECK(j.at("format") == "tetfsi-export 1");
+  CHECK(j.at("scene") == "cube");
+  REQUIRE(j.at("frames").size() == 3);
+  const ExportedFrame back = exported_frame_from_json(j.at("frames")[2]);
+  CHECK(to_json(back) == to_json(last));
+  CHECK(back.voxel_size == last.voxel_size);
+  CHECK(back.grids[0].bounds == last.grids[0].bounds);
+  // a frame of the same number replaces it; truncate keeps the frames before
+  ExportedFrame again = last;
+  again.step = 21;
+  manifest.add(again);
+  CHECK(manifest.frames().size() == 3);
+  CHECK(manifest.frames().back().step == 21);
+  manifest.truncate(1);
+  const nlohmann::json t = nlohmann::json::parse(test::read_text(dir.path / "export.json"));
+  REQUIRE(t.at("frames").size() == 1);
+  CHECK(t.at("frames")[0].at("frame") == 0);
+  CHECK(!fs::exists(dir.path / "export.json.tmp"));
+  CHECK_THROWS_AS(exported_frame_from_json(nlohmann::json{{"frame", 1}}), InputError);
+  // ply only, no fluid
+  request.vdb = false;
+  const ExportedFrame p = export_frame(dir.path, 5, 50, 0.5, surfaces, nullptr, request);
+  CHECK(p.vdb_file.empty());
+  CHECK(p.grids.empty());
+  CHECK(!fs::exists(dir.path / "vdb/fluid_000005.vdb"));
+}
+
+TEST_CASE("export: an unwritable folder is an InputError naming the file") {
+  TempDir dir("export_unwritable");
+  const mesh::VolumeMesh m = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1));
+  const ExportSurface s = tet_boundary_surface(m.vertices, m.tets, MatX3(), VecX());
+  const fs::path nowhere = "/nonexistent_tetfsi_dir/sub";
+  auto one_line_naming = [](const std::string& msg, const std::string& name) {
+    CAPTURE(msg);
+    CHECK(msg.find(name) != std::string::npos);
+    CHECK(msg.find('\n') == std::string::npos);
+  };
+  one_line_naming(message_of<InputError>([&] { write_ply(nowhere / "s.ply", s); }), "s.ply");
+  const VoxelFrame v = voxel_frame_of(small_grid(), 290.0);
+  one_line_naming(message_of<InputError>([&] { write_vdb(nowhere / "f.vdb", v, {}); }), "f.vdb");
+  ExportManifest manifest(nowhere / "export.json", "x");
+  one_line_naming(message_of<InputError>([&] { manifest.add(ExportedFrame{}); }), "export.json");
+  // a folder that is a file
+  std::ofstream(dir.path / "file") << "x";
+  ExportRequest request;
+  request.ply = true;
+  one_line_naming(message_of<InputError>([&] {
+                    export_frame(dir.path / "file", 0, 0, 0.0, {{"s", s}}, nullptr, request);
+                  }),
+                  "file/ply");
 }
