@@ -515,8 +515,10 @@ void write_grid_vti(const fs::path& path, const GridFrameFields& g, Compression 
   write_xml_atomic(writer, image, path, compression);
 }
 
-void write_liquid_surface_vtp(const fs::path& path, const GridFrameFields& g,
-                              Compression compression) {
+namespace {
+
+/// The liquid's surface: VTK's contour of φ = 0 on the cell centres and the box's walls.
+vtkSmartPointer<vtkPolyData> liquid_surface_polydata(const GridFrameFields& g) {
   mesh::route_vtk_messages_to_log();
   const Index nc = check_grid_cells(g);
   TETFSI_CHECK(g.phi.size() == nc, "liquid surface: phi has {} values for {} cells", g.phi.size(),
@@ -559,10 +561,85 @@ void write_liquid_surface_vtp(const fs::path& path, const GridFrameFields& g,
   contour->ComputeNormalsOn();
   contour->ComputeScalarsOff();
   contour->Update();
-  vtkPolyData* surface = contour->GetOutput();
+  vtkSmartPointer<vtkPolyData> surface = contour->GetOutput();
   surface->GetPointData()->RemoveArray("phi");
+  return surface;
+}
+
+/// φ of the cell whose centre is nearest to x (clamped to the box).
+double nearest_phi(const GridFrameFields& g, const Vec3& x) {
+  Index c = 0, stride = 1;
+  for (int a = 0; a < 3; ++a) {
+    const double u = (x[a] - g.origin[a]) / g.spacing[a];
+    const Index i = std::clamp<Index>(static_cast<Index>(std::floor(u)), 0, g.cells[a] - 1);
+    c += stride * i;
+    stride *= g.cells[a];
+  }
+  return g.phi[c];
+}
+
+/// Orient the contour's triangles out of the liquid (φ grows along the right-hand normal):
+/// each one as the mean of its points' `normals`, then all of them by the vote of φ one cell
+/// either side of their centroids.
+void orient_out_of_liquid(const GridFrameFields& g, vtkDataArray* normals, ExportSurface& s) {
+  const Index nt = static_cast<Index>(s.triangles.rows());
+  const double h = g.spacing.minCoeff();
+  Index agree = 0;
+  for (Index t = 0; t < nt; ++t) {
+    const Vec3 a = s.points.row(s.triangles(t, 0)), b = s.points.row(s.triangles(t, 1)),
+               c = s.points.row(s.triangles(t, 2));
+    Vec3 n = (b - a).cross(c - a);
+    if (normals) {
+      Vec3 m = Vec3::Zero();
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 3; ++d) m[d] += normals->GetComponent(s.triangles(t, k), d);
+      if (n.dot(m) < 0.0) {
+        std::swap(s.triangles(t, 1), s.triangles(t, 2));
+        n = -n;
+      }
+    }
+    const double len = n.norm();
+    if (len == 0.0) continue;
+    const Vec3 x = (a + b + c) / 3.0, e = h * n / len;
+    agree += nearest_phi(g, x + e) >= nearest_phi(g, x - e) ? 1 : -1;
+  }
+  if (agree < 0) s.triangles.col(1).swap(s.triangles.col(2));
+}
+
+}  // namespace
+
+void write_liquid_surface_vtp(const fs::path& path, const GridFrameFields& g,
+                              Compression compression) {
+  const vtkSmartPointer<vtkPolyData> surface = liquid_surface_polydata(g);
   vtkNew<vtkXMLPolyDataWriter> writer;
   write_xml_atomic(writer, surface, path, compression);
+}
+
+ExportSurface liquid_surface(const GridFrameFields& g) {
+  const vtkSmartPointer<vtkPolyData> poly = liquid_surface_polydata(g);
+  ExportSurface s;
+  const Index np = static_cast<Index>(poly->GetNumberOfPoints());
+  s.points.resize(np, 3);
+  s.velocity.resize(np, 3);
+  vtkDataArray* vel = poly->GetPointData()->GetArray("velocity");
+  for (Index i = 0; i < np; ++i) {
+    poly->GetPoint(i, &s.points(i, 0));
+    for (int a = 0; a < 3; ++a) s.velocity(i, a) = vel ? vel->GetComponent(i, a) : 0.0;
+  }
+  std::vector<std::array<int, 3>> tris;
+  vtkCellArray* polys = poly->GetPolys();
+  vtkIdType n = 0;
+  const vtkIdType* ids = nullptr;
+  for (polys->InitTraversal(); polys->GetNextCell(n, ids);) {
+    for (vtkIdType k = 1; k + 1 < n; ++k)  // a fan: the contour gives triangles
+      tris.push_back(
+          {static_cast<int>(ids[0]), static_cast<int>(ids[k]), static_cast<int>(ids[k + 1])});
+  }
+  s.triangles.resize(static_cast<Index>(tris.size()), 3);
+  for (size_t t = 0; t < tris.size(); ++t)
+    for (int a = 0; a < 3; ++a) s.triangles(static_cast<Index>(t), a) = tris[t][a];
+  orient_out_of_liquid(g, poly->GetPointData()->GetArray("Normals"), s);
+  return s;
 }
 
 void write_grid_interface_vtp(const fs::path& path, const GridFrameFields& g,
@@ -827,7 +904,7 @@ std::vector<std::string> output_file_names(const OutputPlan& plan, const solid::
                         b.name(), name));
     }
     if (plan.fluid) {
-      for (const char* stream : {"fluid", "interface"}) {
+      for (const char* stream : {"fluid", "interface", "liquid"}) {
         if (name == stream)
           throw InputError(fmt::format(
               "body '{}' would be written to '{}.pvd', which holds the {} mesh in a scene with "
@@ -886,6 +963,23 @@ OutputWriter::OutputWriter(const fs::path& out_dir, const OutputPlan& plan,
     m_interface_pvd.emplace(stream("interface"));
     if (plan.liquid) m_liquid_pvd.emplace(stream("liquid"));
   }
+  m_export = plan.exports;
+  m_export.vdb = m_export.vdb && plan.fluid;
+  if (m_export.vdb || m_export.ply) m_manifest.emplace(m_out / "export.json", m_export.scene);
+}
+
+std::optional<ExportedFrame> OutputWriter::export_files(const solid::SolidWorld& world, int step,
+                                                        double time, const VoxelFrame* fluid,
+                                                        const ExportSurface* liquid) {
+  if (!m_manifest) return std::nullopt;
+  std::vector<NamedSurface> surfaces;
+  if (m_export.ply) {
+    for (size_t i = 0; i < world.bodies.size(); ++i)
+      surfaces.push_back({m_file_names[i], body_export_surface(world.bodies[i])});
+    if (liquid) surfaces.push_back({"liquid", *liquid});
+  }
+  return export_frame(m_out, m_frames, step, time, surfaces, m_export.vdb ? fluid : nullptr,
+                      m_export);
 }
 
 std::vector<std::string> OutputWriter::write_bodies(const solid::SolidWorld& world, int step) {
@@ -916,11 +1010,17 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
     write_fluid_vtu(m_out / rel_f, *fluid, m_compression, fluid_fields);
     write_interface_vtp(m_out / rel_i, *fluid, m_compression, fluid_fields);
   }
+  std::optional<VoxelFrame> voxels;
+  if (with_fluid && fluid_fields && m_manifest && m_export.vdb)
+    voxels = voxelize(tet_volume_of(fluid::MeshFrame{fluid, *fluid_fields}), m_export.voxels);
+  std::optional<ExportedFrame> exported =
+      export_files(world, step, time, voxels ? &*voxels : nullptr, nullptr);
   add_bodies_to_pvds(rel, time);
   if (with_fluid) {
     m_fluid_pvd->add(time, rel_f);
     m_interface_pvd->add(time, rel_i);
   }
+  if (exported) m_manifest->add(std::move(*exported));
   count_frame(step);
 }
 
@@ -939,10 +1039,18 @@ void OutputWriter::write_grid_frame(const solid::SolidWorld& world, int step, do
   write_grid_interface_vtp(m_out / rel_i, grid, m_compression);
   const std::string rel_l = fmt::format("liquid/liquid_{:06d}.vtp", step);
   if (m_liquid_pvd) write_liquid_surface_vtp(m_out / rel_l, grid, m_compression);
+  std::optional<ExportedFrame> exported;
+  if (m_manifest) {
+    const VoxelFrame voxels = voxel_frame_of(grid, m_export.voxels.ambient_temperature);
+    std::optional<ExportSurface> liquid;
+    if (m_liquid_pvd && m_export.ply) liquid = liquid_surface(grid);
+    exported = export_files(world, step, time, &voxels, liquid ? &*liquid : nullptr);
+  }
   add_bodies_to_pvds(rel, time);
   m_fluid_pvd->add(time, rel_f);
   m_interface_pvd->add(time, rel_i);
   if (m_liquid_pvd) m_liquid_pvd->add(time, rel_l);
+  if (exported) m_manifest->add(std::move(*exported));
   count_frame(step);
 }
 
@@ -1015,6 +1123,12 @@ void OutputWriter::save_state(CheckpointWriter& w, int through_step) const {
     w.put(key + "times", times);
     put_lines(w, key + "files", files);
   }
+  if (m_manifest) {
+    nlohmann::json frames = nlohmann::json::array();
+    for (const ExportedFrame& f : m_manifest->frames())
+      if (f.step <= through_step) frames.push_back(to_json(f));
+    w.put("run/output/export", frames.dump());
+  }
 }
 
 void OutputWriter::load_state(const CheckpointReader& r) {
@@ -1051,6 +1165,30 @@ void OutputWriter::load_state(const CheckpointReader& r) {
       if (frame_step_of(fname) > last) fs::remove(f.path(), ec);
     }
     st[i]->reset(std::move(entries));
+  }
+  load_export_state(r);
+}
+
+void OutputWriter::load_export_state(const CheckpointReader& r) {
+  if (!m_manifest) return;
+  if (!r.has("run/output/export"))
+    r.fail("run/output/export: missing, and the scene writes renderer files (output.export)");
+  std::vector<ExportedFrame> frames;
+  try {
+    for (const auto& j : nlohmann::json::parse(r.get_text("run/output/export")))
+      frames.push_back(exported_frame_from_json(j));
+  } catch (const nlohmann::json::exception& e) {
+    r.fail(fmt::format("run/output/export: not the manifest's frames ({})", e.what()));
+  }
+  m_manifest->reset(std::move(frames));
+  // The files of the frames the stopped run wrote after the checkpoint: ours to remove.
+  for (const char* folder : {"vdb", "ply"}) {
+    std::error_code ec;
+    for (const auto& f : fs::directory_iterator(m_out / folder, ec)) {
+      const std::string ext = f.path().extension().string();
+      if (ext != ".vdb" && ext != ".ply") continue;
+      if (frame_step_of(f.path().filename().string()) >= m_frames) fs::remove(f.path(), ec);
+    }
   }
 }
 

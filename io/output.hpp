@@ -47,6 +47,7 @@
 #include "core/timer.hpp"
 #include "core/types.hpp"
 #include "fluid/frame.hpp"
+#include "io/export.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "solid/pose.hpp"
 #include "solid/solid_body.hpp"
@@ -152,6 +153,11 @@ void write_grid_vti(const std::filesystem::path& path, const GridFrameFields& g,
 /// @throws InternalError if `phi` is not #C long.
 void write_liquid_surface_vtp(const std::filesystem::path& path, const GridFrameFields& g,
                               Compression compression);
+
+/// The liquid's surface of write_liquid_surface_vtp as plain arrays (points, outward
+/// triangles, point velocity), for the renderer export.
+/// @throws InternalError if `phi` is not #C long.
+ExportSurface liquid_surface(const GridFrameFields& g);
 
 /// Write the grid fluid's solid interface, the bodies' surface triangles of the frame, as an
 /// XML poly data file (appended raw binary), in triangle order.
@@ -367,6 +373,8 @@ struct OutputPlan {
   bool two_way = false;             ///< the coupling stats columns
   bool liquid = false;              ///< a free surface: liquid.pvd and the liquid stats columns
   nlohmann::json resolved;          ///< written to scene.resolved.json (null: an empty object)
+  /// Renderer files with every frame (output.export): OUT/vdb/, OUT/ply/, OUT/export.json.
+  ExportRequest exports;
 };
 
 /// Owns the output folder of one run: writes scene.resolved.json, the frames and their
@@ -442,7 +450,9 @@ class OutputWriter {
   bool m_quiet = false;
   std::optional<StatsWriter> m_stats;  ///< absent when quiet
   int m_frames = 0;
-  std::vector<int> m_frame_steps;  ///< the step of every frame written, in order
+  std::vector<int> m_frame_steps;            ///< the step of every frame written, in order
+  ExportRequest m_export;                    ///< the plan's renderer files
+  std::optional<ExportManifest> m_manifest;  ///< OUT/export.json, when m_export asks for files
 
   /// A frame of `step` written (or, quiet, skipped): the count and the step list.
   void count_frame(int step);
@@ -455,6 +465,13 @@ class OutputWriter {
   std::vector<std::string> write_bodies(const solid::SolidWorld& world, int step);
   /// Add the frame to every body's `.pvd`.
   void add_bodies_to_pvds(const std::vector<std::string>& rel, double time);
+  /// The frame's renderer files (io/export.hpp), if the plan asks for them: the bodies'
+  /// surfaces, the fluid's voxels and the liquid's surface, numbered by frame (m_frames).
+  /// Returns the manifest entry, added by the caller once the frame's collections are.
+  std::optional<ExportedFrame> export_files(const solid::SolidWorld& world, int step, double time,
+                                            const VoxelFrame* fluid, const ExportSurface* liquid);
+  /// A resumed run: the manifest's frames before `frames`, and the later frames' files removed.
+  void load_export_state(const CheckpointReader& r);
 };
 
 /// The output file name of each body (file_safe_name), in body order, checked as

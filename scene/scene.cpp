@@ -208,6 +208,9 @@ class Parser {
       case KeyType::Nodes:
         v = node_list(n);
         break;
+      case KeyType::Names:
+        v = name_list(n, k);
+        break;
       case KeyType::File:
         v = existing_file(n).string();
         break;
@@ -311,6 +314,22 @@ class Parser {
       const Node e{list.j[i], index_path(list.path, i)};
       const int v = integer(e);
       if (v < 0) fail(e.path, fmt::format("node indices are >= 0, got {}", v));
+      out.push_back(v);
+    }
+    return out;
+  }
+
+  /// An array of distinct strings, each one of the row's choices.
+  json name_list(const Node& list, const KeySpec& k) const {
+    if (!list.j.is_array())
+      fail(list.path, fmt::format("expected an array of names ({}), got {}", join(k.choices),
+                                  describe(list.j)));
+    json out = json::array();
+    for (std::size_t i = 0; i < list.j.size(); ++i) {
+      const Node e{list.j[i], index_path(list.path, i)};
+      const std::string v = choice(e, k.choices, k.choice_what);
+      if (std::find(out.begin(), out.end(), json(v)) != out.end())
+        fail(e.path, fmt::format("'{}' is listed twice", v));
       out.push_back(v);
     }
     return out;
@@ -1095,6 +1114,11 @@ Scene parse_scene(const json& j, const fs::path& file) {
   }
 
   if (has_fluid) s.fluid = p.fluid(Parser::child(root, "fluid"), s.gravity);
+  const auto& formats = s.output.export_formats;
+  if (!has_fluid && std::find(formats.begin(), formats.end(), "vdb") != formats.end())
+    p.fail("output.export",
+           "'vdb' writes the fluid's volumes and this scene has no fluid: "
+           "remove it (`ply` writes the bodies' surfaces)");
 
   parse_coupling(p, root, has_fluid, s);
 
@@ -1495,6 +1519,20 @@ OutputPlan output_plan(const Scene& scene) {
   plan.two_way = scene.two_way();
   plan.liquid = scene.fluid && scene.fluid->params.liquid.enabled;
   plan.resolved = scene.resolved;
+  const auto& formats = scene.output.export_formats;
+  const auto has = [&](const char* f) {
+    return std::find(formats.begin(), formats.end(), f) != formats.end();
+  };
+  plan.exports.vdb = has("vdb") && scene.fluid.has_value();
+  plan.exports.ply = has("ply");
+  plan.exports.voxels.voxel_size = scene.output.voxel_size > 0.0 ? scene.output.voxel_size
+                                   : scene.fluid                 ? scene.fluid->sizing.surface_size
+                                                                 : 0.05;
+  plan.exports.voxels.subsamples = scene.output.voxel_subsamples;
+  if (scene.fluid)
+    plan.exports.voxels.ambient_temperature = scene.fluid->params.ambient_temperature;
+  plan.exports.smoke_threshold = scene.output.smoke_threshold;
+  plan.exports.scene = scene.name;
   return plan;
 }
 

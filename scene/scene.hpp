@@ -250,6 +250,11 @@ struct OutputSpec {
   /// stopped (signal, OUT/STOP, wall time). run/checkpoints.hpp.
   int checkpoint_every = 0;
   int keep_checkpoints = 2;  ///< the newest checkpoints kept (>= 1)
+  /// Renderer files besides the .vtu frames (io/export.hpp): "vdb", "ply".
+  std::vector<std::string> export_formats;
+  double voxel_size = 0.0;        ///< m; 0: the fluid's surface size (tet fluid only)
+  int voxel_subsamples = 2;       ///< VoxelOptions::subsamples
+  double smoke_threshold = 1e-4;  ///< kg/m³, VdbFrameInfo::smoke_threshold
 };
 
 struct SolverSpec {

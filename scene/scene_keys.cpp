@@ -39,6 +39,8 @@ const char* to_string(KeyType t) {
       return "[nx, ny, nz]";
     case KeyType::Nodes:
       return "[i, ...]";
+    case KeyType::Names:
+      return "[\"name\", ...]";
     case KeyType::File:
       return "file";
     case KeyType::Object:
@@ -146,6 +148,9 @@ json value_json(const Vec2& v) {
 json value_json(const Vec3i& v) {
   return json::array({v.x(), v.y(), v.z()});
 }
+json value_json(const std::vector<std::string>& v) {
+  return v;
+}
 
 void assign(const json& j, double& v) {
   v = j.get<double>();
@@ -164,6 +169,9 @@ void assign(const json& j, Vec3& v) {
 }
 void assign(const json& j, Vec2& v) {
   for (int a = 0; a < 2; ++a) v[a] = j.at(a).get<double>();
+}
+void assign(const json& j, std::vector<std::string>& v) {
+  v = j.get<std::vector<std::string>>();
 }
 void assign(const json& j, Vec3i& v) {
   for (int a = 0; a < 3; ++a) v[a] = j.at(a).get<int>();
@@ -405,7 +413,34 @@ const Section<OutputSpec>& output_keys() {
                          .doc = "the newest checkpoints kept; older ones are deleted once a "
                                 "newer one is written",
                          .range = k_count},
-                        TETFSI_AT(keep_checkpoints))}};
+                        TETFSI_AT(keep_checkpoints)),
+       bind<OutputSpec>({.key = "export",
+                         .type = KeyType::Names,
+                         .doc = "renderer files besides the .vtu frames: `vdb` (the fluid as "
+                                "OpenVDB volumes), `ply` (the surfaces as PLY meshes), in "
+                                "OUT/vdb/, OUT/ply/ (docs/user/blender.md)",
+                         .choices = {"vdb", "ply"},
+                         .choice_what = "export format"},
+                        TETFSI_AT(export_formats)),
+       bind<OutputSpec>({.key = "voxel_size",
+                         .type = KeyType::Number,
+                         .doc = "the tet fluid's voxels in the .vdb; 0: fluid.mesh.surface_size "
+                                "(a grid fluid exports its cells)",
+                         .unit = "m",
+                         .range = k_non_negative},
+                        TETFSI_AT(voxel_size)),
+       bind<OutputSpec>({.key = "voxel_subsamples",
+                         .type = KeyType::Integer,
+                         .doc = "each voxel averages n^3 samples of the tet fluid",
+                         .range = between(1, 8)},
+                        TETFSI_AT(voxel_subsamples)),
+       bind<OutputSpec>({.key = "smoke_threshold",
+                         .type = KeyType::Number,
+                         .doc = "the .vdb's active voxels: smoke density above this (0: every "
+                                "fluid voxel)",
+                         .unit = "kg/m^3",
+                         .range = k_non_negative},
+                        TETFSI_AT(smoke_threshold))}};
   return s;
 }
 

@@ -38,6 +38,7 @@ enum class KeyType {
   Vec3,    ///< [x, y, z]
   Cells,   ///< [nx, ny, nz], positive integers
   Nodes,   ///< [i, ...], a non-empty array of node indices >= 0
+  Names,   ///< ["a", ...], an array of distinct strings, each one of `choices` (may be empty)
   File,    ///< a file name, resolved against the scene's folder; it must exist
   Object,  ///< a sub-section (its own table)
   Array,   ///< an array of sub-sections (their own table)

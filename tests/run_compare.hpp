@@ -83,7 +83,10 @@ inline std::vector<std::string> differences(const std::filesystem::path& a,
   for (const std::filesystem::path& root : {a, b})
     for (const auto& e : std::filesystem::recursive_directory_iterator(root)) {
       const std::string ext = e.path().extension().string();
-      if (ext == ".vtu" || ext == ".vtp" || ext == ".vti" || ext == ".pvd")
+      // The renderer export's PLY meshes and manifest too (a .vdb holds a random file id;
+      // export.json holds its grids' summaries: names, active voxels, ranges, bounds).
+      if (ext == ".vtu" || ext == ".vtp" || ext == ".vti" || ext == ".pvd" || ext == ".ply" ||
+          e.path().filename() == "export.json")
         files.insert(std::filesystem::relative(e.path(), root).string());
     }
   for (const std::string& f : files) {

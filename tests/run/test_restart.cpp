@@ -261,6 +261,32 @@ TEST_CASE(
   check_same_runs(dir.path / "straight", dir.path / "o", false);
 }
 
+TEST_CASE("tetfsi resume with output.export: the PLY files and export.json equal the straight run's") {
+  TempDir dir("resume_export");
+  json scene = swing_scene(8);
+  scene["output"]["export"] = json::array({"ply"});
+  write_scene(dir.path, scene);
+  run_straight(dir.path, 8);
+  Result r = cli(dir.path, "run swing.json --out o --steps 5 --checkpoint-every 2 --progress off");
+  REQUIRE_MESSAGE(r.code == 0, r.err);
+  // Frames of steps 0, 2, 4 and 5 (the stop): 4 PLY files, the last one not a frame of 8 steps.
+  CHECK(fs::exists(dir.path / "o" / "ply" / "beam_000003.ply"));
+  // A checkpoint of step 4: the resumed run removes frame 3 (step 5) and writes its own.
+  fs::remove(tetfsi::app::checkpoint_path(dir.path / "o", 5));
+  r = cli(dir.path, "resume o --steps 8 --progress off");
+  REQUIRE_MESSAGE(r.code == 0, r.err);
+  check_same_runs(dir.path / "straight", dir.path / "o", false);
+  const json m = json::parse(read_text(dir.path / "o" / "export.json"));
+  REQUIRE(m["frames"].size() == 5);  // steps 0, 2, 4, 6, 8
+  for (int f = 0; f < 5; ++f) {
+    CHECK(m["frames"][f]["frame"] == f);
+    CHECK(m["frames"][f]["step"] == 2 * f);
+    const std::string ply = fmt::format("ply/beam_{:06d}.ply", f);
+    CHECK(read_text(dir.path / "o" / ply) == read_text(dir.path / "straight" / ply));
+  }
+  CHECK_FALSE(fs::exists(dir.path / "o" / "ply" / "beam_000005.ply"));
+}
+
 TEST_CASE("tetfsi resume --end-time - and output.checkpoint_every from the scene") {
   TempDir dir("resume_endtime");
   write_scene(dir.path, swing_scene(8));
