@@ -21,7 +21,9 @@ What is checked, in Blender, against the manifest OUT/export.json:
      manifest's active voxels and exceeds them by less than one leaf (8 voxels).
  (b) the meshes: each PLY imports with the manifest's vertex and triangle counts (Blender 3.4's
      PLY importer keeps the file's vertices: it merges none), every face a triangle, and the
-     vertices exactly the file's (read here with numpy: same order, same axes, no rescaling).
+     vertices exactly the file's (read here with numpy: same order, same axes, no rescaling);
+     a body's surface is closed (every edge in two triangles). With a liquid, the `surface`
+     level set as Blender meshes it (φ = 0) lies within one voxel of the liquid's PLY.
  (c) the picture: the frame rendered with Cycles on the CPU (a camera framing the smoke and the
      meshes, a sun, a Principled Volume reading `density`) to PATH, and the same view without
      the volume to PATH's `_nosmoke.png`; both PNGs read back and compared (check_image below).
@@ -229,6 +231,27 @@ def load_volume(frame, voxel_shift):
     return obj, h
 
 
+def volume_to_mesh_points(obj, grid, threshold):
+    """The vertices (#, 3; world, m) of Blender's Volume to Mesh of grid `grid` of the volume
+    object at `threshold` (a fog volume: the surface around the values above it; a level set:
+    its φ = threshold surface)."""
+    mesh_obj = link(bpy.data.objects.new(f"{grid}_surface", bpy.data.meshes.new(grid)))
+    mod = mesh_obj.modifiers.new("volume_to_mesh", "VOLUME_TO_MESH")
+    mod.object = obj
+    mod.grid_name = grid
+    mod.resolution_mode = "GRID"
+    mod.threshold = threshold
+    mod.adaptivity = 0.0
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = mesh_obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    evaluated.to_mesh_clear()
+    bpy.data.objects.remove(mesh_obj)
+    return co.reshape(-1, 3)
+
+
 def check_volume_bounds(obj, frame, h, voxel_shift):
     """(a) The volume's extent against the manifest's bounds; returns the density grid's box."""
     path = frame["vdb_file"]
@@ -254,23 +277,11 @@ def check_volume_bounds(obj, frame, h, voxel_shift):
     # The density grid as Blender reads its values: the Volume to Mesh modifier's surface at
     # half the smallest active value wraps exactly the active voxels (the background is 0), so
     # its box must lie within one voxel of the manifest's (the active voxels' outer faces).
-    mesh_obj = link(bpy.data.objects.new("density_surface", bpy.data.meshes.new("density")))
-    mod = mesh_obj.modifiers.new("volume_to_mesh", "VOLUME_TO_MESH")
-    mod.object = obj
-    mod.grid_name = "density"
-    mod.resolution_mode = "GRID"
-    mod.threshold = 0.5 * density["min"]
-    mod.adaptivity = 0.0
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    evaluated = mesh_obj.evaluated_get(depsgraph)
-    mesh = evaluated.to_mesh()
-    co = np.empty(len(mesh.vertices) * 3)
-    mesh.vertices.foreach_get("co", co)
-    evaluated.to_mesh_clear()
-    bpy.data.objects.remove(mesh_obj)
+    threshold = 0.5 * density["min"]
+    co = volume_to_mesh_points(obj, "density", threshold)
     if co.size == 0:
         raise CheckFailed(f"{path}: Blender's Volume to Mesh finds no density above "
-                          f"{mod.threshold:.3g} (export.json: {density['active_voxels']} active "
+                          f"{threshold:.3g} (export.json: {density['active_voxels']} active "
                           f"voxels, {density['min']:.3g} to {density['max']:.3g})")
     co = co.reshape(-1, 3)
     lo_m, hi_m = co.min(0), co.max(0)
@@ -360,12 +371,50 @@ def load_meshes(out, frame):
                 raise CheckFailed(f"{path}: Blender's vertices differ from the file's "
                                   f"(by up to {off:.3g} m)" if len(points) == nv else
                                   f"{path}: the file has {len(points)} vertices")
+        # A body's surface is the boundary of its tets: closed, every edge in two triangles (a
+        # renderer's inside and outside, a volume or glass material, depend on it). The liquid's
+        # is its free surface, open where the liquid meets the box's walls: counted only.
+        loops = np.empty(nf * 3, np.int64)
+        mesh.loops.foreach_get("vertex_index", loops)
+        tri = loops.reshape(-1, 3)
+        edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+        _, uses = np.unique(edges, axis=0, return_counts=True)
+        open_edges, odd_edges = int((uses == 1).sum()), int((uses > 2).sum())
+        if m["name"] != "liquid" and (open_edges or odd_edges):
+            raise CheckFailed(f"{path}: the surface is not closed: {open_edges} edges in one "
+                              f"triangle, {odd_edges} in more than two")
         obj.name = m["name"]
         objects.append((m["name"], obj))
         print(f"{PREFIX} {m['file']}: {nv} vertices, {nf} triangles"
               + (", the file's coordinates" if points is not None else
-                 " (coordinates not compared: not write_ply's layout)"))
+                 " (coordinates not compared: not write_ply's layout)")
+              + (f", {open_edges} open edges" if open_edges else ", closed"))
     return objects
+
+
+def check_liquid_surface(volume, frame, h, liquid):
+    """The `surface` level set as Blender meshes it (φ = 0) against the liquid's PLY: their
+    boxes within one voxel on each side (both are the liquid's surface at one frame)."""
+    grid = next((g for g in frame["grids"] if g["name"] == "surface"), None)
+    if grid is None or grid["active_voxels"] == 0 or liquid is None:
+        return None
+    path = frame["vdb_file"]
+    co = volume_to_mesh_points(volume, "surface", 0.0)
+    if co.size == 0:
+        raise CheckFailed(f"{path}: Blender's Volume to Mesh finds no φ = 0 surface in the "
+                          f"level set 'surface' (export.json: {grid['active_voxels']} active "
+                          f"voxels, {grid['min']:.3g} to {grid['max']:.3g} m)")
+    lo_m, hi_m = co.min(0), co.max(0)
+    lo_l, hi_l = world_box(liquid)
+    off = np.max(np.abs(np.concatenate([lo_m - lo_l, hi_m - hi_l])) / np.concatenate([h, h]))
+    if off > 1.0:
+        raise CheckFailed(
+            f"{path}: the level set 'surface' as Blender meshes it spans {fmt3(lo_m)}-"
+            f"{fmt3(hi_m)} m, the liquid's PLY {fmt3(lo_l)}-{fmt3(hi_l)} m: {off:.2f} voxels "
+            f"apart (at most 1)")
+    print(f"{PREFIX} surface: Blender's φ = 0 surface {fmt3(lo_m)}-{fmt3(hi_m)} m, the liquid's "
+          f"PLY {fmt3(lo_l)}-{fmt3(hi_l)} m, {off:.2f} voxels apart at most")
+    return off
 
 
 def smoke_material(density):
@@ -606,6 +655,10 @@ def main(argv):
     report["meshes"] = {name: [len(o.data.vertices), len(o.data.polygons)] for name, o in meshes}
     bpy.context.view_layer.update()
     boxes += [world_box(o) for _, o in meshes]
+    if volume is not None:
+        off = check_liquid_surface(volume, frame, h, dict(meshes).get("liquid"))
+        if off is not None:
+            report["surface_extent_voxels_off"] = off
     if not boxes:
         raise CheckFailed(f"frame {frame['frame']}: nothing to render (no smoke, no mesh)")
 
