@@ -417,12 +417,14 @@ def check_liquid_surface(volume, frame, h, liquid):
     return off
 
 
-def smoke_material(density):
-    """A Principled Volume reading the `density` grid, scaled so that the densest smoke across
-    the jet's narrowest extent has an optical depth of about 3 (visible, not a solid block)."""
-    lo, hi = density["bounds"]
-    thickness = max(float(np.min(hi - lo)), 1e-6)
-    scale = 3.0 / (max(density["max"], 1e-12) * thickness)
+def smoke_material(density, scale=None):
+    """A Principled Volume reading the `density` grid, scaled (unless `scale` is given) so that
+    the densest smoke across the smoke's narrowest extent has an optical depth of about 10
+    (a dense core, a thin halo where the density falls off)."""
+    if scale is None:
+        lo, hi = density["bounds"]
+        thickness = max(float(np.min(hi - lo)), 1e-6)
+        scale = 10.0 / (max(density["max"], 1e-12) * thickness)
     mat = bpy.data.materials.new("smoke")
     mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
@@ -542,7 +544,7 @@ def projected_rect(scene, cam, lo, hi, width, height, margin_px):
 #    camera ray crosses it), the pixels that differ by more than CHANGED (0.05, 13 of 255 grey
 #    levels; Cycles' noise at 16 samples in a pixel whose ray misses the volume is exactly 0,
 #    since its path and random numbers are the same) cover at least VISIBLE_FRACTION (10 %) of
-#    the smoke's projected rectangle: smoke of optical depth ~3 across the jet fills much of it.
+#    the smoke's projected rectangle: smoke of optical depth ~10 across the jet fills much of it.
 #  - PLACED: at least PLACED_FRACTION (98 %) of the total change |with − without| lies inside
 #    the projection of the manifest's density box grown by one voxel (Cycles interpolates
 #    trilinearly: density reaches half a voxel past the active voxels' faces) and 2 pixels.
@@ -612,6 +614,9 @@ def parse_args(argv):
     p.add_argument("--voxel-shift", type=float, default=0.5,
                    help="move the volume by −shift voxels on each axis (0.5: Blender 3.4 "
                         "renders OpenVDB voxels half a voxel off)")
+    p.add_argument("--density-scale", type=float,
+                   help="the Principled Volume's density per kg/m³ of smoke (default: an optical "
+                        "depth of about 10 across the smoke)")
     p.add_argument("--report", help="write the checks' figures to this JSON file")
     p.add_argument("--blend", help="save the scene to this .blend file (to look at it)")
     args = p.parse_args(argv)
@@ -664,7 +669,7 @@ def main(argv):
 
     if volume is not None:
         if density_box is not None:
-            mat, scale = smoke_material(density)
+            mat, scale = smoke_material(density, args.density_scale)
             volume.data.materials.append(mat)
             report["density_scale"] = scale
         else:
