@@ -39,7 +39,11 @@ grep '^blender_check:' "$work/blender.log"
 # The whole export as sequences (scripts/blender_load_export.py), saved as a .blend.
 "$blender" -b --factory-startup -noaudio --python-exit-code 2 \
   -P "$src/scripts/blender_load_export.py" -- "$run" --blend "$work/sequences.blend" \
-  >"$work/load.log" 2>&1 || { tail -n 20 "$work/load.log"; echo "blender_load_export failed"; exit 1; }
+  >"$work/load.log" 2>&1 || {
+  tail -n 20 "$work/load.log"
+  echo "blender_check: blender_load_export.py failed (log: $work/load.log)"
+  exit 1
+}
 grep '^blender_load_export:' "$work/load.log"
 
 # A wrong manifest must fail the check (exit code 1, one FAIL line), not pass silently.
@@ -56,10 +60,12 @@ PY
 rc=0
 "$blender" -b "${check[@]}" "$work/bad" --frame last --png "$work/bad/bad.png" \
   >"$work/bad/blender.log" 2>&1 || rc=$?
-if [[ $rc -ne 1 ]] || ! tail -n 1 "$work/bad/blender.log" | grep -q '^blender_check: FAIL: .*vertices'; then
+last_line=$(tail -n 1 "$work/bad/blender.log")
+if [[ $rc -ne 1 || $last_line != "blender_check: FAIL: "*vertices* ]]; then
   tail -n 5 "$work/bad/blender.log"
   echo "blender_check: a wrong vertex count gave exit code $rc, not 1 with a FAIL line"
   exit 1
 fi
-echo "blender_check: a wrong vertex count fails as it should: $(tail -n 1 "$work/bad/blender.log")"
-echo "blender_check: run ${run_s} s ($steps steps), Blender ${blender_s} s; picture $work/smoke_sheets.png"
+echo "blender_check: a wrong vertex count fails as it should: $last_line"
+echo "blender_check: run ${run_s} s ($steps steps), Blender ${blender_s} s;" \
+  "picture $work/smoke_sheets.png"
