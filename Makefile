@@ -1,7 +1,8 @@
 # Convenience front end: every target sets up (apt-get, only what is missing) and builds first.
 #   make run        run the default scene, frames in out/smoke_sheets/
-#   make test       build and run the unit/validation tests (skips the "long" label)
+#   make test       build and run the unit/validation tests (skips the "long" and "blender" labels)
 #   make test-long  the long cases only
+#   make test-blender  install Debian's blender (setup.sh --blender) and run the "blender" label
 #   make bench      the solver benchmark
 #   make sanitize   an ASan + UBSan build in build-sanitize/ and its test run (skips "long")
 #   make pictures   regenerate the pictures docs/*.png (scripts/make_pictures.sh, ~12 min)
@@ -23,7 +24,7 @@ SAN_ENV = OMPI_MCA_mca_base_component_disable_dlclose=1 \
   LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0:fast_unwind_on_malloc=0 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 
-.PHONY: setup configure build run test test-long test-all bench sanitize format clean pictures
+.PHONY: setup configure build run test test-long test-all test-blender bench sanitize format clean pictures
 
 setup:
 	@bash scripts/setup.sh
@@ -39,14 +40,19 @@ build: configure
 run: build
 	$(BUILD)/cli/tetfsi run $(SCENE) --out $(OUT)
 
+# "blender" (Blender headless on an exported run) needs blender, which only test-blender installs.
 test: build
-	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS) -LE long
+	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS) -LE 'long|blender'
 
 test-long: build
 	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS) -L long
 
 test-all: build
-	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS)
+	cd $(BUILD) && ctest --output-on-failure --no-tests=error -j $(JOBS) -LE blender
+
+test-blender: build
+	@bash scripts/setup.sh --blender
+	cd $(BUILD) && ctest --output-on-failure --no-tests=error -L blender
 
 pictures: build
 	BUILD=$(BUILD) bash scripts/make_pictures.sh
@@ -59,7 +65,7 @@ sanitize: setup
 	  gen=""; command -v ninja >/dev/null && gen="-G Ninja"; \
 	  cmake -S . -B $(SAN_BUILD) $$gen -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTETFSI_SANITIZE=ON; fi
 	@cmake --build $(SAN_BUILD) -j $(JOBS)
-	cd $(SAN_BUILD) && $(SAN_ENV) ctest --output-on-failure --no-tests=error -j $(JOBS) -LE long
+	cd $(SAN_BUILD) && $(SAN_ENV) ctest --output-on-failure --no-tests=error -j $(JOBS) -LE 'long|blender'
 
 format:
 	@clang-format -i $$(git ls-files '*.cpp' '*.hpp')

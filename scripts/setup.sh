@@ -2,7 +2,19 @@
 # Install tetfsi's build dependencies from Debian 12 packages, only those missing.
 # Idempotent: a second run installs nothing and takes well under a second. Also extracts the
 # Stanford bunny from CGAL's data (libcgal-demo) into data/meshes/bunny00.off.
+# Usage: setup.sh [--blender]
+#   --blender  also Debian's blender (3.4; blender and blender-data take 190 MB installed), for
+#              `make test-blender` and scripts/blender_check.py: only when asked, nothing else
+#              needs it.
 set -euo pipefail
+
+with_blender=0
+for arg in "$@"; do
+  case $arg in
+    --blender) with_blender=1 ;;
+    *) echo "setup: unknown option '$arg' (usage: setup.sh [--blender])" >&2; exit 2 ;;
+  esac
+done
 
 packages=(
   build-essential cmake ninja-build ccache pkg-config clang-format
@@ -15,6 +27,9 @@ packages=(
   libcgal-demo                            # CGAL's data: the Stanford bunny of data/scenes/bunny.json
   libopenvdb-dev                          # OpenVDB: bench step's particle level set comparison
 )
+if ((with_blender)); then
+  packages+=(blender)                     # Blender headless: make test-blender
+fi
 
 missing=()
 for p in "${packages[@]}"; do
