@@ -261,7 +261,8 @@ TEST_CASE(
   check_same_runs(dir.path / "straight", dir.path / "o", false);
 }
 
-TEST_CASE("tetfsi resume with output.export: the PLY files and export.json equal the straight run's") {
+TEST_CASE(
+    "tetfsi resume with output.export: the PLY files and export.json equal the straight run's") {
   TempDir dir("resume_export");
   json scene = swing_scene(8);
   scene["output"]["export"] = json::array({"ply"});
