@@ -21,6 +21,8 @@
 ///   tetfsi render OUT [--step N | --all] [--slice AXIS=VALUE] [--color ARRAY] [-o FILE.png]
 ///                     [--body-color ARRAY] [--range MIN,MAX] [--body-opacity A] [--zoom F]
 ///                     [--size WxH] [--movie FILE.mp4]
+///   tetfsi export OUT [--vdb] [--ply] [--voxel-size S] [--subsamples N] [--threshold T]
+///                     [--frames A:B] [--to DIR]
 ///   tetfsi plot OUT [-o FILE.png]
 ///   tetfsi scene --keys [--markdown]
 ///   tetfsi columns
@@ -62,6 +64,7 @@
 #include "core/ranks.hpp"
 #include "io/output.hpp"
 #include "io/stats_columns.hpp"
+#include "render/export_cmd.hpp"
 #include "render/plot.hpp"
 #include "render/quality_cmd.hpp"
 #include "render/render.hpp"
@@ -716,6 +719,51 @@ Command add_render(CLI::App& app) {
           }};
 }
 
+Command add_export(CLI::App& app) {
+  struct Opt {
+    std::string out, to;
+    double voxel_size = 0.0;
+    tetfsi::app::ExportOptions exp;
+    CLI::Option* voxel_opt = nullptr;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = app.add_subcommand(
+      "export",
+      "a run's frames as files for renderers (Blender, Houdini): the fluid as OpenVDB volumes "
+      "(OUT/vdb/fluid_<frame>.vdb), the bodies' and the liquid's surfaces as PLY meshes "
+      "(OUT/ply/<body>_<frame>.ply) and the manifest OUT/export.json; the run's files are not "
+      "changed");
+  cmd->add_option("OUT", o->out, "the output folder of a run (`tetfsi run SCENE --out OUT`)")
+      ->required()
+      ->type_name("DIR");
+  cmd->add_flag("--vdb", o->exp.vdb, "the fluid's volumes (with neither --vdb nor --ply: both)");
+  cmd->add_flag("--ply", o->exp.ply, "the surfaces: each body's boundary, the liquid's surface");
+  o->voxel_opt = cmd->add_option("--voxel-size", o->voxel_size,
+                                 "the tet fluid's voxel edge in m (default: the scene's "
+                                 "fluid.mesh.surface_size); a grid fluid exports its cells and "
+                                 "ignores --voxel-size and --subsamples")
+                     ->type_name("S");
+  cmd->add_option("--subsamples", o->exp.subsamples,
+                  "each voxel of the tet fluid averages N^3 samples (1..8)")
+      ->type_name("N")
+      ->capture_default_str();
+  cmd->add_option("--threshold", o->exp.smoke_threshold,
+                  "voxels with smoke density above T (kg/m^3) are active in the .vdb")
+      ->type_name("T")
+      ->capture_default_str();
+  cmd->add_option("--frames", o->exp.frames,
+                  "the run's frames by index from 0 (the order of OUT/<body>.pvd), half-open: "
+                  "A:B is A to B-1; also A:, :B, A (default: all)")
+      ->type_name("A:B");
+  cmd->add_option("--to", o->to, "write vdb/, ply/ and export.json here instead of into OUT")
+      ->type_name("DIR");
+  return {cmd, [o] {
+            if (*o->voxel_opt) o->exp.voxel_size = o->voxel_size;
+            o->exp.to = o->to;
+            return tetfsi::app::export_command(o->out, o->exp, std::cout);
+          }};
+}
+
 Command add_plot(CLI::App& app) {
   struct Opt {
     std::string out, png;
@@ -777,6 +825,7 @@ const char* const k_footer =
     "  tetfsi columns        # every stats.csv column with its unit\n"
     "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
     "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
+    "  tetfsi export out/smoke_sheets --frames 40:   # OpenVDB + PLY for Blender: OUT/vdb, "
     "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
     "  tetfsi run data/scenes/toy.json --checkpoint-every 50 --wall-time 11:30:00\n"
     "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"
@@ -837,11 +886,8 @@ int main(int argc, char** argv) {
   for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_threads,
                    add_bench_scaling, add_bench_coupled, add_bench_bfgs, add_bench_integrators})
     commands.push_back(add(*bench));
-  commands.push_back(add_quality(app));
-  commands.push_back(add_render(app));
-  commands.push_back(add_plot(app));
-  commands.push_back(add_scene(app));
-  commands.push_back(add_columns(app));
+  for (auto add : {add_quality, add_render, add_export, add_plot, add_scene, add_columns})
+    commands.push_back(add(app));
 
   try {
     app.parse(argc, argv);
