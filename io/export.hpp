@@ -25,6 +25,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,10 @@ class SolidBody;
 }
 
 namespace tetfsi::app {
+
+/// What the coordinates of every exported file are: the `.vdb` files' `tetfsi_axes` and the
+/// manifest's `axes`.
+inline constexpr const char* k_export_axes = "scene axes (z up in the shipped scenes), metres";
 
 // ---- surfaces: PLY ----------------------------------------------------------------------
 
@@ -97,13 +102,14 @@ struct VoxelFrame {
 /// The tet fluid's fields as plain arrays: from the run's frame (fluid::MeshFrame) or from a
 /// `.vtu` frame read back.
 struct TetVolume {
-  MatX3 vertices;        ///< #V × 3 (m)
-  MatX4i tets;           ///< #T × 4
-  VecX density;          ///< #T smoke density (kg/m³), or empty (0)
-  VecX temperature;      ///< #T (K), or empty (ambient)
-  VecX pressure;         ///< #T (Pa), or empty (0)
-  MatX3 vertex_velocity; ///< #V × 3 (m/s), interpolated linearly in each tet; or empty (0)
+  MatX3 vertices;         ///< #V × 3 (m)
+  MatX4i tets;            ///< #T × 4
+  VecX density;           ///< #T smoke density (kg/m³), or empty (0)
+  VecX temperature;       ///< #T (K), or empty (ambient)
+  VecX pressure;          ///< #T (Pa), or empty (0)
+  MatX3 vertex_velocity;  ///< #V × 3 (m/s), interpolated linearly in each tet; or empty (0)
 };
+/// The mesh and fields of a run's frame, copied. @throws InternalError if it has no mesh
 TetVolume tet_volume_of(const fluid::MeshFrame& frame);
 
 struct VoxelOptions {
@@ -118,8 +124,15 @@ struct VoxelOptions {
 /// the tets and then the voxels; the same result at any thread count): each sub-sample point
 /// takes the fields of the tet containing it (density, temperature, pressure per tet; the
 /// velocity interpolated from the vertices); a point in no tet (inside a body) is outside.
-/// @throws InputError if voxel_size is not > 0 and finite, or the grid would exceed 2^31
-///   sub-samples (naming the voxel size and the box: choose a larger one);
+/// The box [lo, hi] gets n_a = ceil((hi_a − lo_a) / h) voxels per axis (at least 1; a whole
+/// number up to a relative 1e-12 is not rounded up), voxel (0, 0, 0) centred at lo + h/2;
+/// sub-sample a of a voxel's s per axis lies at its centre + ((a + ½)/s − ½) h. A point on a
+/// face shared by tets (barycentric coordinates ≥ −1e-10) belongs to the smallest tet index.
+/// Per voxel: fluid_fraction = (points in the fluid) / s³, density = Σ ρ / s³ (volume
+/// average), temperature, pressure and velocity the mean over its points in the fluid. A mesh
+/// without vertices gives no voxels (dims 0).
+/// @throws InputError if voxel_size is not > 0 and finite, subsamples is not in 1 .. 16, or the
+///   grid would exceed 2^31 sub-samples (naming the voxel size and the box: choose a larger one);
 ///   InternalError if a field's size does not fit the mesh.
 VoxelFrame voxelize(const TetVolume& fluid, const VoxelOptions& options);
 
@@ -127,7 +140,7 @@ VoxelFrame voxelize(const TetVolume& fluid, const VoxelOptions& options);
 VoxelFrame voxel_frame_of(const fluid::GridFrameFields& grid, double ambient_temperature);
 
 /// What goes into a `.vdb` besides the grids: file metadata `tetfsi_step` (int),
-/// `tetfsi_time` (s), `tetfsi_scene`, `tetfsi_axes` ("scene axes, metres").
+/// `tetfsi_time` (s), `tetfsi_scene`, `tetfsi_axes` (k_export_axes).
 struct VdbFrameInfo {
   int step = 0;
   double time = 0.0;
@@ -136,27 +149,33 @@ struct VdbFrameInfo {
   double smoke_threshold = 1e-4;
 };
 
-/// One grid of a `.vdb` as read back (read_vdb_grids) or as written.
+/// One grid of a `.vdb` as read back (read_vdb_summary) or as written.
 struct VdbGridSummary {
-  std::string name;   ///< density, temperature, pressure, velocity, surface
-  std::string type;   ///< OpenVDB's value type: "float", "vec3s"
+  std::string name;        ///< density, temperature, pressure, velocity, surface
+  std::string type;        ///< OpenVDB's value type: "float", "vec3s"
   std::string grid_class;  ///< "fog volume", "level set", "unknown"
   std::int64_t active_voxels = 0;
   double min = 0.0, max = 0.0;  ///< over active voxels (vectors: of the magnitude)
-  std::array<double, 6> bounds = {0, 0, 0, 0, 0, 0};  ///< world box of the active voxels
-                                                      ///< (x0, y0, z0, x1, y1, z1; m, their
-                                                      ///< outer faces)
+  /// The world box of the active voxels (x0, y0, z0, x1, y1, z1; m, their outer faces), zeros
+  /// without active voxels.
+  std::array<double, 6> bounds = {0, 0, 0, 0, 0, 0};
   std::string unit;  ///< the grid's metadata `unit`
 };
 
 /// Write `v` as one `.vdb`, each grid with metadata `unit` and the transform voxel → world
-/// (voxel centres at integer index coordinates):
+/// (voxel centres at integer index coordinates: voxel (i, j, k) at origin + (i, j, k) ∘ spacing):
 ///  - `density` (float, fog volume, kg/m³, background 0) and `temperature` (float, K,
-///    background the ambient) where the smoke density exceeds the threshold;
+///    background the ambient) where the smoke density exceeds the threshold (on fluid voxels,
+///    fluid_fraction > 0; a threshold ≤ 0 makes every fluid voxel active). Always written,
+///    empty when no voxel is above the threshold;
 ///  - `velocity` (vec3s, m/s) and `pressure` (float, Pa) on the same voxels when the frame has
-///    smoke, else on the liquid's voxels (φ < 0) with a level set, else on every fluid voxel;
-///  - `surface` (float, level set, m, narrow band of 3 voxels each side) when `v.phi` is given.
-/// Written under a temporary name and renamed into place; returns the grids' summaries.
+///    smoke, else on the liquid's voxels (fluid and φ < 0) with a level set, else on every
+///    fluid voxel;
+///  - `surface` (float, level set, m) when `v.phi` is given: active where |φ| < 3h (h the
+///    largest spacing, a narrow band of 3 voxels each side), values clamped to ±3h, background
+///    3h outside and −3h inside (signed flood fill).
+/// File metadata as VdbFrameInfo says; OpenVDB's default compression (Blosc). Written under a
+/// temporary name and renamed into place; returns the grids' summaries.
 /// @throws InputError naming the file if it cannot be written; InternalError for wrong sizes.
 std::vector<VdbGridSummary> write_vdb(const std::filesystem::path& path, const VoxelFrame& v,
                                       const VdbFrameInfo& info);
@@ -166,7 +185,7 @@ std::vector<VdbGridSummary> write_vdb(const std::filesystem::path& path, const V
 struct VdbFileSummary {
   std::vector<VdbGridSummary> grids;
   int step = -1;
-  double time = 0.0;
+  double time = std::numeric_limits<double>::quiet_NaN();
 };
 /// @throws InputError naming the file if it is missing or not a readable `.vdb`.
 VdbFileSummary read_vdb_summary(const std::filesystem::path& path);
@@ -182,9 +201,9 @@ double vdb_grid_integral(const std::filesystem::path& path, const std::string& n
 struct ExportRequest {
   bool vdb = false;
   bool ply = false;
-  VoxelOptions voxels;           ///< the tet fluid's sampling
-  double smoke_threshold = 1e-4; ///< VdbFrameInfo::smoke_threshold
-  std::string scene;             ///< the scene's name (metadata)
+  VoxelOptions voxels;            ///< the tet fluid's sampling
+  double smoke_threshold = 1e-4;  ///< VdbFrameInfo::smoke_threshold
+  std::string scene;              ///< the scene's name (metadata)
 };
 
 /// A named surface of a frame: a body (its output file name) or "liquid".

@@ -1,0 +1,420 @@
+/// @file test_export.cpp
+/// Tests of the renderer export (io/export.hpp): PLY surfaces written and read back, the tet
+/// fluid's voxel sampling (mass, volume, exact linear velocity, the same bits at any thread
+/// count), the grid fluid's cells as voxels.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "core/parallel.hpp"
+#include "io/export.hpp"
+#include "mesh/generate.hpp"
+#include "mesh/tet_mesh.hpp"
+#include "solid/solid_body.hpp"
+#include "tests/test_util.hpp"
+
+namespace fs = std::filesystem;
+using namespace tetfsi;
+using namespace tetfsi::app;
+using tetfsi::test::message_of;
+using tetfsi::test::TempDir;
+
+namespace {
+
+/// b within a relative tolerance: |a − b| < tol max(|a|, |b|) (doctest's Approx adds 1 to the
+/// scale, which for values below 1 makes it an absolute tolerance).
+doctest::Approx rel(double b, double tol) {
+  return doctest::Approx(b).epsilon(tol).scale(0.0);
+}
+
+/// A block body 1.5 × 1 × 0.5 (3 × 2 × 1 cells) deformed smoothly, with a velocity.
+solid::SolidBody make_block() {
+  solid::Material mat;
+  mat.density = 800.0;
+  mat.youngs_modulus = 2e5;
+  solid::SolidBody b("block", mesh::make_box(Vec3(0, 0, 0), Vec3(1.5, 1, 0.5), Vec3i(3, 2, 1)),
+                     mat);
+  const MatX3& X = b.rest_positions();
+  for (Index i = 0; i < b.num_nodes(); ++i) {
+    b.displacement.row(i) = Vec3(0.01 * X(i, 0) * X(i, 2), -0.02 * X(i, 1), 0.03 * X(i, 0));
+    b.velocity.row(i) = Vec3(std::cos(0.3 * i), 1e-3 * i, -2.5 + 0.1 * X(i, 2));
+  }
+  return b;
+}
+
+/// Σ over the triangles of the signed volume of (origin, a, b, c): the enclosed volume when the
+/// normals point out.
+double enclosed_volume(const MatX3& p, const MatX3i& tr) {
+  double v = 0.0;
+  for (Index f = 0; f < tr.rows(); ++f) {
+    const Vec3 a = p.row(tr(f, 0)), b = p.row(tr(f, 1)), c = p.row(tr(f, 2));
+    v += a.dot(b.cross(c)) / 6.0;
+  }
+  return v;
+}
+
+/// The unit cube in n³ cells with its inner vertices moved (irregular tets), ρ_t = 1 + x of the
+/// centroid, temperature 300 + 10 z, pressure 5 y, and the vertex velocity `u` of each vertex.
+TetVolume jittered_cube(int n, Vec3 (*u)(const Vec3&)) {
+  const mesh::VolumeMesh m = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(n, n, n));
+  TetVolume f;
+  f.vertices = m.vertices;
+  f.tets = m.tets;
+  const double e = 1.0 / n;
+  for (Index v = 0; v < f.vertices.rows(); ++v) {
+    const Vec3 x = f.vertices.row(v);
+    const bool inner = (x.array() > 1e-9).all() && (x.array() < 1 - 1e-9).all();
+    if (inner)
+      f.vertices.row(v) += 0.1 * e * Vec3(std::sin(7.0 * v), std::cos(5.0 * v), std::sin(3.0 * v));
+  }
+  const Index nt = static_cast<Index>(f.tets.rows());
+  f.density.resize(nt);
+  f.temperature.resize(nt);
+  f.pressure.resize(nt);
+  for (Index t = 0; t < nt; ++t) {
+    Vec3 c = Vec3::Zero();
+    for (int k = 0; k < 4; ++k) c += f.vertices.row(f.tets(t, k)).transpose() / 4.0;
+    f.density[t] = 1.0 + c[0];
+    f.temperature[t] = 300.0 + 10.0 * c[2];
+    f.pressure[t] = 5.0 * c[1];
+  }
+  f.vertex_velocity.resize(f.vertices.rows(), 3);
+  for (Index v = 0; v < f.vertices.rows(); ++v)
+    f.vertex_velocity.row(v) = u(f.vertices.row(v).transpose());
+  return f;
+}
+
+Vec3 linear_velocity(const Vec3& x) {
+  return Vec3(1.0 + 2.0 * x[0], -0.5 * x[0] + 0.25 * x[1], 3.0 * x[2] - x[0]);
+}
+
+/// Σ ρ_t V_t of a tet volume.
+double tet_smoke_mass(const TetVolume& f) {
+  double m = 0.0;
+  for (Index t = 0; t < f.tets.rows(); ++t) {
+    const Vec3 p0 = f.vertices.row(f.tets(t, 0));
+    Mat3 e;
+    for (int k = 0; k < 3; ++k) e.col(k) = f.vertices.row(f.tets(t, k + 1)).transpose() - p0;
+    m += f.density[t] * e.determinant() / 6.0;
+  }
+  return m;
+}
+
+/// The grid fluid of a 4 × 3 × 2 box (spacing 0.1, 0.2, 0.25 from (1, 2, 3)) with two solid
+/// cells and a liquid level set φ = z − 3.3 (the liquid below z = 3.3).
+fluid::GridFrameFields small_grid() {
+  fluid::GridFrameFields g;
+  g.origin = Vec3(1, 2, 3);
+  g.spacing = Vec3(0.1, 0.2, 0.25);
+  g.cells = {4, 3, 2};
+  const Index n = 24;
+  g.pressure = VecX::LinSpaced(n, 0.0, 23.0);
+  g.density = VecX::Zero(n);
+  g.temperature = VecX::Constant(n, 295.0);
+  g.velocity = MatX3::Zero(n, 3);
+  g.solid.assign(n, 0);
+  g.solid[5] = g.solid[17] = 1;
+  g.phi.resize(n);
+  for (Index c = 0; c < n; ++c) {
+    g.velocity.row(c) = Vec3(c, -c, 0.5 * c);
+    g.phi[c] = g.origin[2] + (c / 12 + 0.5) * g.spacing[2] - 3.3;
+  }
+  return g;
+}
+
+}  // namespace
+
+// ---- surfaces ------------------------------------------------------------------------------
+
+TEST_CASE("tet_boundary_surface: a one-cell box has 12 outward triangles on its 8 corners") {
+  const mesh::VolumeMesh m = mesh::make_box(Vec3::Zero(), Vec3(2, 1, 0.5), Vec3i(1, 1, 1));
+  const ExportSurface s = tet_boundary_surface(m.vertices, m.tets, MatX3(), VecX());
+  CHECK(s.triangles.rows() == 12);
+  CHECK(s.points.rows() == 8);
+  CHECK(s.velocity.rows() == 0);
+  CHECK(s.von_mises.size() == 0);
+  CHECK(enclosed_volume(s.points, s.triangles) == rel(1.0, 1e-12));
+}
+
+TEST_CASE("body_export_surface: the deformed boundary, its velocity and node-mean von Mises") {
+  const solid::SolidBody body = make_block();
+  const ExportSurface s = body_export_surface(body);
+  // 3 × 2 × 1 cells: 2 (6 + 3 + 2) quads of 2 triangles; all 24 nodes are on the boundary.
+  CHECK(s.triangles.rows() == 44);
+  REQUIRE(s.points.rows() == 24);
+  const MatX3 x = body.positions();
+  const VecX vm = body.elasticity().tet_fields(x).von_mises_stress;
+  CHECK(vm.maxCoeff() > 0);
+  // every node is on the surface: the compact numbering is the identity
+  for (Index v = 0; v < 24; ++v) {
+    CHECK((s.points.row(v) - x.row(v)).norm() == 0.0);
+    CHECK((s.velocity.row(v) - body.velocity.row(v)).norm() == 0.0);
+    double sum = 0;
+    int n = 0;
+    for (Index t = 0; t < body.num_tets(); ++t)
+      for (int k = 0; k < 4; ++k)
+        if (body.tets()(t, k) == v) {
+          sum += vm[t];
+          ++n;
+        }
+    CHECK(s.von_mises[v] == rel(sum / n, 1e-12));
+  }
+  CHECK(enclosed_volume(s.points, s.triangles) > 0.7);
+}
+
+TEST_CASE("write_ply and read_ply: a surface round trips within float precision") {
+  TempDir dir("export_ply");
+  const solid::SolidBody body = make_block();
+  ExportSurface s = body_export_surface(body);
+  const fs::path p = dir.path / "block_000000.ply";
+  write_ply(p, s);
+  CHECK(fs::exists(p));
+  CHECK(!fs::exists(dir.path / "block_000000.ply.tmp"));
+  // 24 points × (x y z vx vy vz von_mises) floats, 44 faces of 1 + 12 bytes, after the header
+  const std::string bytes = test::read_text(p);
+  CHECK(bytes.rfind("ply\nformat binary_little_endian 1.0\n", 0) == 0);
+  const std::size_t header = bytes.find("end_header\n") + 11;
+  CHECK(bytes.size() - header == 24 * 7 * 4 + 44 * 13);
+  const ExportSurface r = read_ply(p);
+  CHECK(r.triangles == s.triangles);
+  auto float_close = [](const auto& a, const auto& b) {
+    return ((a - b).array().abs() <= 1e-6 * (1.0 + b.array().abs())).all();
+  };
+  CHECK(float_close(r.points, s.points));
+  CHECK(float_close(r.velocity, s.velocity));
+  CHECK(float_close(r.von_mises, s.von_mises));
+  // positions only
+  s.velocity.resize(0, 3);
+  s.von_mises.resize(0);
+  write_ply(p, s);
+  const ExportSurface q = read_ply(p);
+  CHECK(q.velocity.rows() == 0);
+  CHECK(q.von_mises.size() == 0);
+  CHECK(float_close(q.points, s.points));
+  CHECK(q.triangles == s.triangles);
+}
+
+TEST_CASE("write_ply: wrong sizes and a triangle past the points are InternalErrors") {
+  TempDir dir("export_ply_bad");
+  const mesh::VolumeMesh m = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1));
+  ExportSurface s = tet_boundary_surface(m.vertices, m.tets, MatX3(), VecX());
+  ExportSurface past = s;
+  past.triangles(3, 1) = 8;
+  CHECK_THROWS_AS(write_ply(dir.path / "a.ply", past), InternalError);
+  ExportSurface short_velocity = s;
+  short_velocity.velocity = MatX3::Zero(7, 3);
+  CHECK_THROWS_AS(write_ply(dir.path / "a.ply", short_velocity), InternalError);
+  CHECK(!fs::exists(dir.path / "a.ply"));
+}
+
+TEST_CASE("read_ply: a missing, foreign or damaged file is an InputError naming it") {
+  TempDir dir("export_ply_read");
+  const mesh::VolumeMesh m = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1));
+  const fs::path good = dir.path / "good.ply";
+  write_ply(good, tet_boundary_surface(m.vertices, m.tets, MatX3(), VecX()));
+  const std::string bytes = test::read_text(good);
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir.path / name, std::ios::binary) << text;
+    return dir.path / name;
+  };
+  auto error = [](const fs::path& p) { return message_of<InputError>([&] { read_ply(p); }); };
+  CHECK(error(dir.path / "missing.ply").find("missing.ply") != std::string::npos);
+  const std::string ascii = error(
+      write("ascii.ply", "ply\nformat ascii 1.0\nelement vertex 0\nelement face 0\nend_header\n"));
+  CHECK(ascii.find("ascii.ply") != std::string::npos);
+  CHECK(ascii.find("binary_little_endian") != std::string::npos);
+  CHECK(error(write("short.ply", bytes.substr(0, bytes.size() - 5))).find("truncated") !=
+        std::string::npos);
+  std::string quad = bytes;
+  quad[bytes.find("end_header\n") + 11 + 8 * 12] = 4;  // the first face's vertex count
+  CHECK(error(write("quad.ply", quad)).find("only triangles") != std::string::npos);
+  std::string past = bytes;
+  const std::int32_t nine = 9;
+  std::memcpy(&past[bytes.find("end_header\n") + 11 + 8 * 12 + 1], &nine, 4);
+  const std::string past_error = error(write("past.ply", past));
+  CHECK(past_error.find("past.ply") != std::string::npos);
+  CHECK(past_error.find("vertex 9") != std::string::npos);
+}
+
+// ---- voxels --------------------------------------------------------------------------------
+
+TEST_CASE("voxelize: a meshed unit cube keeps its smoke mass and volume, and the box's voxels") {
+  const TetVolume f = jittered_cube(6, linear_velocity);
+  const double edge = 1.0 / 6;
+  VoxelOptions o;
+  o.voxel_size = edge / 2;
+  o.subsamples = 2;
+  const VoxelFrame v = voxelize(f, o);
+  CHECK(v.dims == std::array<Index, 3>{12, 12, 12});
+  CHECK((v.origin - Vec3::Constant(edge / 4)).norm() < 1e-12);
+  CHECK(v.spacing == Vec3::Constant(edge / 2));
+  // the cube fills the box: every voxel is fluid
+  const double h3 = std::pow(o.voxel_size, 3);
+  CHECK(v.fluid_fraction.sum() * h3 == rel(1.0, 1e-12));
+  const double mass = tet_smoke_mass(f);
+  CHECK(mass == rel(1.5, 1e-12));  // the centroid rule is exact for ρ linear
+  CHECK(v.smoke_mass() == rel(mass, 0.01));
+  CHECK(v.density.minCoeff() > 1.0 - 1e-12);
+  CHECK(v.temperature.minCoeff() >= 300.0 - 1e-9);
+  CHECK(v.temperature.maxCoeff() <= 310.0 + 1e-9);
+  CHECK(v.pressure.maxCoeff() <= 5.0 + 1e-9);
+}
+
+/// The sub-sample points along an axis (n of them at (g + ½) step) with x0 ≤ x ≤ x1 (closed)
+/// or x0 < x < x1 (open), up to 1e-9.
+double points_in(Index n, double step, double x0, double x1, bool closed) {
+  const double tol = closed ? 1e-9 : -1e-9;
+  double count = 0;
+  for (Index g = 0; g < n; ++g) {
+    const double x = (g + 0.5) * step;
+    count += x >= x0 - tol && x <= x1 + tol ? 1 : 0;
+  }
+  return count;
+}
+
+TEST_CASE("voxelize: a hollow box's cavity and the box's margin are outside the fluid") {
+  // outer [0, 1] × [0, 1] × [0, 0.7], cavity [0.2, 0.8]² × [0.2, 0.5] inside walls of 0.2
+  const mesh::VolumeMesh m =
+      mesh::make_hollow_box(Vec3::Zero(), Vec3(1, 1, 0.7), 0.2, Vec3i(3, 3, 2));
+  TetVolume f;
+  f.vertices = m.vertices;
+  f.tets = m.tets;
+  f.density = VecX::Constant(m.num_tets(), 2.0);
+  const double volume = 0.7 - 0.6 * 0.6 * 0.3;
+  VoxelOptions o;
+  o.ambient_temperature = 280.0;
+  // walls between the sub-samples' slabs (h = 0.1, s = 2): the volume and mass exactly
+  o.voxel_size = 0.1;
+  o.subsamples = 2;
+  const VoxelFrame aligned = voxelize(f, o);
+  CHECK(aligned.dims == std::array<Index, 3>{10, 10, 7});
+  CHECK(aligned.fluid_fraction.sum() * 1e-3 == rel(volume, 1e-12));
+  CHECK(aligned.smoke_mass() == rel(2.0 * volume, 1e-12));
+  // h = 0.08, s = 3: 13 × 13 × 9 voxels (the last of each axis sticks out of the box) and
+  // sub-samples on the outer walls x = 1, y = 1 (they count as inside); the fluid fraction
+  // counts exactly the sub-samples in the box but not strictly in the cavity (3.2 % more than
+  // the volume here: point sampling of walls along the axes)
+  o.voxel_size = 0.08;
+  o.subsamples = 3;
+  const VoxelFrame v = voxelize(f, o);
+  CHECK(v.dims == std::array<Index, 3>{13, 13, 9});
+  const double step = o.voxel_size / 3;
+  const double inside = points_in(39, step, 0, 1, true) * points_in(39, step, 0, 1, true) *
+                            points_in(27, step, 0, 0.7, true) -
+                        points_in(39, step, 0.2, 0.8, false) *
+                            points_in(39, step, 0.2, 0.8, false) *
+                            points_in(27, step, 0.2, 0.5, false);
+  CHECK(v.fluid_fraction.sum() * 27 == rel(inside, 1e-12));
+  CHECK(v.smoke_mass() == rel(2.0 * inside * std::pow(step, 3), 1e-12));
+  CHECK(v.fluid_fraction.sum() * std::pow(o.voxel_size, 3) == rel(volume, 0.04));
+  // the voxel at the cavity's centre is empty: ambient temperature, no density, no velocity
+  const Index c = 6 + 13 * (6 + 13 * 4);
+  CHECK(v.fluid_fraction[c] == 0.0);
+  CHECK(v.density[c] == 0.0);
+  CHECK(v.temperature[c] == 280.0);
+  CHECK(v.velocity.row(c).norm() == 0.0);
+  // a corner voxel is all fluid, with the tets' (missing) temperature: the ambient
+  CHECK(v.fluid_fraction[0] == 1.0);
+  CHECK(v.density[0] == 2.0);
+  CHECK(v.temperature[0] == 280.0);
+}
+
+TEST_CASE("voxelize: a linear velocity is exact at the voxel centres inside the fluid") {
+  const TetVolume f = jittered_cube(5, linear_velocity);
+  for (const int s : {1, 2}) {
+    CAPTURE(s);
+    VoxelOptions o;
+    o.voxel_size = 0.07;
+    o.subsamples = s;
+    const VoxelFrame v = voxelize(f, o);
+    Index inside = 0;
+    double worst = 0.0;
+    for (Index k = 0; k < v.dims[2]; ++k)
+      for (Index j = 0; j < v.dims[1]; ++j)
+        for (Index i = 0; i < v.dims[0]; ++i) {
+          const Index c = i + v.dims[0] * (j + v.dims[1] * k);
+          if (v.fluid_fraction[c] < 1.0) continue;
+          ++inside;
+          const Vec3 x = v.origin + o.voxel_size * Vec3(i, j, k);
+          worst = std::max(worst, (v.velocity.row(c).transpose() - linear_velocity(x)).norm());
+        }
+    CHECK(inside > 2000);  // 15³ voxels, the last layer of each axis partly outside
+    CHECK(worst < 1e-12);
+  }
+}
+
+TEST_CASE("voxelize: the same bits at 1 and 2 threads") {
+  const TetVolume f = jittered_cube(8, linear_velocity);
+  VoxelOptions o;
+  o.voxel_size = 0.045;
+  o.subsamples = 2;
+  const int saved = thread_count();
+  set_thread_count(1);
+  const VoxelFrame a = voxelize(f, o);
+  set_thread_count(2);
+  const VoxelFrame b = voxelize(f, o);
+  set_thread_count(saved);
+  CHECK(a.fluid_fraction == b.fluid_fraction);
+  CHECK(a.density == b.density);
+  CHECK(a.temperature == b.temperature);
+  CHECK(a.pressure == b.pressure);
+  CHECK(a.velocity == b.velocity);
+}
+
+TEST_CASE("tet_volume_of: the run's frame as plain arrays") {
+  const mesh::VolumeMesh box = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(2, 1, 1));
+  const mesh::TetMesh m = mesh::build_tet_mesh(box.vertices, box.tets);
+  fluid::MeshFrame frame{&m, {}};
+  frame.fields.density = VecX::LinSpaced(m.num_tets(), 0.0, 1.0);
+  frame.fields.vertex_velocity = MatX3::Ones(m.num_vertices(), 3);
+  const TetVolume v = tet_volume_of(frame);
+  CHECK(v.vertices == m.vertices);
+  CHECK(v.tets == m.tets);
+  CHECK(v.density == frame.fields.density);
+  CHECK(v.temperature.size() == 0);
+  CHECK(v.vertex_velocity == frame.fields.vertex_velocity);
+  CHECK_THROWS_AS(tet_volume_of(fluid::MeshFrame{}), InternalError);
+}
+
+TEST_CASE("voxelize: a bad voxel size or too many sub-samples is an InputError") {
+  const TetVolume f = jittered_cube(2, linear_velocity);
+  VoxelOptions o;
+  for (const double h : {0.0, -1.0, std::nan("")}) {
+    o.voxel_size = h;
+    CHECK_THROWS_AS(voxelize(f, o), InputError);
+  }
+  o.voxel_size = 1e-3;  // 1000³ voxels × 8 sub-samples
+  const std::string msg = message_of<InputError>([&] { voxelize(f, o); });
+  CHECK(msg.find("voxel size of 0.001 m") != std::string::npos);
+  CHECK(msg.find("(0, 0, 0) .. (1, 1, 1)") != std::string::npos);
+  CHECK(msg.find("2^31") != std::string::npos);
+  TetVolume bad = f;
+  bad.density.resize(3);
+  o.voxel_size = 0.25;
+  CHECK_THROWS_AS(voxelize(bad, o), InternalError);
+}
+
+TEST_CASE("voxel_frame_of: the grid's cells are the voxels") {
+  const fluid::GridFrameFields g = small_grid();
+  const VoxelFrame v = voxel_frame_of(g, 290.0);
+  CHECK(v.dims == g.cells);
+  CHECK((v.origin - Vec3(1.05, 2.1, 3.125)).norm() < 1e-12);
+  CHECK(v.spacing == g.spacing);
+  CHECK(v.fluid_fraction.sum() == 22.0);
+  CHECK(v.fluid_fraction[5] == 0.0);
+  CHECK(v.pressure == g.pressure);
+  CHECK(v.velocity == g.velocity);
+  CHECK(v.temperature == g.temperature);
+  CHECK(v.phi == g.phi);
+  CHECK(v.ambient_temperature == 290.0);
+}
