@@ -18,7 +18,7 @@
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
-///   tetfsi render OUT [--step N | --all] [--slice AXIS=VALUE] [--color ARRAY] [-o FILE.png]
+///   tetfsi render OUT [--step N | --all] [--slice [AXIS=VALUE]] [--color ARRAY] [-o FILE.png]
 ///                     [--body-color ARRAY] [--range MIN,MAX] [--body-opacity A] [--zoom F]
 ///                     [--size WxH] [--movie FILE.mp4]
 ///   tetfsi export OUT [--vdb] [--ply] [--voxel-size S] [--subsamples N] [--threshold T]
@@ -649,19 +649,39 @@ CLI::Validator size_validator() {
       "");
 }
 
+/// `tetfsi render`'s command line, turned into RenderOptions by render_options_of.
+struct RenderCli {
+  std::string out, png, slice, size = "1280x720", movie;
+  std::vector<double> range;
+  int step = 0;
+  tetfsi::app::RenderOptions render;
+  CLI::Option* step_opt = nullptr;
+  CLI::Option* slice_opt = nullptr;
+};
+
+/// The options as parsed, completed: --step, --slice with or without a plane, --range, --size.
+tetfsi::app::RenderOptions render_options_of(const RenderCli& o) {
+  tetfsi::app::RenderOptions r = o.render;
+  if (*o.step_opt) r.step = o.step;
+  r.slice_view = o.slice_opt->count() > 0;
+  if (!o.slice.empty()) r.slice = tetfsi::app::parse_slice(o.slice);
+  if (o.range.size() == 2) r.range = std::array<double, 2>{o.range[0], o.range[1]};
+  const size_t x = o.size.find('x');
+  r.width = std::stoi(o.size.substr(0, x));
+  r.height = std::stoi(o.size.substr(x + 1));
+  r.output = o.png;
+  r.movie = o.movie;
+  return r;
+}
+
 Command add_render(CLI::App& app) {
-  struct Opt {
-    std::string out, png, slice, size = "1280x720", movie;
-    std::vector<double> range;
-    int step = 0;
-    tetfsi::app::RenderOptions render;
-    CLI::Option* step_opt = nullptr;
-  };
+  using Opt = RenderCli;
   auto o = std::make_shared<Opt>();
   CLI::App* cmd = app.add_subcommand(
       "render",
       "a picture of a run's frame, headless (VTK's renderer, off screen): the bodies coloured by "
-      "a body array, a slice of the fluid, colour bars, the scene's name and the time");
+      "a body array; the smoke as a volume, a liquid's surface, or a slice of the fluid (--slice); "
+      "colour bars, the scene's name and the time");
   cmd->add_option("OUT", o->out, "the output folder of a run (`tetfsi run SCENE --out OUT`)")
       ->required()
       ->type_name("DIR");
@@ -670,19 +690,24 @@ Command add_render(CLI::App& app) {
   auto* all =
       cmd->add_flag("--all", o->render.all, "every frame, one PNG each (then -o names a folder)");
   o->step_opt->excludes(all);
-  cmd->add_option("--slice", o->slice,
-                  "the fluid slice: normal to AXIS through VALUE m (default: z through the "
-                  "inflow patches' centre, else the box centre)")
-      ->type_name("AXIS=VALUE");
+  o->slice_opt = cmd->add_option("--slice", o->slice,
+                                 "a slice of the fluid instead of the smoke's volume (or the "
+                                 "liquid's surface alone): normal to AXIS through VALUE m "
+                                 "(without a value: z through the inflow patches' centre, else "
+                                 "the box centre; y with a liquid)")
+                     ->expected(0, 1)
+                     ->type_name("[AXIS=VALUE]");
   cmd->add_option("--color", o->render.color,
-                  "the slice's fluid array (default: smoke_density if the scene emits smoke, "
-                  "else pressure; vectors by magnitude); a body array colours the bodies")
+                  "the fluid array (default: smoke_density if the scene emits smoke, drawn as "
+                  "a volume, else pressure; another fluid array than smoke_density is drawn "
+                  "on the slice; vectors by magnitude); a body array colours the bodies")
       ->type_name("ARRAY");
   cmd->add_option("--body-color", o->render.body_color,
                   "the bodies' array (default: von_mises_stress)")
       ->type_name("ARRAY");
   cmd->add_option("--range", o->range,
-                  "the slice's colour range (default: fixed per run, docs/user/pictures.md)")
+                  "the slice's colour range or the smoke volume's opacity range (default: "
+                  "fixed per run, docs/user/pictures.md)")
       ->delimiter(',')
       ->expected(2)
       ->type_name("MIN,MAX");
@@ -705,18 +730,8 @@ Command add_render(CLI::App& app) {
   cmd->add_option("--movie", o->movie,
                   "with --all: assemble the PNGs into this movie with ffmpeg (if installed)")
       ->type_name("FILE.mp4");
-  return {cmd, [o] {
-            tetfsi::app::RenderOptions& r = o->render;
-            if (*o->step_opt) r.step = o->step;
-            if (!o->slice.empty()) r.slice = tetfsi::app::parse_slice(o->slice);
-            if (o->range.size() == 2) r.range = std::array<double, 2>{o->range[0], o->range[1]};
-            const size_t x = o->size.find('x');
-            r.width = std::stoi(o->size.substr(0, x));
-            r.height = std::stoi(o->size.substr(x + 1));
-            r.output = o->png;
-            r.movie = o->movie;
-            return tetfsi::app::render_command(o->out, r, std::cout);
-          }};
+  return {cmd,
+          [o] { return tetfsi::app::render_command(o->out, render_options_of(*o), std::cout); }};
 }
 
 Command add_export(CLI::App& app) {
@@ -826,6 +841,7 @@ const char* const k_footer =
     "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
     "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
     "  tetfsi export out/smoke_sheets --frames 40:   # OpenVDB + PLY for Blender: OUT/vdb, "
+    "OUT/ply\n"
     "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
     "  tetfsi run data/scenes/toy.json --checkpoint-every 50 --wall-time 11:30:00\n"
     "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"

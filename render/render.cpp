@@ -23,30 +23,40 @@
 #include <vtkCamera.h>
 #include <vtkCellData.h>
 #include <vtkCellDataToPointData.h>
+#include <vtkColorTransferFunction.h>
+#include <vtkContourFilter.h>
 #include <vtkCubeSource.h>
 #include <vtkCutter.h>
 #include <vtkDataArray.h>
 #include <vtkDataArraySelection.h>
 #include <vtkDataSet.h>
 #include <vtkDataSetSurfaceFilter.h>
+#include <vtkDoubleArray.h>
 #include <vtkErrorCode.h>
+#include <vtkFloatArray.h>
 #include <vtkImageData.h>
 #include <vtkLookupTable.h>
 #include <vtkMatrix4x4.h>
 #include <vtkNew.h>
 #include <vtkOutlineSource.h>
 #include <vtkPNGWriter.h>
+#include <vtkPiecewiseFunction.h>
 #include <vtkPlane.h>
 #include <vtkPlaneSource.h>
 #include <vtkPointData.h>
+#include <vtkPolyData.h>
 #include <vtkPolyDataMapper.h>
 #include <vtkProperty.h>
+#include <vtkRectilinearGrid.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkScalarBarActor.h>
+#include <vtkSmartVolumeMapper.h>
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
 #include <vtkUnstructuredGrid.h>
+#include <vtkVolume.h>
+#include <vtkVolumeProperty.h>
 #include <vtkWindowToImageFilter.h>
 #include <vtkXMLImageDataReader.h>
 #include <vtkXMLPolyDataReader.h>
@@ -55,9 +65,11 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "io/export.hpp"
 #include "io/output.hpp"
 #include "mesh/io.hpp"
 #include "mesh/vtk_messages.hpp"
+#include "render/frame_data.hpp"
 #include "render/headless_display.hpp"
 #include "render/run_folder.hpp"
 
@@ -232,6 +244,15 @@ const std::vector<std::array<double, 3>> k_cool_warm = {{0.230, 0.299, 0.754},
 /// Bodies: pale blue-grey rubber turning orange and red under stress.
 const std::vector<std::array<double, 3>> k_body = {
     {0.78, 0.82, 0.88}, {0.96, 0.80, 0.45}, {0.90, 0.42, 0.12}, {0.62, 0.05, 0.05}};
+/// The smoke's volume: thin smoke grey, the emitted density white; its opacity per
+/// k_smoke_unit × the box's largest side at the top of the range (a jet of a tenth of the box
+/// across at the emitted density hides most of what is behind it).
+constexpr std::array<double, 3> k_smoke_grey = {0.55, 0.57, 0.62};
+constexpr double k_smoke_opacity = 0.8, k_smoke_unit = 0.025;
+/// The dark background behind the smoke (its bottom colour; the colour bar's 0).
+constexpr std::array<double, 3> k_background_dark = {0.07, 0.08, 0.10};
+/// The liquid's surface: the bodies in it show through.
+constexpr double k_liquid_opacity = 0.7;
 
 // ---- the scene's actors ----------------------------------------------------------------------
 
@@ -372,11 +393,12 @@ void write_window_png(vtkRenderWindow* window, const fs::path& png) {
 
 /// Choose the arrays and check they exist, from the first frame to draw.
 struct ColorChoice {
-  std::string fluid;   ///< the slice's array ("" : no slice)
-  std::string bodies;  ///< the bodies' array ("" : plain colour)
+  std::string fluid;    ///< the slice's or the volume's array ("" : neither)
+  std::string bodies;   ///< the bodies' array ("" : plain colour)
+  bool volume = false;  ///< the fluid as the smoke's volume (of `fluid`), not a slice
 };
 
-ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const FrameFiles& frame,
+ColorChoice choose_arrays(const RunIndex& run, const RenderOptions& opt, const FrameFiles& frame,
                           FrameReader& fluid_reader, FrameReader& body_reader) {
   ArrayInfo fluid, bodies;
   if (!frame.fluid.empty()) fluid = arrays_of(fluid_reader.read(frame.fluid, ""));
@@ -415,7 +437,17 @@ ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const F
   if (slice && !fluid.has(c.fluid)) c.fluid.clear();
   // a liquid: its surface and no slice (the slice would hide it and show the air's p = 0),
   // unless --slice asks for one
-  if (run.has_liquid && !opt.slice) c.fluid.clear();
+  if (run.has_liquid && !opt.slice && !opt.slice_view) c.fluid.clear();
+  return c;
+}
+
+/// The arrays (choose_arrays), and whether the fluid is drawn as the smoke's volume: a scene
+/// that emits smoke, its smoke_density to draw, no liquid, and no slice asked for.
+ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const FrameFiles& frame,
+                          FrameReader& fluid_reader, FrameReader& body_reader) {
+  ColorChoice c = choose_arrays(run, opt, frame, fluid_reader, body_reader);
+  c.volume = c.fluid == "smoke_density" && run.emitted_smoke > 0.0 && !run.has_liquid &&
+             !opt.slice && !opt.slice_view;
   return c;
 }
 
@@ -447,24 +479,150 @@ void fit_box(vtkCamera* cam, const Box& box, double aspect, std::array<double, 2
   }
 }
 
+/// The sampling of a tet fluid for the smoke's volume: voxels of the scene's
+/// fluid.mesh.surface_size (the mesh's finest cells), each the mean of 2³ samples.
+VoxelOptions smoke_voxels(const RunIndex& run) {
+  VoxelOptions v;
+  const json& fl = run.scene.value("fluid", json::object());
+  const json& m = fl.is_object() ? fl.value("mesh", json::object()) : json::object();
+  if (m.is_object() && m.contains("surface_size") && m["surface_size"].is_number())
+    v.voxel_size = m["surface_size"].get<double>();
+  else if (run.domain)
+    v.voxel_size = (run.domain->hi - run.domain->lo).maxCoeff() / 64.0;
+  v.subsamples = 2;
+  return v;
+}
+
+/// `v` (dims voxels, x fastest) filtered by [1 2 1] / 4 along each axis (the edges
+/// repeated): the tet fluid's piecewise-constant cells, sampled, no longer show as blotches.
+VecX smooth_121(const VecX& v, const std::array<Index, 3>& dims) {
+  VecX a = v, b(v.size());
+  const Index stride[3] = {1, dims[0], dims[0] * dims[1]};
+  for (int axis = 0; axis < 3; ++axis) {
+    for (Index c = 0; c < a.size(); ++c) {
+      const Index i = (c / stride[axis]) % dims[axis];
+      const Index lo = i > 0 ? c - stride[axis] : c, hi = i + 1 < dims[axis] ? c + stride[axis] : c;
+      b[c] = 0.25 * a[lo] + 0.5 * a[c] + 0.25 * a[hi];
+    }
+    std::swap(a, b);
+  }
+  return a;
+}
+
+/// The smoke density of the fluid frame `file` on voxels, as VTK image data with a point at
+/// each voxel's centre: a grid frame's (.vti) cells as they are, a tet frame (.vtu) sampled
+/// by voxelize.
+vtkSmartPointer<vtkImageData> smoke_image(const fs::path& file, FrameReader& reader,
+                                          const VoxelOptions& voxels) {
+  auto image = vtkSmartPointer<vtkImageData>::New();
+  if (file.extension() == ".vti") {
+    auto* grid = vtkImageData::SafeDownCast(reader.read(file, "smoke_density"));
+    vtkDataArray* density = grid ? grid->GetCellData()->GetArray("smoke_density") : nullptr;
+    if (density == nullptr)
+      throw InputError(fmt::format("{}: no cell array 'smoke_density'", file.string()));
+    int dims[3];
+    double origin[3], spacing[3];
+    grid->GetDimensions(dims);
+    grid->GetOrigin(origin);
+    grid->GetSpacing(spacing);
+    image->SetDimensions(std::max(dims[0] - 1, 1), std::max(dims[1] - 1, 1),
+                         std::max(dims[2] - 1, 1));
+    image->SetOrigin(origin[0] + 0.5 * spacing[0], origin[1] + 0.5 * spacing[1],
+                     origin[2] + 0.5 * spacing[2]);
+    image->SetSpacing(spacing);
+    image->GetPointData()->SetScalars(density);
+    return image;
+  }
+  const VoxelFrame v = voxelize(read_tet_fluid_frame(file, true), voxels);
+  const VecX smooth = smooth_121(v.density, v.dims);
+  image->SetDimensions(static_cast<int>(v.dims[0]), static_cast<int>(v.dims[1]),
+                       static_cast<int>(v.dims[2]));
+  image->SetOrigin(v.origin.data());
+  image->SetSpacing(v.spacing.data());
+  vtkNew<vtkFloatArray> density;
+  density->SetName("smoke_density");
+  density->SetNumberOfTuples(v.size());
+  for (Index i = 0; i < v.size(); ++i) density->SetValue(i, static_cast<float>(smooth[i]));
+  image->GetPointData()->SetScalars(density);
+  return image;
+}
+
+/// The liquid's closed surface from a grid frame's φ (cell array `phi`, < 0 in the liquid):
+/// the contour φ = 0 over the cell centres and a layer of points on the box's walls where φ
+/// is at least a little positive (air), so that the surface closes along the walls and the
+/// floor (the run's liquid.vtp, a free surface, is open there). Empty if `grid` has no φ.
+vtkSmartPointer<vtkPolyData> closed_liquid_surface(vtkImageData* grid) {
+  vtkDataArray* phi = grid->GetCellData()->GetArray("phi");
+  if (phi == nullptr) return vtkSmartPointer<vtkPolyData>::New();
+  int dims[3];
+  double origin[3], h[3];
+  grid->GetDimensions(dims);
+  grid->GetOrigin(origin);
+  grid->GetSpacing(h);
+  const int n[3] = {dims[0] - 1, dims[1] - 1, dims[2] - 1};  // cells
+  vtkNew<vtkRectilinearGrid> padded;
+  padded->SetDimensions(n[0] + 2, n[1] + 2, n[2] + 2);
+  for (int a = 0; a < 3; ++a) {
+    vtkNew<vtkDoubleArray> c;
+    c->SetNumberOfTuples(n[a] + 2);
+    c->SetValue(0, origin[a]);
+    for (int i = 0; i < n[a]; ++i) c->SetValue(i + 1, origin[a] + (i + 0.5) * h[a]);
+    c->SetValue(n[a] + 1, origin[a] + n[a] * h[a]);
+    (a == 0   ? padded->SetXCoordinates(c)
+     : a == 1 ? padded->SetYCoordinates(c)
+              : padded->SetZCoordinates(c));
+  }
+  const double air = 1e-3 * std::min({h[0], h[1], h[2]});
+  vtkNew<vtkDoubleArray> values;
+  values->SetName("phi");
+  values->SetNumberOfTuples(vtkIdType(n[0] + 2) * (n[1] + 2) * (n[2] + 2));
+  vtkIdType p = 0;
+  for (int k = 0; k < n[2] + 2; ++k)
+    for (int j = 0; j < n[1] + 2; ++j)
+      for (int i = 0; i < n[0] + 2; ++i, ++p) {
+        const int ci = std::clamp(i - 1, 0, n[0] - 1), cj = std::clamp(j - 1, 0, n[1] - 1),
+                  ck = std::clamp(k - 1, 0, n[2] - 1);
+        const double v = phi->GetComponent(ci + vtkIdType(n[0]) * (cj + vtkIdType(n[1]) * ck), 0);
+        const bool wall =
+            i == 0 || j == 0 || k == 0 || i == n[0] + 1 || j == n[1] + 1 || k == n[2] + 1;
+        values->SetValue(p, wall ? std::max(v, air) : v);
+      }
+  padded->GetPointData()->SetScalars(values);
+  vtkNew<vtkContourFilter> contour;
+  contour->SetInputData(padded);
+  contour->SetValue(0, 0.0);
+  contour->ComputeNormalsOn();
+  contour->ComputeScalarsOff();
+  contour->Update();
+  return contour->GetOutput();
+}
+
 /// Everything drawn: one window reused for every frame.
 class FrameRenderer {
  public:
   FrameRenderer(const RunIndex& run, const RenderOptions& opt, const ColorChoice& colors,
                 const SlicePlane& slice, const Box& view_box,
                 const std::array<double, 2>& fluid_range, const std::array<double, 2>& body_range)
-      : m_run(run), m_opt(opt), m_colors(colors), m_slice(slice) {
+      : m_run(run), m_opt(opt), m_colors(colors), m_slice(slice), m_voxels(smoke_voxels(run)) {
     m_window->SetOffScreenRendering(1);
     m_window->SetSize(opt.width, opt.height);
     m_window->SetMultiSamples(0);
     m_window->AddRenderer(m_renderer);
     m_renderer->GradientBackgroundOn();
-    m_renderer->SetBackground(1.0, 1.0, 1.0);
-    m_renderer->SetBackground2(0.84, 0.87, 0.91);
+    if (colors.volume) {  // dark, so that the grey-white smoke shows
+      m_renderer->SetBackground(0.07, 0.08, 0.10);
+      m_renderer->SetBackground2(0.25, 0.27, 0.31);
+    } else {
+      m_renderer->SetBackground(1.0, 1.0, 1.0);
+      m_renderer->SetBackground2(0.84, 0.87, 0.91);
+    }
     m_renderer->SetUseFXAA(true);
     if (run.domain) add_outline(view_box);  // a scene without fluid: no box
     add_obstacles(m_renderer, run.scene, view_box);
-    if (!colors.fluid.empty()) add_slice(view_box, fluid_range);
+    if (colors.volume)
+      add_volume(view_box, fluid_range);
+    else if (!colors.fluid.empty())
+      add_slice(view_box, fluid_range);
     if (!colors.bodies.empty()) {
       m_body_lut = make_lut(k_body, body_range);
       m_renderer->AddActor2D(make_bar(m_body_lut, unit_of(colors.bodies), true, opt.height));
@@ -477,44 +635,18 @@ class FrameRenderer {
 
   /// Draw `frame` and write it to `png`.
   RenderedFrame draw(const FrameFiles& frame, const fs::path& png) {
-    if (!m_colors.fluid.empty()) {
-      if (frame.fluid.empty()) {
-        m_slice_actor->VisibilityOff();
-      } else {
-        vtkDataSet* fluid = m_fluid_reader.read(frame.fluid, m_colors.fluid);
-        const bool on_cells = fluid->GetCellData()->GetArray(m_colors.fluid.c_str()) != nullptr;
-        if (on_cells) {
-          m_to_points->SetInputData(fluid);
-          m_to_points->PassCellDataOff();
-          m_cutter->SetInputConnection(m_to_points->GetOutputPort());
-        } else {
-          m_cutter->SetInputData(fluid);
-        }
-        m_slice_actor->VisibilityOn();
-      }
-    }
-    if (m_run.has_liquid) {
-      m_liquid_actor->SetVisibility(!frame.liquid.empty());
-      if (!frame.liquid.empty()) {
-        m_liquid_reader->SetFileName(frame.liquid.string().c_str());
-        m_liquid_reader->Update();
-      }
-    }
-    for (size_t b = 0; b < m_bodies.size(); ++b) {
-      Body& body = *m_bodies[b];
-      vtkDataSet* data = body.reader.read(frame.bodies[b], m_colors.bodies);
-      body.surface->SetInputData(data);
-      if (!m_colors.bodies.empty()) {
-        const bool on_cells = data->GetCellData()->GetArray(m_colors.bodies.c_str()) != nullptr;
-        if (on_cells)
-          body.mapper->SetScalarModeToUseCellFieldData();
-        else
-          body.mapper->SetScalarModeToUsePointFieldData();
-      }
-    }
+    if (m_colors.volume)
+      update_volume(frame);
+    else if (!m_colors.fluid.empty())
+      update_slice(frame);
+    update_liquid(frame);
+    update_bodies(frame);
     m_title->SetInput(
         fmt::format("{}    t = {:.3f} s    step {}", m_run.name, frame.time, frame.step).c_str());
     m_window->Render();
+    if (m_colors.volume)
+      logger().debug("smoke volume: vtkSmartVolumeMapper render mode {} (1 ray cast, 2 GPU)",
+                     m_volume_mapper->GetLastUsedRenderMode());
     write_window_png(m_window, png);
 
     RenderedFrame out;
@@ -529,6 +661,61 @@ class FrameRenderer {
   }
 
  private:
+  /// The slice of `frame`'s fluid (hidden if the frame has none).
+  void update_slice(const FrameFiles& frame) {
+    if (frame.fluid.empty()) {
+      m_slice_actor->VisibilityOff();
+      return;
+    }
+    vtkDataSet* fluid = m_fluid_reader.read(frame.fluid, m_colors.fluid);
+    const bool on_cells = fluid->GetCellData()->GetArray(m_colors.fluid.c_str()) != nullptr;
+    if (on_cells) {
+      m_to_points->SetInputData(fluid);
+      m_to_points->PassCellDataOff();
+      m_cutter->SetInputConnection(m_to_points->GetOutputPort());
+    } else {
+      m_cutter->SetInputData(fluid);
+    }
+    m_slice_actor->VisibilityOn();
+  }
+
+  /// The smoke of `frame` on voxels, handed to the volume's mapper (hidden without a fluid).
+  void update_volume(const FrameFiles& frame) {
+    m_volume->SetVisibility(!frame.fluid.empty());
+    if (!frame.fluid.empty())
+      m_volume_mapper->SetInputData(smoke_image(frame.fluid, m_fluid_reader, m_voxels));
+  }
+
+  /// The liquid's surface of `frame` (hidden if the frame has none).
+  void update_liquid(const FrameFiles& frame) {
+    if (!m_run.has_liquid) return;
+    m_liquid_actor->SetVisibility(!frame.liquid.empty());
+    if (frame.fluid.extension() == ".vti") {  // closed along the walls: see the water's body
+      auto* grid = vtkImageData::SafeDownCast(m_liquid_grid_reader.read(frame.fluid, "phi"));
+      m_liquid_mapper->SetInputData(closed_liquid_surface(grid));
+    } else if (!frame.liquid.empty()) {
+      m_liquid_reader->SetFileName(frame.liquid.string().c_str());
+      m_liquid_reader->Update();
+      m_liquid_mapper->SetInputConnection(m_liquid_reader->GetOutputPort());
+    }
+  }
+
+  /// The bodies' surfaces of `frame`, coloured by their array.
+  void update_bodies(const FrameFiles& frame) {
+    for (size_t b = 0; b < m_bodies.size(); ++b) {
+      Body& body = *m_bodies[b];
+      vtkDataSet* data = body.reader.read(frame.bodies[b], m_colors.bodies);
+      body.surface->SetInputData(data);
+      if (!m_colors.bodies.empty()) {
+        const bool on_cells = data->GetCellData()->GetArray(m_colors.bodies.c_str()) != nullptr;
+        if (on_cells)
+          body.mapper->SetScalarModeToUseCellFieldData();
+        else
+          body.mapper->SetScalarModeToUsePointFieldData();
+      }
+    }
+  }
+
   /// The fluid box's outline.
   void add_outline(const Box& box) {
     vtkNew<vtkOutlineSource> outline;
@@ -537,7 +724,10 @@ class FrameRenderer {
     mapper->SetInputConnection(outline->GetOutputPort());
     vtkNew<vtkActor> actor;
     actor->SetMapper(mapper);
-    actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
+    if (m_colors.volume)
+      actor->GetProperty()->SetColor(0.62, 0.64, 0.68);  // on the dark background
+    else
+      actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
     actor->GetProperty()->SetLineWidth(1.5);
     m_renderer->AddActor(actor);
   }
@@ -567,16 +757,48 @@ class FrameRenderer {
     m_renderer->AddActor2D(make_bar(m_fluid_lut, unit_of(array, "\n"), false, m_opt.height));
   }
 
+  /// The smoke's volume (its voxels set per frame): grey to white, its opacity rising from
+  /// range[0] to range[1], in `k_smoke_opacity` per `k_smoke_unit` of the box's largest side;
+  /// a grey colour bar on the right.
+  void add_volume(const Box& box, const std::array<double, 2>& range) {
+    vtkNew<vtkColorTransferFunction> color;
+    color->AddRGBPoint(range[0], k_smoke_grey[0], k_smoke_grey[1], k_smoke_grey[2]);
+    color->AddRGBPoint(range[1], 1.0, 1.0, 1.0);
+    vtkNew<vtkPiecewiseFunction> opacity;  // quadratic: thin smoke lets the bodies show
+    for (int i = 0; i <= 10; ++i) {
+      const double u = 0.1 * i;
+      opacity->AddPoint(range[0] + u * (range[1] - range[0]), k_smoke_opacity * u * u);
+    }
+    m_volume_property->SetColor(color);
+    m_volume_property->SetScalarOpacity(opacity);
+    m_volume_property->SetScalarOpacityUnitDistance(k_smoke_unit * (box.hi - box.lo).maxCoeff());
+    m_volume_property->SetInterpolationTypeToLinear();
+    m_volume_property->ShadeOff();
+    m_volume_mapper->SetBlendModeToComposite();
+    // A still picture: the same samples in every frame, whatever the time a render takes.
+    m_volume_mapper->InteractiveAdjustSampleDistancesOff();
+    m_volume_mapper->AutoAdjustSampleDistancesOff();
+    m_volume->SetMapper(m_volume_mapper);
+    m_volume->SetProperty(m_volume_property);
+    m_renderer->AddVolume(m_volume);
+    m_fluid_lut = make_lut({k_background_dark, {1.0, 1.0, 1.0}}, range);
+    auto bar = make_bar(m_fluid_lut, unit_of(m_colors.fluid, "\n"), false, m_opt.height);
+    bar->GetTitleTextProperty()->SetColor(0.9, 0.9, 0.92);
+    bar->GetLabelTextProperty()->SetColor(0.9, 0.9, 0.92);
+    m_renderer->AddActor2D(bar);
+  }
+
   /// The liquid's surface (liquid/liquid_<step>.vtp): water blue, lit, a little glossy.
   void add_liquid() {
-    vtkNew<vtkPolyDataMapper> mapper;
-    mapper->SetInputConnection(m_liquid_reader->GetOutputPort());
-    mapper->ScalarVisibilityOff();
-    m_liquid_actor->SetMapper(mapper);
+    m_liquid_mapper->ScalarVisibilityOff();
+    m_liquid_actor->SetMapper(m_liquid_mapper);
     m_liquid_actor->GetProperty()->SetColor(0.22, 0.48, 0.85);
     m_liquid_actor->GetProperty()->SetAmbient(0.3);  // no black where it faces away
     m_liquid_actor->GetProperty()->SetSpecular(0.4);
     m_liquid_actor->GetProperty()->SetSpecularPower(30);
+    m_liquid_actor->GetProperty()->SetOpacity(k_liquid_opacity);  // the bodies show through
+    m_renderer->SetUseDepthPeeling(true);
+    m_renderer->SetMaximumNumberOfPeels(8);
     m_renderer->AddActor(m_liquid_actor);
   }
 
@@ -625,7 +847,9 @@ class FrameRenderer {
     m_subtitle->GetTextProperty()->SetColor(0.3, 0.3, 0.34);
     m_subtitle->SetDisplayPosition(margin(), h - 2 * margin() - title_size() - subtitle_size());
     std::string sub;
-    if (!m_colors.fluid.empty())
+    if (m_colors.volume)
+      sub = fmt::format("smoke volume: {}", m_colors.fluid);
+    else if (!m_colors.fluid.empty())
       sub = fmt::format("slice {} = {:.4g} m: {}", kAxisNames[m_slice.axis], m_slice.value,
                         m_colors.fluid);
     if (!m_colors.bodies.empty())
@@ -666,6 +890,7 @@ class FrameRenderer {
   const RenderOptions& m_opt;
   ColorChoice m_colors;
   SlicePlane m_slice;
+  VoxelOptions m_voxels;  ///< the tet fluid's sampling for the smoke's volume
   vtkNew<vtkRenderWindow> m_window;
   vtkNew<vtkRenderer> m_renderer;
   vtkSmartPointer<vtkLookupTable> m_fluid_lut, m_body_lut;
@@ -675,7 +900,12 @@ class FrameRenderer {
   vtkNew<vtkCutter> m_cutter;
   vtkNew<vtkPolyDataMapper> m_slice_mapper;
   vtkNew<vtkActor> m_slice_actor;
+  vtkNew<vtkSmartVolumeMapper> m_volume_mapper;
+  vtkNew<vtkVolumeProperty> m_volume_property;
+  vtkNew<vtkVolume> m_volume;
   vtkNew<vtkXMLPolyDataReader> m_liquid_reader;
+  FrameReader m_liquid_grid_reader;  ///< the grid frame's φ (the closed surface)
+  vtkNew<vtkPolyDataMapper> m_liquid_mapper;
   vtkNew<vtkActor> m_liquid_actor;
   std::vector<std::unique_ptr<Body>> m_bodies;
   vtkNew<vtkTextActor> m_title, m_subtitle;
@@ -864,7 +1094,8 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
   report.width = opt.width;
   report.height = opt.height;
   report.slice = slice;
-  report.has_slice = !colors.fluid.empty();
+  report.has_slice = !colors.fluid.empty() && !colors.volume;
+  report.has_volume = colors.volume;
   report.color = colors.fluid;
   report.body_color = colors.bodies;
   if (!colors.fluid.empty()) report.color_range = fluid_range_of(run, opt, colors, probe_fluid);
@@ -908,6 +1139,9 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
 int render_command(const fs::path& out_dir, const RenderOptions& opt, std::ostream& out) {
   const RenderReport r = render_output(out_dir, opt);
   std::string what;
+  if (r.has_volume)
+    what = fmt::format("smoke volume of {} (opacity from {:.4g} to {:.4g})", r.color,
+                       r.color_range[0], r.color_range[1]);
   if (r.has_slice)
     what = fmt::format("slice {} = {:.4g} m by {} in [{:.4g}, {:.4g}]", kAxisNames[r.slice.axis],
                        r.slice.value, r.color, r.color_range[0], r.color_range[1]);
