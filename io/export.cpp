@@ -1,6 +1,7 @@
 /// @file export.cpp
-/// The renderer export of export.hpp but for its OpenVDB side: the bodies' boundary surfaces
-/// and their binary PLY files, the tet fluid's voxel sampling.
+/// The renderer export of export.hpp but for its OpenVDB side (vdb.cpp): the bodies' boundary
+/// surfaces and their binary PLY files, the tet fluid's voxel sampling, one frame's files and
+/// the manifest export.json.
 #include "io/export.hpp"
 
 #include <algorithm>
@@ -562,6 +563,145 @@ VoxelFrame voxel_frame_of(const fluid::GridFrameFields& g, double ambient_temper
     if (g.solid[c]) v.fluid_fraction[static_cast<Index>(c)] = 0.0;
   if (g.phi.size() > 0) v.phi = scalar(g.phi, 0.0, "phi");
   return v;
+}
+
+// ---- one frame and the manifest ------------------------------------------------------------
+
+namespace {
+
+/// Create `folder` and its parents if missing. @throws InputError naming it
+void make_folder(const fs::path& folder) {
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (ec)
+    throw InputError(
+        fmt::format("cannot create export folder '{}': {}", folder.string(), ec.message()));
+}
+
+nlohmann::json grid_json(const VdbGridSummary& g) {
+  return {{"name", g.name},        {"type", g.type},
+          {"class", g.grid_class}, {"active_voxels", g.active_voxels},
+          {"min", g.min},          {"max", g.max},
+          {"bounds", g.bounds},    {"unit", g.unit}};
+}
+
+VdbGridSummary grid_from_json(const nlohmann::json& j) {
+  VdbGridSummary g;
+  g.name = j.at("name").get<std::string>();
+  g.type = j.at("type").get<std::string>();
+  g.grid_class = j.at("class").get<std::string>();
+  g.active_voxels = j.at("active_voxels").get<std::int64_t>();
+  g.min = j.at("min").get<double>();
+  g.max = j.at("max").get<double>();
+  g.bounds = j.at("bounds").get<std::array<double, 6>>();
+  g.unit = j.at("unit").get<std::string>();
+  return g;
+}
+
+}  // namespace
+
+ExportedFrame export_frame(const fs::path& folder, int frame, int step, double time,
+                           const std::vector<NamedSurface>& surfaces, const VoxelFrame* fluid,
+                           const ExportRequest& request) {
+  ExportedFrame out;
+  out.frame = frame;
+  out.step = step;
+  out.time = time;
+  if (fluid) {
+    out.voxel_size = fluid->spacing;
+    out.smoke_mass = fluid->smoke_mass();
+  }
+  if (fluid && request.vdb) {
+    make_folder(folder / "vdb");
+    out.vdb_file = fmt::format("vdb/fluid_{:06d}.vdb", frame);
+    const VdbFrameInfo info{step, time, request.scene, request.smoke_threshold};
+    out.grids = write_vdb(folder / out.vdb_file, *fluid, info);
+  }
+  if (request.ply && !surfaces.empty()) {
+    make_folder(folder / "ply");
+    for (const NamedSurface& s : surfaces) {
+      ExportedFrame::Mesh m;
+      m.name = s.name;
+      m.file = fmt::format("ply/{}_{:06d}.ply", s.name, frame);
+      m.vertices = static_cast<Index>(s.surface.points.rows());
+      m.triangles = static_cast<Index>(s.surface.triangles.rows());
+      write_ply(folder / m.file, s.surface);
+      out.meshes.push_back(std::move(m));
+    }
+  }
+  return out;
+}
+
+nlohmann::json to_json(const ExportedFrame& f) {
+  nlohmann::json grids = nlohmann::json::array(), meshes = nlohmann::json::array();
+  for (const VdbGridSummary& g : f.grids) grids.push_back(grid_json(g));
+  for (const ExportedFrame::Mesh& m : f.meshes)
+    meshes.push_back(
+        {{"name", m.name}, {"file", m.file}, {"vertices", m.vertices}, {"triangles", m.triangles}});
+  return {{"frame", f.frame},
+          {"step", f.step},
+          {"time", f.time},
+          {"vdb_file", f.vdb_file},
+          {"grids", grids},
+          {"voxel_size", {f.voxel_size[0], f.voxel_size[1], f.voxel_size[2]}},
+          {"smoke_mass", f.smoke_mass},
+          {"meshes", meshes}};
+}
+
+ExportedFrame exported_frame_from_json(const nlohmann::json& j) {
+  try {
+    ExportedFrame f;
+    f.frame = j.at("frame").get<int>();
+    f.step = j.at("step").get<int>();
+    f.time = j.at("time").get<double>();
+    f.vdb_file = j.at("vdb_file").get<std::string>();
+    for (const nlohmann::json& g : j.at("grids")) f.grids.push_back(grid_from_json(g));
+    const auto h = j.at("voxel_size").get<std::array<double, 3>>();
+    f.voxel_size = Vec3(h[0], h[1], h[2]);
+    f.smoke_mass = j.at("smoke_mass").get<double>();
+    for (const nlohmann::json& m : j.at("meshes"))
+      f.meshes.push_back({m.at("name").get<std::string>(), m.at("file").get<std::string>(),
+                          m.at("vertices").get<Index>(), m.at("triangles").get<Index>()});
+    return f;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("export manifest: a frame that cannot be read: {}", e.what()));
+  }
+}
+
+ExportManifest::ExportManifest(fs::path path, std::string scene)
+    : m_path(std::move(path)), m_scene(std::move(scene)) {}
+
+void ExportManifest::add(ExportedFrame f) {
+  const auto same = std::find_if(m_frames.begin(), m_frames.end(),
+                                 [&](const ExportedFrame& g) { return g.frame == f.frame; });
+  if (same != m_frames.end())
+    *same = std::move(f);
+  else
+    m_frames.push_back(std::move(f));
+  write();
+}
+
+void ExportManifest::truncate(int frames) {
+  std::erase_if(m_frames, [frames](const ExportedFrame& f) { return f.frame >= frames; });
+  write();
+}
+
+void ExportManifest::reset(std::vector<ExportedFrame> frames) {
+  m_frames = std::move(frames);
+  write();
+}
+
+nlohmann::json ExportManifest::to_json() const {
+  nlohmann::json frames = nlohmann::json::array();
+  for (const ExportedFrame& f : m_frames) frames.push_back(app::to_json(f));
+  return {{"format", "tetfsi-export 1"},
+          {"scene", m_scene},
+          {"axes", k_export_axes},
+          {"frames", frames}};
+}
+
+void ExportManifest::write() const {
+  write_text_file_atomic(m_path, to_json().dump(2) + "\n");
 }
 
 }  // namespace tetfsi::app

@@ -1,7 +1,8 @@
 /// @file test_export.cpp
 /// Tests of the renderer export (io/export.hpp): PLY surfaces written and read back, the tet
 /// fluid's voxel sampling (mass, volume, exact linear velocity, the same bits at any thread
-/// count), the grid fluid's cells as voxels.
+/// count), `.vdb` files written and summarised by OpenVDB's reader, the grid fluid's cells as
+/// voxels, one frame's files and the manifest export.json.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -108,6 +109,14 @@ double tet_smoke_mass(const TetVolume& f) {
     m += f.density[t] * e.determinant() / 6.0;
   }
   return m;
+}
+
+const VdbGridSummary& grid_named(const std::vector<VdbGridSummary>& grids,
+                                 const std::string& name) {
+  const auto it = std::find_if(grids.begin(), grids.end(),
+                               [&](const VdbGridSummary& g) { return g.name == name; });
+  REQUIRE(it != grids.end());
+  return *it;
 }
 
 /// The grid fluid of a 4 × 3 × 2 box (spacing 0.1, 0.2, 0.25 from (1, 2, 3)) with two solid
@@ -417,4 +426,180 @@ TEST_CASE("voxel_frame_of: the grid's cells are the voxels") {
   CHECK(v.temperature == g.temperature);
   CHECK(v.phi == g.phi);
   CHECK(v.ambient_temperature == 290.0);
+}
+
+// ---- OpenVDB -------------------------------------------------------------------------------
+
+TEST_CASE("write_vdb and read_vdb_summary: grids, active voxels, ranges, bounds, metadata") {
+  TempDir dir("export_vdb");
+  const TetVolume f = jittered_cube(6, linear_velocity);
+  VoxelOptions o;
+  o.voxel_size = 1.0 / 12;
+  const VoxelFrame v = voxelize(f, o);
+  for (const double threshold : {0.0, 1.5}) {
+    CAPTURE(threshold);
+    const fs::path p = dir.path / "fluid_000007.vdb";
+    const std::vector<VdbGridSummary> written = write_vdb(p, v, {42, 0.125, "cube", threshold});
+    CHECK(!fs::exists(dir.path / "fluid_000007.vdb.tmp"));
+    const VdbFileSummary r = read_vdb_summary(p);
+    CHECK(r.step == 42);
+    CHECK(r.time == 0.125);
+    REQUIRE(r.grids.size() == 4);
+    std::set<std::string> names;
+    for (const VdbGridSummary& g : r.grids) names.insert(g.name);
+    CHECK(names == std::set<std::string>{"density", "temperature", "velocity", "pressure"});
+    Index above = 0;
+    for (Index c = 0; c < v.size(); ++c) above += v.density[c] > threshold ? 1 : 0;
+    CHECK(above > 100);
+    const VdbGridSummary& d = grid_named(r.grids, "density");
+    CHECK(d.type == "float");
+    CHECK(d.grid_class == "fog volume");
+    CHECK(d.unit == "kg/m^3");
+    CHECK(d.active_voxels == above);
+    CHECK(d.max == rel(v.density.maxCoeff(), 1e-7));
+    const VdbGridSummary& u = grid_named(r.grids, "velocity");
+    CHECK(u.type == "vec3s");
+    CHECK(u.unit == "m/s");
+    CHECK(u.active_voxels == above);
+    CHECK(u.max == rel(v.velocity.rowwise().norm().maxCoeff(), 1e-6));
+    CHECK(grid_named(r.grids, "temperature").unit == "K");
+    CHECK(grid_named(r.grids, "pressure").unit == "Pa");
+    // the fluid fills the unit cube; above ρ = 1.5 it is x > 0.5: the tets' centroids there
+    // are at x > 0.52 and those of the cells before at x < 0.48 (jitter included)
+    const std::array<double, 6> box = {threshold > 0 ? 0.5 : 0.0, 0, 0, 1, 1, 1};
+    for (std::size_t a = 0; a < 6; ++a) CHECK(std::abs(d.bounds[a] - box[a]) < 1e-12);
+    // what write_vdb returns is what the reader sees
+    REQUIRE(written.size() == 4);
+    for (const VdbGridSummary& w : written) {
+      const VdbGridSummary& g = grid_named(r.grids, w.name);
+      CHECK(g.active_voxels == w.active_voxels);
+      CHECK(g.min == w.min);
+      CHECK(g.max == w.max);
+      CHECK(g.bounds == w.bounds);
+    }
+    if (threshold == 0.0) {
+      CHECK(d.active_voxels == v.size());
+      CHECK(vdb_grid_integral(p, "density") == rel(v.smoke_mass(), 1e-6));
+    }
+  }
+}
+
+TEST_CASE("write_vdb: a grid fluid's liquid as a level set, velocity on the liquid's voxels") {
+  TempDir dir("export_vdb_liquid");
+  const VoxelFrame v = voxel_frame_of(small_grid(), 290.0);
+  const fs::path p = dir.path / "liquid.vdb";
+  write_vdb(p, v, {3, 0.5, "grid", 1e-4});
+  const VdbFileSummary r = read_vdb_summary(p);
+  REQUIRE(r.grids.size() == 5);
+  // no smoke: density and temperature are empty
+  CHECK(grid_named(r.grids, "density").active_voxels == 0);
+  CHECK(grid_named(r.grids, "temperature").active_voxels == 0);
+  // the liquid is the lower layer (φ = −0.175 there, 0.075 above) but its solid cell 5
+  const VdbGridSummary& u = grid_named(r.grids, "velocity");
+  CHECK(u.active_voxels == 11);
+  CHECK(u.max == rel(Vec3(11, -11, 5.5).norm(), 1e-6));
+  CHECK(grid_named(r.grids, "pressure").active_voxels == 11);
+  // world bounds: the lower layer of cells, [1, 1.4] × [2, 2.6] × [3, 3.25]
+  const std::array<double, 6> lower = {1, 2, 3, 1.4, 2.6, 3.25};
+  for (int a = 0; a < 6; ++a) CHECK(u.bounds[static_cast<std::size_t>(a)] == rel(lower[a], 1e-12));
+  // surface: every cell is within 3 h = 0.75 of the surface
+  const VdbGridSummary& s = grid_named(r.grids, "surface");
+  CHECK(s.grid_class == "level set");
+  CHECK(s.unit == "m");
+  CHECK(s.active_voxels == 24);
+  CHECK(s.min == rel(-0.175, 1e-6));
+  CHECK(s.max == rel(0.075, 1e-6));
+  CHECK(s.bounds[5] == rel(3.5, 1e-12));
+  CHECK_THROWS_AS(vdb_grid_integral(p, "velocity"), InputError);
+  CHECK(message_of<InputError>([&] { vdb_grid_integral(p, "smoke"); }).find("smoke") !=
+        std::string::npos);
+}
+
+TEST_CASE("read_vdb_summary: a missing or foreign file is an InputError naming it") {
+  TempDir dir("export_vdb_read");
+  const fs::path text = dir.path / "not_a.vdb";
+  std::ofstream(text) << "hello\n";
+  CHECK(message_of<InputError>([&] { read_vdb_summary(text); }).find("not_a.vdb") !=
+        std::string::npos);
+  CHECK(message_of<InputError>([&] { read_vdb_summary(dir.path / "gone.vdb"); }).find("gone.vdb") !=
+        std::string::npos);
+}
+
+// ---- frames and the manifest -----------------------------------------------------------------
+
+TEST_CASE("export_frame and ExportManifest: the files, the JSON round trip, truncate") {
+  TempDir dir("export_frame");
+  const TetVolume f = jittered_cube(3, linear_velocity);
+  VoxelOptions o;
+  o.voxel_size = 0.2;
+  const VoxelFrame v = voxelize(f, o);
+  const std::vector<NamedSurface> surfaces = {{"block", body_export_surface(make_block())}};
+  ExportRequest request;
+  request.vdb = request.ply = true;
+  request.scene = "cube";
+  ExportManifest manifest(dir.path / "export.json", "cube");
+  for (int frame = 0; frame < 3; ++frame)
+    manifest.add(export_frame(dir.path, frame, 10 * frame, 0.1 * frame, surfaces, &v, request));
+  CHECK(fs::exists(dir.path / "vdb/fluid_000002.vdb"));
+  CHECK(fs::exists(dir.path / "ply/block_000002.ply"));
+  const ExportedFrame& last = manifest.frames().back();
+  CHECK(last.vdb_file == "vdb/fluid_000002.vdb");
+  CHECK(last.step == 20);
+  CHECK(last.grids.size() == 4);
+  CHECK(last.smoke_mass == v.smoke_mass());
+  REQUIRE(last.meshes.size() == 1);
+  CHECK(last.meshes[0].file == "ply/block_000002.ply");
+  CHECK(last.meshes[0].triangles == 44);
+  // export.json reads back to the same frames
+  const nlohmann::json j = nlohmann::json::parse(test::read_text(dir.path / "export.json"));
+  CHECK(j.at("format") == "tetfsi-export 1");
+  CHECK(j.at("scene") == "cube");
+  REQUIRE(j.at("frames").size() == 3);
+  const ExportedFrame back = exported_frame_from_json(j.at("frames")[2]);
+  CHECK(to_json(back) == to_json(last));
+  CHECK(back.voxel_size == last.voxel_size);
+  CHECK(back.grids[0].bounds == last.grids[0].bounds);
+  // a frame of the same number replaces it; truncate keeps the frames before
+  ExportedFrame again = last;
+  again.step = 21;
+  manifest.add(again);
+  CHECK(manifest.frames().size() == 3);
+  CHECK(manifest.frames().back().step == 21);
+  manifest.truncate(1);
+  const nlohmann::json t = nlohmann::json::parse(test::read_text(dir.path / "export.json"));
+  REQUIRE(t.at("frames").size() == 1);
+  CHECK(t.at("frames")[0].at("frame") == 0);
+  CHECK(!fs::exists(dir.path / "export.json.tmp"));
+  CHECK_THROWS_AS(exported_frame_from_json(nlohmann::json{{"frame", 1}}), InputError);
+  // ply only, no fluid
+  request.vdb = false;
+  const ExportedFrame p = export_frame(dir.path, 5, 50, 0.5, surfaces, nullptr, request);
+  CHECK(p.vdb_file.empty());
+  CHECK(p.grids.empty());
+  CHECK(!fs::exists(dir.path / "vdb/fluid_000005.vdb"));
+}
+
+TEST_CASE("export: an unwritable folder is an InputError naming the file") {
+  TempDir dir("export_unwritable");
+  const mesh::VolumeMesh m = mesh::make_box(Vec3::Zero(), Vec3::Ones(), Vec3i(1, 1, 1));
+  const ExportSurface s = tet_boundary_surface(m.vertices, m.tets, MatX3(), VecX());
+  const fs::path nowhere = "/nonexistent_tetfsi_dir/sub";
+  auto one_line_naming = [](const std::string& msg, const std::string& name) {
+    CAPTURE(msg);
+    CHECK(msg.find(name) != std::string::npos);
+    CHECK(msg.find('\n') == std::string::npos);
+  };
+  one_line_naming(message_of<InputError>([&] { write_ply(nowhere / "s.ply", s); }), "s.ply");
+  const VoxelFrame v = voxel_frame_of(small_grid(), 290.0);
+  one_line_naming(message_of<InputError>([&] { write_vdb(nowhere / "f.vdb", v, {}); }), "f.vdb");
+  ExportManifest manifest(nowhere / "export.json", "x");
+  one_line_naming(message_of<InputError>([&] { manifest.add(ExportedFrame{}); }), "export.json");
+  // a folder that is a file
+  std::ofstream(dir.path / "file") << "x";
+  ExportRequest request;
+  request.ply = true;
+  one_line_naming(message_of<InputError>([&] {
+                    export_frame(dir.path / "file", 0, 0, 0.0, {{"s", s}}, nullptr, request);
+                  }),
+                  "file/ply");
 }
