@@ -33,10 +33,11 @@ namespace tetfsi::app {
 
 namespace {
 
-/// `file` read by a new `Reader`; its output stays valid as long as the reader.
+/// `file` read by a new `Reader`; its output stays valid as long as the reader. Without
+/// `may_be_empty`, a file without points is an error (a liquid's surface may have none yet).
 /// @throws InputError naming the file if it is missing or VTK cannot read it.
 template <class Reader>
-vtkSmartPointer<Reader> read_xml(const fs::path& file) {
+vtkSmartPointer<Reader> read_xml(const fs::path& file, bool may_be_empty = false) {
   std::error_code ec;
   if (!fs::is_regular_file(file, ec))
     throw InputError(
@@ -51,7 +52,8 @@ vtkSmartPointer<Reader> read_xml(const fs::path& file) {
     throw InputError(fmt::format("{}: VTK could not read the frame ({})", file.string(), e.what()));
   }
   vtkDataSet* out = reader->GetOutput();
-  if (!capture.first_message().empty() || out == nullptr || out->GetNumberOfPoints() == 0)
+  if (!capture.first_message().empty() || out == nullptr ||
+      (out->GetNumberOfPoints() == 0 && !may_be_empty))
     throw InputError(
         fmt::format("{}: VTK could not read the frame: {}", file.string(),
                     capture.first_message().empty() ? "no points" : capture.first_message()));
@@ -189,7 +191,7 @@ fluid::GridFrameFields read_grid_fluid_frame(const fs::path& vti) {
 }
 
 ExportSurface read_liquid_frame(const fs::path& vtp) {
-  const auto reader = read_xml<vtkXMLPolyDataReader>(vtp);
+  const auto reader = read_xml<vtkXMLPolyDataReader>(vtp, true);
   vtkPolyData* poly = reader->GetOutput();
   ExportSurface s;
   s.points = points_of(poly);

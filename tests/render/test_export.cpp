@@ -13,6 +13,11 @@
 
 #include <doctest/doctest.h>
 #include <fmt/format.h>
+#include <vtkCellArray.h>
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkXMLPolyDataWriter.h>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
@@ -251,7 +256,7 @@ TEST_CASE(
 
 TEST_CASE(
     "tetfsi export: a grid liquid's cells as voxels and its surface as a PLY facing out of "
-    "the water") {
+    "the water, an empty surface read as none") {
   TempDir dir("export_liquid");
   run_scene(dir.path, "dam_break.json",
             "--steps 10 --set output.every=10 --set fluid.grid.cells=[36,12,15]");
@@ -282,6 +287,19 @@ TEST_CASE(
   INFO("top triangles facing up " << up << ", down " << down);
   CHECK(up > 0);
   CHECK(down == 0);
+  // Before the first liquid arrives (a poured stream), its surface has no points: no error.
+  vtkNew<vtkPolyData> none;  // as the contour of a φ > 0 everywhere: points and cells, none
+  vtkNew<vtkPoints> no_points;
+  vtkNew<vtkCellArray> no_triangles;
+  none->SetPoints(no_points);
+  none->SetPolys(no_triangles);
+  vtkNew<vtkXMLPolyDataWriter> writer;
+  writer->SetInputData(none);
+  writer->SetFileName((dir.path / "none.vtp").c_str());
+  REQUIRE(writer->Write() == 1);
+  const app::ExportSurface empty = app::read_liquid_frame(dir.path / "none.vtp");
+  CHECK(empty.points.rows() == 0);
+  CHECK(empty.triangles.rows() == 0);
   // The .vdb: the liquid's level set beside the fog volumes.
   const app::VdbFileSummary vdb = app::read_vdb_summary(dir.path / "o" / frames[1].vdb_file);
   CHECK(std::any_of(vdb.grids.begin(), vdb.grids.end(),
