@@ -610,7 +610,7 @@ class FrameRenderer {
     m_window->AddRenderer(m_renderer);
     m_renderer->GradientBackgroundOn();
     if (colors.volume) {  // dark, so that the grey-white smoke shows
-      m_renderer->SetBackground(0.07, 0.08, 0.10);
+      m_renderer->SetBackground(k_background_dark[0], k_background_dark[1], k_background_dark[2]);
       m_renderer->SetBackground2(0.25, 0.27, 0.31);
     } else {
       m_renderer->SetBackground(1.0, 1.0, 1.0);

@@ -11,9 +11,10 @@
 ///     - the smoke (a scene that emits smoke): a volume rendering of `smoke_density`, grey to
 ///       white smoke on a dark background, its opacity rising from 0 to the largest smoke
 ///       density the scene emits. A tet frame (.vtu) is sampled onto voxels of the scene's
-///       fluid.mesh.surface_size (io/export.hpp's voxelize); a grid frame's (.vti) cells are
-///       the voxels;
-///     - a liquid (liquid.pvd): its surface, water blue and semi-opaque;
+///       fluid.mesh.surface_size (io/export.hpp's voxelize) and smoothed by one voxel; a grid
+///       frame's (.vti) cells are the voxels;
+///     - a liquid (liquid.pvd): its surface, water blue and semi-opaque, closed along the
+///       box's walls (the contour of the grid frame's φ);
 ///     - otherwise a plane slice coloured by a fluid array (default `pressure`);
 ///  - on request (`RenderOptions::slice_view` or `slice`, or `color` naming another fluid
 ///    array than `smoke_density`) the slice instead: a plane (default normal z through the
