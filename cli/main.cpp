@@ -18,9 +18,11 @@
 ///   tetfsi bench bfgs [SCENE] [--json FILE] [--history FILE.csv] [--ratio R] [--time T]
 ///                     [--set k=v ...]
 ///   tetfsi quality FILE.vtu [--json FILE] [--png FILE]
-///   tetfsi render OUT [--step N | --all] [--slice AXIS=VALUE] [--color ARRAY] [-o FILE.png]
+///   tetfsi render OUT [--step N | --all] [--slice [AXIS=VALUE]] [--color ARRAY] [-o FILE.png]
 ///                     [--body-color ARRAY] [--range MIN,MAX] [--body-opacity A] [--zoom F]
 ///                     [--size WxH] [--movie FILE.mp4]
+///   tetfsi export OUT [--vdb] [--ply] [--voxel-size S] [--subsamples N] [--threshold T]
+///                     [--frames A:B] [--to DIR]
 ///   tetfsi plot OUT [-o FILE.png]
 ///   tetfsi scene --keys [--markdown]
 ///   tetfsi columns
@@ -62,6 +64,7 @@
 #include "core/ranks.hpp"
 #include "io/output.hpp"
 #include "io/stats_columns.hpp"
+#include "render/export_cmd.hpp"
 #include "render/plot.hpp"
 #include "render/quality_cmd.hpp"
 #include "render/render.hpp"
@@ -646,19 +649,39 @@ CLI::Validator size_validator() {
       "");
 }
 
+/// `tetfsi render`'s command line, turned into RenderOptions by render_options_of.
+struct RenderCli {
+  std::string out, png, slice, size = "1280x720", movie;
+  std::vector<double> range;
+  int step = 0;
+  tetfsi::app::RenderOptions render;
+  CLI::Option* step_opt = nullptr;
+  CLI::Option* slice_opt = nullptr;
+};
+
+/// The options as parsed, completed: --step, --slice with or without a plane, --range, --size.
+tetfsi::app::RenderOptions render_options_of(const RenderCli& o) {
+  tetfsi::app::RenderOptions r = o.render;
+  if (*o.step_opt) r.step = o.step;
+  r.slice_view = o.slice_opt->count() > 0;
+  if (!o.slice.empty()) r.slice = tetfsi::app::parse_slice(o.slice);
+  if (o.range.size() == 2) r.range = std::array<double, 2>{o.range[0], o.range[1]};
+  const size_t x = o.size.find('x');
+  r.width = std::stoi(o.size.substr(0, x));
+  r.height = std::stoi(o.size.substr(x + 1));
+  r.output = o.png;
+  r.movie = o.movie;
+  return r;
+}
+
 Command add_render(CLI::App& app) {
-  struct Opt {
-    std::string out, png, slice, size = "1280x720", movie;
-    std::vector<double> range;
-    int step = 0;
-    tetfsi::app::RenderOptions render;
-    CLI::Option* step_opt = nullptr;
-  };
+  using Opt = RenderCli;
   auto o = std::make_shared<Opt>();
   CLI::App* cmd = app.add_subcommand(
       "render",
       "a picture of a run's frame, headless (VTK's renderer, off screen): the bodies coloured by "
-      "a body array, a slice of the fluid, colour bars, the scene's name and the time");
+      "a body array; the smoke as a volume, a liquid's surface, or a slice of the fluid (--slice); "
+      "colour bars, the scene's name and the time");
   cmd->add_option("OUT", o->out, "the output folder of a run (`tetfsi run SCENE --out OUT`)")
       ->required()
       ->type_name("DIR");
@@ -667,19 +690,24 @@ Command add_render(CLI::App& app) {
   auto* all =
       cmd->add_flag("--all", o->render.all, "every frame, one PNG each (then -o names a folder)");
   o->step_opt->excludes(all);
-  cmd->add_option("--slice", o->slice,
-                  "the fluid slice: normal to AXIS through VALUE m (default: z through the "
-                  "inflow patches' centre, else the box centre)")
-      ->type_name("AXIS=VALUE");
+  o->slice_opt = cmd->add_option("--slice", o->slice,
+                                 "a slice of the fluid instead of the smoke's volume (or the "
+                                 "liquid's surface alone): normal to AXIS through VALUE m "
+                                 "(without a value: z through the inflow patches' centre, else "
+                                 "the box centre; y with a liquid)")
+                     ->expected(0, 1)
+                     ->type_name("[AXIS=VALUE]");
   cmd->add_option("--color", o->render.color,
-                  "the slice's fluid array (default: smoke_density if the scene emits smoke, "
-                  "else pressure; vectors by magnitude); a body array colours the bodies")
+                  "the fluid array (default: smoke_density if the scene emits smoke, drawn as "
+                  "a volume, else pressure; another fluid array than smoke_density is drawn "
+                  "on the slice; vectors by magnitude); a body array colours the bodies")
       ->type_name("ARRAY");
   cmd->add_option("--body-color", o->render.body_color,
                   "the bodies' array (default: von_mises_stress)")
       ->type_name("ARRAY");
   cmd->add_option("--range", o->range,
-                  "the slice's colour range (default: fixed per run, docs/user/pictures.md)")
+                  "the slice's colour range or the smoke volume's opacity range (default: "
+                  "fixed per run, docs/user/pictures.md)")
       ->delimiter(',')
       ->expected(2)
       ->type_name("MIN,MAX");
@@ -702,17 +730,52 @@ Command add_render(CLI::App& app) {
   cmd->add_option("--movie", o->movie,
                   "with --all: assemble the PNGs into this movie with ffmpeg (if installed)")
       ->type_name("FILE.mp4");
+  return {cmd,
+          [o] { return tetfsi::app::render_command(o->out, render_options_of(*o), std::cout); }};
+}
+
+Command add_export(CLI::App& app) {
+  struct Opt {
+    std::string out, to;
+    double voxel_size = 0.0;
+    tetfsi::app::ExportOptions exp;
+    CLI::Option* voxel_opt = nullptr;
+  };
+  auto o = std::make_shared<Opt>();
+  CLI::App* cmd = app.add_subcommand(
+      "export",
+      "a run's frames as files for renderers (Blender, Houdini): the fluid as OpenVDB volumes "
+      "(OUT/vdb/fluid_<frame>.vdb), the bodies' and the liquid's surfaces as PLY meshes "
+      "(OUT/ply/<body>_<frame>.ply) and the manifest OUT/export.json; the run's files are not "
+      "changed");
+  cmd->add_option("OUT", o->out, "the output folder of a run (`tetfsi run SCENE --out OUT`)")
+      ->required()
+      ->type_name("DIR");
+  cmd->add_flag("--vdb", o->exp.vdb, "the fluid's volumes (with neither --vdb nor --ply: both)");
+  cmd->add_flag("--ply", o->exp.ply, "the surfaces: each body's boundary, the liquid's surface");
+  o->voxel_opt = cmd->add_option("--voxel-size", o->voxel_size,
+                                 "the tet fluid's voxel edge in m (default: the scene's "
+                                 "fluid.mesh.surface_size); a grid fluid exports its cells and "
+                                 "ignores --voxel-size and --subsamples")
+                     ->type_name("S");
+  cmd->add_option("--subsamples", o->exp.subsamples,
+                  "each voxel of the tet fluid averages N^3 samples (1..8)")
+      ->type_name("N")
+      ->capture_default_str();
+  cmd->add_option("--threshold", o->exp.smoke_threshold,
+                  "voxels with smoke density above T (kg/m^3) are active in the .vdb")
+      ->type_name("T")
+      ->capture_default_str();
+  cmd->add_option("--frames", o->exp.frames,
+                  "the run's frames by index from 0 (the order of OUT/<body>.pvd), half-open: "
+                  "A:B is A to B-1; also A:, :B, A (default: all)")
+      ->type_name("A:B");
+  cmd->add_option("--to", o->to, "write vdb/, ply/ and export.json here instead of into OUT")
+      ->type_name("DIR");
   return {cmd, [o] {
-            tetfsi::app::RenderOptions& r = o->render;
-            if (*o->step_opt) r.step = o->step;
-            if (!o->slice.empty()) r.slice = tetfsi::app::parse_slice(o->slice);
-            if (o->range.size() == 2) r.range = std::array<double, 2>{o->range[0], o->range[1]};
-            const size_t x = o->size.find('x');
-            r.width = std::stoi(o->size.substr(0, x));
-            r.height = std::stoi(o->size.substr(x + 1));
-            r.output = o->png;
-            r.movie = o->movie;
-            return tetfsi::app::render_command(o->out, r, std::cout);
+            if (*o->voxel_opt) o->exp.voxel_size = o->voxel_size;
+            o->exp.to = o->to;
+            return tetfsi::app::export_command(o->out, o->exp, std::cout);
           }};
 }
 
@@ -777,6 +840,8 @@ const char* const k_footer =
     "  tetfsi columns        # every stats.csv column with its unit\n"
     "  tetfsi render out/smoke_sheets                # the last frame: a PNG\n"
     "  tetfsi render out/smoke_sheets --all --movie smoke.mp4\n"
+    "  tetfsi export out/smoke_sheets --frames 40:   # OpenVDB + PLY for Blender: OUT/vdb, "
+    "OUT/ply\n"
     "  tetfsi plot out/smoke_sheets                  # stats.csv as plots: OUT/stats.png\n"
     "  tetfsi run data/scenes/toy.json --checkpoint-every 50 --wall-time 11:30:00\n"
     "  tetfsi resume out/toy --steps 400             # go on from the newest checkpoint\n"
@@ -837,11 +902,8 @@ int main(int argc, char** argv) {
   for (auto add : {add_bench_solvers, add_bench_remesh, add_bench_step, add_bench_threads,
                    add_bench_scaling, add_bench_coupled, add_bench_bfgs, add_bench_integrators})
     commands.push_back(add(*bench));
-  commands.push_back(add_quality(app));
-  commands.push_back(add_render(app));
-  commands.push_back(add_plot(app));
-  commands.push_back(add_scene(app));
-  commands.push_back(add_columns(app));
+  for (auto add : {add_quality, add_render, add_export, add_plot, add_scene, add_columns})
+    commands.push_back(add(app));
 
   try {
     app.parse(argc, argv);

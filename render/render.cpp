@@ -23,30 +23,40 @@
 #include <vtkCamera.h>
 #include <vtkCellData.h>
 #include <vtkCellDataToPointData.h>
+#include <vtkColorTransferFunction.h>
+#include <vtkContourFilter.h>
 #include <vtkCubeSource.h>
 #include <vtkCutter.h>
 #include <vtkDataArray.h>
 #include <vtkDataArraySelection.h>
 #include <vtkDataSet.h>
 #include <vtkDataSetSurfaceFilter.h>
+#include <vtkDoubleArray.h>
 #include <vtkErrorCode.h>
+#include <vtkFloatArray.h>
 #include <vtkImageData.h>
 #include <vtkLookupTable.h>
 #include <vtkMatrix4x4.h>
 #include <vtkNew.h>
 #include <vtkOutlineSource.h>
 #include <vtkPNGWriter.h>
+#include <vtkPiecewiseFunction.h>
 #include <vtkPlane.h>
 #include <vtkPlaneSource.h>
 #include <vtkPointData.h>
+#include <vtkPolyData.h>
 #include <vtkPolyDataMapper.h>
 #include <vtkProperty.h>
+#include <vtkRectilinearGrid.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkScalarBarActor.h>
+#include <vtkSmartVolumeMapper.h>
 #include <vtkTextActor.h>
 #include <vtkTextProperty.h>
 #include <vtkUnstructuredGrid.h>
+#include <vtkVolume.h>
+#include <vtkVolumeProperty.h>
 #include <vtkWindowToImageFilter.h>
 #include <vtkXMLImageDataReader.h>
 #include <vtkXMLPolyDataReader.h>
@@ -55,10 +65,13 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "io/export.hpp"
 #include "io/output.hpp"
 #include "mesh/io.hpp"
 #include "mesh/vtk_messages.hpp"
+#include "render/frame_data.hpp"
 #include "render/headless_display.hpp"
+#include "render/run_folder.hpp"
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
@@ -68,226 +81,6 @@ namespace tetfsi::app {
 namespace {
 
 constexpr const char* kAxisNames[3] = {"x", "y", "z"};
-
-// ---- what a run wrote ------------------------------------------------------------------------
-
-/// The files of one frame (one step).
-struct FrameFiles {
-  int step = 0;
-  double time = 0.0;
-  fs::path fluid;                ///< "" if the frame has no fluid mesh
-  fs::path liquid;               ///< the liquid's surface (liquid.pvd), "" if none
-  std::vector<fs::path> bodies;  ///< per body, in body order
-};
-
-/// An axis-aligned box (m).
-struct Box {
-  Vec3 lo = Vec3::Zero(), hi = Vec3::Ones();
-  Vec3 center() const { return 0.5 * (lo + hi); }
-};
-
-/// A run's output folder, read from scene.resolved.json and the `.pvd` collections.
-struct RunIndex {
-  fs::path dir;
-  std::string name;
-  json scene;
-  std::vector<std::string> body_names;  ///< file-safe names, in body order
-  std::vector<bool> kinematic;          ///< per body: moved rigidly (no stress to colour)
-  bool has_fluid = false;
-  bool has_liquid = false;         ///< a free surface: liquid.pvd
-  std::optional<Box> domain;       ///< fluid.domain
-  double emitted_smoke = 0.0;      ///< largest smoke density of an inflow patch or source
-  std::optional<double> jet_z;     ///< mean height of the inflow patches' centres (m)
-  std::vector<FrameFiles> frames;  ///< by step
-
-  const FrameFiles* find(int step) const {
-    for (const FrameFiles& f : frames)
-      if (f.step == step) return &f;
-    return nullptr;
-  }
-};
-
-/// The (time, file) entries of a `.pvd`, files resolved against its folder.
-std::vector<std::pair<double, fs::path>> read_pvd(const fs::path& pvd) {
-  std::ifstream f(pvd);
-  if (!f) throw InputError(fmt::format("cannot read '{}': {}", pvd.string(), std::strerror(errno)));
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string text = ss.str();
-  static const std::regex dataset(R"(<DataSet\b[^>]*>)");
-  static const std::regex timestep(R"(\btimestep\s*=\s*"([^"]*)\")");
-  static const std::regex file(R"(\bfile\s*=\s*"([^"]*)\")");
-  std::vector<std::pair<double, fs::path>> out;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), dataset);
-       it != std::sregex_iterator(); ++it) {
-    const std::string tag = it->str();
-    std::smatch t, fm;
-    if (!std::regex_search(tag, t, timestep) || !std::regex_search(tag, fm, file))
-      throw InputError(fmt::format("{}: a DataSet without timestep or file: {}", pvd.string(),
-                                   tag.substr(0, 120)));
-    double time = 0.0;
-    try {
-      time = std::stod(t[1].str());
-    } catch (const std::exception&) {
-      throw InputError(fmt::format("{}: timestep '{}' is not a number", pvd.string(), t[1].str()));
-    }
-    out.emplace_back(time, pvd.parent_path() / fm[1].str());
-  }
-  return out;
-}
-
-/// The step in a frame's file name (`sheet_000050.vtu` → 50), or −1.
-int step_of(const fs::path& file) {
-  static const std::regex re(R"(_(\d+)$)");
-  std::smatch m;
-  const std::string stem = file.stem().string();
-  if (!std::regex_search(stem, m, re) || m[1].length() > 9) return -1;
-  return std::stoi(m[1].str());
-}
-
-/// The numbers of `vec` as a Vec3 (or a 2-vector padded with 0).
-Vec3 vec3_of(const json& v) {
-  Vec3 x = Vec3::Zero();
-  for (size_t i = 0; i < std::min<size_t>(3, v.size()); ++i) x(i) = v[i].get<double>();
-  return x;
-}
-
-namespace {
-
-/// @throws InputError unless `dir` is a folder.
-void check_run_folder(const fs::path& dir) {
-  std::error_code ec;
-  if (!fs::exists(dir, ec))
-    throw InputError(fmt::format(
-        "no such output folder '{}': give the folder a run wrote (`tetfsi run SCENE --out {}`)",
-        dir.string(), dir.string()));
-  if (!fs::is_directory(dir, ec))
-    throw InputError(
-        fmt::format("'{}' is not a folder: give the output folder of a run (OUT of "
-                    "`tetfsi run SCENE --out OUT`)",
-                    dir.string()));
-}
-
-/// The run's resolved scene (scene.resolved.json) into `run.scene`.
-void read_resolved_scene(const fs::path& dir, RunIndex& run) {
-  std::error_code ec;
-  run.dir = dir;
-  const fs::path resolved = dir / "scene.resolved.json";
-  if (!fs::exists(resolved, ec))
-    throw InputError(
-        fmt::format("'{}' holds no run: no scene.resolved.json there; give the "
-                    "folder `tetfsi run SCENE --out OUT` wrote",
-                    dir.string()));
-  try {
-    std::ifstream f(resolved);
-    run.scene = json::parse(f);
-  } catch (const std::exception& e) {
-    throw InputError(
-        fmt::format("{}: not readable JSON ({})", resolved.string(), one_line(e.what())));
-  }
-}
-
-/// What the pictures need of the scene: the bodies' names, the fluid box, the jet's height,
-/// the smoke it emits.
-void read_scene_facts(const fs::path& dir, RunIndex& run) {
-  const json& s = run.scene;
-  run.name = s.value("name", dir.filename().string());
-  if (s.contains("bodies"))
-    for (const json& b : s["bodies"]) {
-      run.body_names.push_back(file_safe_name(b.value("name", "")));
-      run.kinematic.push_back(b.contains("kinematic") && b["kinematic"].is_object());
-    }
-  if (s.contains("fluid") && s["fluid"].is_object()) {
-    run.has_fluid = true;
-    const json& fl = s["fluid"];
-    if (fl.contains("domain")) {
-      const json& d = fl["domain"];
-      run.domain = Box{vec3_of(d.at("lo")), vec3_of(d.at("hi"))};
-      double z_sum = 0.0;
-      int z_count = 0;
-      for (const json& p : d.value("patches", json::array())) {
-        if (p.value("kind", "") != "inflow") continue;
-        run.emitted_smoke = std::max(run.emitted_smoke, p.value("smoke", 0.0));
-        const std::string side = p.value("side", "");
-        if (side.size() != 2 || side[1] == 'z') continue;  // a patch on a z side: no height
-        z_sum += 0.5 * (p.at("lo")[1].get<double>() + p.at("hi")[1].get<double>());
-        ++z_count;
-      }
-      if (z_count > 0) run.jet_z = z_sum / z_count;
-    }
-    for (const json& src : fl.value("sources", json::array()))
-      run.emitted_smoke = std::max(run.emitted_smoke, src.value("smoke", 0.0));
-  }
-}
-
-/// The frames: the steps of the bodies' collections (the fluid's without bodies), each with
-/// its files; a frame not every collection lists yet is left out.
-void read_frames(const fs::path& dir, RunIndex& run) {
-  std::error_code ec;
-  std::map<int, FrameFiles> by_step;
-  auto add_stream = [&](const fs::path& pvd, int body) {
-    if (!fs::exists(pvd, ec))
-      throw InputError(
-          fmt::format("{}: missing; the run in '{}' wrote no frames of it (was it "
-                      "stopped before its first frame?)",
-                      pvd.string(), dir.string()));
-    for (const auto& [time, file] : read_pvd(pvd)) {
-      const int step = step_of(file);
-      if (step < 0) continue;
-      FrameFiles& fr = by_step[step];
-      fr.step = step;
-      fr.time = time;
-      if (body == -2)
-        fr.liquid = file;
-      else if (body < 0)
-        fr.fluid = file;
-      else {
-        fr.bodies.resize(run.body_names.size());
-        fr.bodies[static_cast<size_t>(body)] = file;
-      }
-    }
-  };
-  for (size_t b = 0; b < run.body_names.size(); ++b)
-    add_stream(dir / (run.body_names[b] + ".pvd"), static_cast<int>(b));
-  if (run.has_fluid) add_stream(dir / "fluid.pvd", -1);
-  run.has_liquid = run.has_fluid && fs::exists(dir / "liquid.pvd", ec);
-  if (run.has_liquid) add_stream(dir / "liquid.pvd", -2);
-  for (auto& [step, fr] : by_step) {
-    fr.bodies.resize(run.body_names.size());
-    // A frame the bodies' collections do not all list (a frame being written) is left out.
-    const bool complete = std::all_of(fr.bodies.begin(), fr.bodies.end(),
-                                      [](const fs::path& p) { return !p.empty(); });
-    if (complete && (!fr.bodies.empty() || !fr.fluid.empty())) run.frames.push_back(fr);
-  }
-  if (run.frames.empty())
-    throw InputError(
-        fmt::format("'{}' has no frames yet: its .pvd collections list none", dir.string()));
-}
-
-}  // namespace
-
-RunIndex read_run(const fs::path& dir) {
-  check_run_folder(dir);
-  RunIndex run;
-  read_resolved_scene(dir, run);
-  read_scene_facts(dir, run);
-  read_frames(dir, run);
-  return run;
-}
-
-/// "0, 2, 4, ..., 98, 100 (51 frames)" for the message of a missing step.
-std::string list_steps(const RunIndex& run) {
-  std::vector<int> s;
-  for (const FrameFiles& f : run.frames) s.push_back(f.step);
-  auto join = [](auto begin, auto end) {
-    std::string out;
-    for (auto it = begin; it != end; ++it) out += (out.empty() ? "" : ", ") + std::to_string(*it);
-    return out;
-  };
-  if (s.size() <= 8) return join(s.begin(), s.end());
-  return fmt::format("{}, ..., {} ({} frames)", join(s.begin(), s.begin() + 3),
-                     join(s.end() - 2, s.end()), s.size());
-}
 
 // ---- reading frames ----------------------------------------------------------------------------
 
@@ -451,6 +244,15 @@ const std::vector<std::array<double, 3>> k_cool_warm = {{0.230, 0.299, 0.754},
 /// Bodies: pale blue-grey rubber turning orange and red under stress.
 const std::vector<std::array<double, 3>> k_body = {
     {0.78, 0.82, 0.88}, {0.96, 0.80, 0.45}, {0.90, 0.42, 0.12}, {0.62, 0.05, 0.05}};
+/// The smoke's volume: thin smoke grey, the emitted density white; its opacity per
+/// k_smoke_unit × the box's largest side at the top of the range (a jet of a tenth of the box
+/// across at the emitted density hides most of what is behind it).
+constexpr std::array<double, 3> k_smoke_grey = {0.55, 0.57, 0.62};
+constexpr double k_smoke_opacity = 0.8, k_smoke_unit = 0.025;
+/// The dark background behind the smoke (its bottom colour; the colour bar's 0).
+constexpr std::array<double, 3> k_background_dark = {0.07, 0.08, 0.10};
+/// The liquid's surface: the bodies in it show through.
+constexpr double k_liquid_opacity = 0.7;
 
 // ---- the scene's actors ----------------------------------------------------------------------
 
@@ -591,11 +393,12 @@ void write_window_png(vtkRenderWindow* window, const fs::path& png) {
 
 /// Choose the arrays and check they exist, from the first frame to draw.
 struct ColorChoice {
-  std::string fluid;   ///< the slice's array ("" : no slice)
-  std::string bodies;  ///< the bodies' array ("" : plain colour)
+  std::string fluid;    ///< the slice's or the volume's array ("" : neither)
+  std::string bodies;   ///< the bodies' array ("" : plain colour)
+  bool volume = false;  ///< the fluid as the smoke's volume (of `fluid`), not a slice
 };
 
-ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const FrameFiles& frame,
+ColorChoice choose_arrays(const RunIndex& run, const RenderOptions& opt, const FrameFiles& frame,
                           FrameReader& fluid_reader, FrameReader& body_reader) {
   ArrayInfo fluid, bodies;
   if (!frame.fluid.empty()) fluid = arrays_of(fluid_reader.read(frame.fluid, ""));
@@ -634,7 +437,17 @@ ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const F
   if (slice && !fluid.has(c.fluid)) c.fluid.clear();
   // a liquid: its surface and no slice (the slice would hide it and show the air's p = 0),
   // unless --slice asks for one
-  if (run.has_liquid && !opt.slice) c.fluid.clear();
+  if (run.has_liquid && !opt.slice && !opt.slice_view) c.fluid.clear();
+  return c;
+}
+
+/// The arrays (choose_arrays), and whether the fluid is drawn as the smoke's volume: a scene
+/// that emits smoke, its smoke_density to draw, no liquid, and no slice asked for.
+ColorChoice choose_colors(const RunIndex& run, const RenderOptions& opt, const FrameFiles& frame,
+                          FrameReader& fluid_reader, FrameReader& body_reader) {
+  ColorChoice c = choose_arrays(run, opt, frame, fluid_reader, body_reader);
+  c.volume = c.fluid == "smoke_density" && run.emitted_smoke > 0.0 && !run.has_liquid &&
+             !opt.slice && !opt.slice_view;
   return c;
 }
 
@@ -666,24 +479,150 @@ void fit_box(vtkCamera* cam, const Box& box, double aspect, std::array<double, 2
   }
 }
 
+/// The sampling of a tet fluid for the smoke's volume: voxels of the scene's
+/// fluid.mesh.surface_size (the mesh's finest cells), each the mean of 2³ samples.
+VoxelOptions smoke_voxels(const RunIndex& run) {
+  VoxelOptions v;
+  const json& fl = run.scene.value("fluid", json::object());
+  const json& m = fl.is_object() ? fl.value("mesh", json::object()) : json::object();
+  if (m.is_object() && m.contains("surface_size") && m["surface_size"].is_number())
+    v.voxel_size = m["surface_size"].get<double>();
+  else if (run.domain)
+    v.voxel_size = (run.domain->hi - run.domain->lo).maxCoeff() / 64.0;
+  v.subsamples = 2;
+  return v;
+}
+
+/// `v` (dims voxels, x fastest) filtered by [1 2 1] / 4 along each axis (the edges
+/// repeated): the tet fluid's piecewise-constant cells, sampled, no longer show as blotches.
+VecX smooth_121(const VecX& v, const std::array<Index, 3>& dims) {
+  VecX a = v, b(v.size());
+  const Index stride[3] = {1, dims[0], dims[0] * dims[1]};
+  for (int axis = 0; axis < 3; ++axis) {
+    for (Index c = 0; c < a.size(); ++c) {
+      const Index i = (c / stride[axis]) % dims[axis];
+      const Index lo = i > 0 ? c - stride[axis] : c, hi = i + 1 < dims[axis] ? c + stride[axis] : c;
+      b[c] = 0.25 * a[lo] + 0.5 * a[c] + 0.25 * a[hi];
+    }
+    std::swap(a, b);
+  }
+  return a;
+}
+
+/// The smoke density of the fluid frame `file` on voxels, as VTK image data with a point at
+/// each voxel's centre: a grid frame's (.vti) cells as they are, a tet frame (.vtu) sampled
+/// by voxelize.
+vtkSmartPointer<vtkImageData> smoke_image(const fs::path& file, FrameReader& reader,
+                                          const VoxelOptions& voxels) {
+  auto image = vtkSmartPointer<vtkImageData>::New();
+  if (file.extension() == ".vti") {
+    auto* grid = vtkImageData::SafeDownCast(reader.read(file, "smoke_density"));
+    vtkDataArray* density = grid ? grid->GetCellData()->GetArray("smoke_density") : nullptr;
+    if (density == nullptr)
+      throw InputError(fmt::format("{}: no cell array 'smoke_density'", file.string()));
+    int dims[3];
+    double origin[3], spacing[3];
+    grid->GetDimensions(dims);
+    grid->GetOrigin(origin);
+    grid->GetSpacing(spacing);
+    image->SetDimensions(std::max(dims[0] - 1, 1), std::max(dims[1] - 1, 1),
+                         std::max(dims[2] - 1, 1));
+    image->SetOrigin(origin[0] + 0.5 * spacing[0], origin[1] + 0.5 * spacing[1],
+                     origin[2] + 0.5 * spacing[2]);
+    image->SetSpacing(spacing);
+    image->GetPointData()->SetScalars(density);
+    return image;
+  }
+  const VoxelFrame v = voxelize(read_tet_fluid_frame(file, true), voxels);
+  const VecX smooth = smooth_121(v.density, v.dims);
+  image->SetDimensions(static_cast<int>(v.dims[0]), static_cast<int>(v.dims[1]),
+                       static_cast<int>(v.dims[2]));
+  image->SetOrigin(v.origin.data());
+  image->SetSpacing(v.spacing.data());
+  vtkNew<vtkFloatArray> density;
+  density->SetName("smoke_density");
+  density->SetNumberOfTuples(v.size());
+  for (Index i = 0; i < v.size(); ++i) density->SetValue(i, static_cast<float>(smooth[i]));
+  image->GetPointData()->SetScalars(density);
+  return image;
+}
+
+/// The liquid's closed surface from a grid frame's φ (cell array `phi`, < 0 in the liquid):
+/// the contour φ = 0 over the cell centres and a layer of points on the box's walls where φ
+/// is at least a little positive (air), so that the surface closes along the walls and the
+/// floor (the run's liquid.vtp, a free surface, is open there). Empty if `grid` has no φ.
+vtkSmartPointer<vtkPolyData> closed_liquid_surface(vtkImageData* grid) {
+  vtkDataArray* phi = grid->GetCellData()->GetArray("phi");
+  if (phi == nullptr) return vtkSmartPointer<vtkPolyData>::New();
+  int dims[3];
+  double origin[3], h[3];
+  grid->GetDimensions(dims);
+  grid->GetOrigin(origin);
+  grid->GetSpacing(h);
+  const int n[3] = {dims[0] - 1, dims[1] - 1, dims[2] - 1};  // cells
+  vtkNew<vtkRectilinearGrid> padded;
+  padded->SetDimensions(n[0] + 2, n[1] + 2, n[2] + 2);
+  for (int a = 0; a < 3; ++a) {
+    vtkNew<vtkDoubleArray> c;
+    c->SetNumberOfTuples(n[a] + 2);
+    c->SetValue(0, origin[a]);
+    for (int i = 0; i < n[a]; ++i) c->SetValue(i + 1, origin[a] + (i + 0.5) * h[a]);
+    c->SetValue(n[a] + 1, origin[a] + n[a] * h[a]);
+    (a == 0   ? padded->SetXCoordinates(c)
+     : a == 1 ? padded->SetYCoordinates(c)
+              : padded->SetZCoordinates(c));
+  }
+  const double air = 1e-3 * std::min({h[0], h[1], h[2]});
+  vtkNew<vtkDoubleArray> values;
+  values->SetName("phi");
+  values->SetNumberOfTuples(vtkIdType(n[0] + 2) * (n[1] + 2) * (n[2] + 2));
+  vtkIdType p = 0;
+  for (int k = 0; k < n[2] + 2; ++k)
+    for (int j = 0; j < n[1] + 2; ++j)
+      for (int i = 0; i < n[0] + 2; ++i, ++p) {
+        const int ci = std::clamp(i - 1, 0, n[0] - 1), cj = std::clamp(j - 1, 0, n[1] - 1),
+                  ck = std::clamp(k - 1, 0, n[2] - 1);
+        const double v = phi->GetComponent(ci + vtkIdType(n[0]) * (cj + vtkIdType(n[1]) * ck), 0);
+        const bool wall =
+            i == 0 || j == 0 || k == 0 || i == n[0] + 1 || j == n[1] + 1 || k == n[2] + 1;
+        values->SetValue(p, wall ? std::max(v, air) : v);
+      }
+  padded->GetPointData()->SetScalars(values);
+  vtkNew<vtkContourFilter> contour;
+  contour->SetInputData(padded);
+  contour->SetValue(0, 0.0);
+  contour->ComputeNormalsOn();
+  contour->ComputeScalarsOff();
+  contour->Update();
+  return contour->GetOutput();
+}
+
 /// Everything drawn: one window reused for every frame.
 class FrameRenderer {
  public:
   FrameRenderer(const RunIndex& run, const RenderOptions& opt, const ColorChoice& colors,
                 const SlicePlane& slice, const Box& view_box,
                 const std::array<double, 2>& fluid_range, const std::array<double, 2>& body_range)
-      : m_run(run), m_opt(opt), m_colors(colors), m_slice(slice) {
+      : m_run(run), m_opt(opt), m_colors(colors), m_slice(slice), m_voxels(smoke_voxels(run)) {
     m_window->SetOffScreenRendering(1);
     m_window->SetSize(opt.width, opt.height);
     m_window->SetMultiSamples(0);
     m_window->AddRenderer(m_renderer);
     m_renderer->GradientBackgroundOn();
-    m_renderer->SetBackground(1.0, 1.0, 1.0);
-    m_renderer->SetBackground2(0.84, 0.87, 0.91);
+    if (colors.volume) {  // dark, so that the grey-white smoke shows
+      m_renderer->SetBackground(k_background_dark[0], k_background_dark[1], k_background_dark[2]);
+      m_renderer->SetBackground2(0.25, 0.27, 0.31);
+    } else {
+      m_renderer->SetBackground(1.0, 1.0, 1.0);
+      m_renderer->SetBackground2(0.84, 0.87, 0.91);
+    }
     m_renderer->SetUseFXAA(true);
     if (run.domain) add_outline(view_box);  // a scene without fluid: no box
     add_obstacles(m_renderer, run.scene, view_box);
-    if (!colors.fluid.empty()) add_slice(view_box, fluid_range);
+    if (colors.volume)
+      add_volume(view_box, fluid_range);
+    else if (!colors.fluid.empty())
+      add_slice(view_box, fluid_range);
     if (!colors.bodies.empty()) {
       m_body_lut = make_lut(k_body, body_range);
       m_renderer->AddActor2D(make_bar(m_body_lut, unit_of(colors.bodies), true, opt.height));
@@ -696,44 +635,18 @@ class FrameRenderer {
 
   /// Draw `frame` and write it to `png`.
   RenderedFrame draw(const FrameFiles& frame, const fs::path& png) {
-    if (!m_colors.fluid.empty()) {
-      if (frame.fluid.empty()) {
-        m_slice_actor->VisibilityOff();
-      } else {
-        vtkDataSet* fluid = m_fluid_reader.read(frame.fluid, m_colors.fluid);
-        const bool on_cells = fluid->GetCellData()->GetArray(m_colors.fluid.c_str()) != nullptr;
-        if (on_cells) {
-          m_to_points->SetInputData(fluid);
-          m_to_points->PassCellDataOff();
-          m_cutter->SetInputConnection(m_to_points->GetOutputPort());
-        } else {
-          m_cutter->SetInputData(fluid);
-        }
-        m_slice_actor->VisibilityOn();
-      }
-    }
-    if (m_run.has_liquid) {
-      m_liquid_actor->SetVisibility(!frame.liquid.empty());
-      if (!frame.liquid.empty()) {
-        m_liquid_reader->SetFileName(frame.liquid.string().c_str());
-        m_liquid_reader->Update();
-      }
-    }
-    for (size_t b = 0; b < m_bodies.size(); ++b) {
-      Body& body = *m_bodies[b];
-      vtkDataSet* data = body.reader.read(frame.bodies[b], m_colors.bodies);
-      body.surface->SetInputData(data);
-      if (!m_colors.bodies.empty()) {
-        const bool on_cells = data->GetCellData()->GetArray(m_colors.bodies.c_str()) != nullptr;
-        if (on_cells)
-          body.mapper->SetScalarModeToUseCellFieldData();
-        else
-          body.mapper->SetScalarModeToUsePointFieldData();
-      }
-    }
+    if (m_colors.volume)
+      update_volume(frame);
+    else if (!m_colors.fluid.empty())
+      update_slice(frame);
+    update_liquid(frame);
+    update_bodies(frame);
     m_title->SetInput(
         fmt::format("{}    t = {:.3f} s    step {}", m_run.name, frame.time, frame.step).c_str());
     m_window->Render();
+    if (m_colors.volume)
+      logger().debug("smoke volume: vtkSmartVolumeMapper render mode {} (1 ray cast, 2 GPU)",
+                     m_volume_mapper->GetLastUsedRenderMode());
     write_window_png(m_window, png);
 
     RenderedFrame out;
@@ -748,6 +661,61 @@ class FrameRenderer {
   }
 
  private:
+  /// The slice of `frame`'s fluid (hidden if the frame has none).
+  void update_slice(const FrameFiles& frame) {
+    if (frame.fluid.empty()) {
+      m_slice_actor->VisibilityOff();
+      return;
+    }
+    vtkDataSet* fluid = m_fluid_reader.read(frame.fluid, m_colors.fluid);
+    const bool on_cells = fluid->GetCellData()->GetArray(m_colors.fluid.c_str()) != nullptr;
+    if (on_cells) {
+      m_to_points->SetInputData(fluid);
+      m_to_points->PassCellDataOff();
+      m_cutter->SetInputConnection(m_to_points->GetOutputPort());
+    } else {
+      m_cutter->SetInputData(fluid);
+    }
+    m_slice_actor->VisibilityOn();
+  }
+
+  /// The smoke of `frame` on voxels, handed to the volume's mapper (hidden without a fluid).
+  void update_volume(const FrameFiles& frame) {
+    m_volume->SetVisibility(!frame.fluid.empty());
+    if (!frame.fluid.empty())
+      m_volume_mapper->SetInputData(smoke_image(frame.fluid, m_fluid_reader, m_voxels));
+  }
+
+  /// The liquid's surface of `frame` (hidden if the frame has none).
+  void update_liquid(const FrameFiles& frame) {
+    if (!m_run.has_liquid) return;
+    m_liquid_actor->SetVisibility(!frame.liquid.empty());
+    if (frame.fluid.extension() == ".vti") {  // closed along the walls: see the water's body
+      auto* grid = vtkImageData::SafeDownCast(m_liquid_grid_reader.read(frame.fluid, "phi"));
+      m_liquid_mapper->SetInputData(closed_liquid_surface(grid));
+    } else if (!frame.liquid.empty()) {
+      m_liquid_reader->SetFileName(frame.liquid.string().c_str());
+      m_liquid_reader->Update();
+      m_liquid_mapper->SetInputConnection(m_liquid_reader->GetOutputPort());
+    }
+  }
+
+  /// The bodies' surfaces of `frame`, coloured by their array.
+  void update_bodies(const FrameFiles& frame) {
+    for (size_t b = 0; b < m_bodies.size(); ++b) {
+      Body& body = *m_bodies[b];
+      vtkDataSet* data = body.reader.read(frame.bodies[b], m_colors.bodies);
+      body.surface->SetInputData(data);
+      if (!m_colors.bodies.empty()) {
+        const bool on_cells = data->GetCellData()->GetArray(m_colors.bodies.c_str()) != nullptr;
+        if (on_cells)
+          body.mapper->SetScalarModeToUseCellFieldData();
+        else
+          body.mapper->SetScalarModeToUsePointFieldData();
+      }
+    }
+  }
+
   /// The fluid box's outline.
   void add_outline(const Box& box) {
     vtkNew<vtkOutlineSource> outline;
@@ -756,7 +724,10 @@ class FrameRenderer {
     mapper->SetInputConnection(outline->GetOutputPort());
     vtkNew<vtkActor> actor;
     actor->SetMapper(mapper);
-    actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
+    if (m_colors.volume)
+      actor->GetProperty()->SetColor(0.62, 0.64, 0.68);  // on the dark background
+    else
+      actor->GetProperty()->SetColor(0.25, 0.25, 0.28);
     actor->GetProperty()->SetLineWidth(1.5);
     m_renderer->AddActor(actor);
   }
@@ -786,16 +757,48 @@ class FrameRenderer {
     m_renderer->AddActor2D(make_bar(m_fluid_lut, unit_of(array, "\n"), false, m_opt.height));
   }
 
+  /// The smoke's volume (its voxels set per frame): grey to white, its opacity rising from
+  /// range[0] to range[1], in `k_smoke_opacity` per `k_smoke_unit` of the box's largest side;
+  /// a grey colour bar on the right.
+  void add_volume(const Box& box, const std::array<double, 2>& range) {
+    vtkNew<vtkColorTransferFunction> color;
+    color->AddRGBPoint(range[0], k_smoke_grey[0], k_smoke_grey[1], k_smoke_grey[2]);
+    color->AddRGBPoint(range[1], 1.0, 1.0, 1.0);
+    vtkNew<vtkPiecewiseFunction> opacity;  // quadratic: thin smoke lets the bodies show
+    for (int i = 0; i <= 10; ++i) {
+      const double u = 0.1 * i;
+      opacity->AddPoint(range[0] + u * (range[1] - range[0]), k_smoke_opacity * u * u);
+    }
+    m_volume_property->SetColor(color);
+    m_volume_property->SetScalarOpacity(opacity);
+    m_volume_property->SetScalarOpacityUnitDistance(k_smoke_unit * (box.hi - box.lo).maxCoeff());
+    m_volume_property->SetInterpolationTypeToLinear();
+    m_volume_property->ShadeOff();
+    m_volume_mapper->SetBlendModeToComposite();
+    // A still picture: the same samples in every frame, whatever the time a render takes.
+    m_volume_mapper->InteractiveAdjustSampleDistancesOff();
+    m_volume_mapper->AutoAdjustSampleDistancesOff();
+    m_volume->SetMapper(m_volume_mapper);
+    m_volume->SetProperty(m_volume_property);
+    m_renderer->AddVolume(m_volume);
+    m_fluid_lut = make_lut({k_background_dark, {1.0, 1.0, 1.0}}, range);
+    auto bar = make_bar(m_fluid_lut, unit_of(m_colors.fluid, "\n"), false, m_opt.height);
+    bar->GetTitleTextProperty()->SetColor(0.9, 0.9, 0.92);
+    bar->GetLabelTextProperty()->SetColor(0.9, 0.9, 0.92);
+    m_renderer->AddActor2D(bar);
+  }
+
   /// The liquid's surface (liquid/liquid_<step>.vtp): water blue, lit, a little glossy.
   void add_liquid() {
-    vtkNew<vtkPolyDataMapper> mapper;
-    mapper->SetInputConnection(m_liquid_reader->GetOutputPort());
-    mapper->ScalarVisibilityOff();
-    m_liquid_actor->SetMapper(mapper);
+    m_liquid_mapper->ScalarVisibilityOff();
+    m_liquid_actor->SetMapper(m_liquid_mapper);
     m_liquid_actor->GetProperty()->SetColor(0.22, 0.48, 0.85);
     m_liquid_actor->GetProperty()->SetAmbient(0.3);  // no black where it faces away
     m_liquid_actor->GetProperty()->SetSpecular(0.4);
     m_liquid_actor->GetProperty()->SetSpecularPower(30);
+    m_liquid_actor->GetProperty()->SetOpacity(k_liquid_opacity);  // the bodies show through
+    m_renderer->SetUseDepthPeeling(true);
+    m_renderer->SetMaximumNumberOfPeels(8);
     m_renderer->AddActor(m_liquid_actor);
   }
 
@@ -844,7 +847,9 @@ class FrameRenderer {
     m_subtitle->GetTextProperty()->SetColor(0.3, 0.3, 0.34);
     m_subtitle->SetDisplayPosition(margin(), h - 2 * margin() - title_size() - subtitle_size());
     std::string sub;
-    if (!m_colors.fluid.empty())
+    if (m_colors.volume)
+      sub = fmt::format("smoke volume: {}", m_colors.fluid);
+    else if (!m_colors.fluid.empty())
       sub = fmt::format("slice {} = {:.4g} m: {}", kAxisNames[m_slice.axis], m_slice.value,
                         m_colors.fluid);
     if (!m_colors.bodies.empty())
@@ -885,6 +890,7 @@ class FrameRenderer {
   const RenderOptions& m_opt;
   ColorChoice m_colors;
   SlicePlane m_slice;
+  VoxelOptions m_voxels;  ///< the tet fluid's sampling for the smoke's volume
   vtkNew<vtkRenderWindow> m_window;
   vtkNew<vtkRenderer> m_renderer;
   vtkSmartPointer<vtkLookupTable> m_fluid_lut, m_body_lut;
@@ -894,7 +900,12 @@ class FrameRenderer {
   vtkNew<vtkCutter> m_cutter;
   vtkNew<vtkPolyDataMapper> m_slice_mapper;
   vtkNew<vtkActor> m_slice_actor;
+  vtkNew<vtkSmartVolumeMapper> m_volume_mapper;
+  vtkNew<vtkVolumeProperty> m_volume_property;
+  vtkNew<vtkVolume> m_volume;
   vtkNew<vtkXMLPolyDataReader> m_liquid_reader;
+  FrameReader m_liquid_grid_reader;  ///< the grid frame's φ (the closed surface)
+  vtkNew<vtkPolyDataMapper> m_liquid_mapper;
   vtkNew<vtkActor> m_liquid_actor;
   std::vector<std::unique_ptr<Body>> m_bodies;
   vtkNew<vtkTextActor> m_title, m_subtitle;
@@ -1083,7 +1094,8 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
   report.width = opt.width;
   report.height = opt.height;
   report.slice = slice;
-  report.has_slice = !colors.fluid.empty();
+  report.has_slice = !colors.fluid.empty() && !colors.volume;
+  report.has_volume = colors.volume;
   report.color = colors.fluid;
   report.body_color = colors.bodies;
   if (!colors.fluid.empty()) report.color_range = fluid_range_of(run, opt, colors, probe_fluid);
@@ -1127,6 +1139,9 @@ RenderReport render_output(const fs::path& out_dir, const RenderOptions& opt) {
 int render_command(const fs::path& out_dir, const RenderOptions& opt, std::ostream& out) {
   const RenderReport r = render_output(out_dir, opt);
   std::string what;
+  if (r.has_volume)
+    what = fmt::format("smoke volume of {} (opacity from {:.4g} to {:.4g})", r.color,
+                       r.color_range[0], r.color_range[1]);
   if (r.has_slice)
     what = fmt::format("slice {} = {:.4g} m by {} in [{:.4g}, {:.4g}]", kAxisNames[r.slice.axis],
                        r.slice.value, r.color, r.color_range[0], r.color_range[1]);

@@ -7,16 +7,28 @@
 /// fluid), so that the frames of `--all` line up:
 ///  - the bodies' surfaces, coloured by a body array (default `von_mises_stress`), with a
 ///    horizontal colour bar at the bottom;
-///  - a plane slice of the fluid (default normal z through the centre of the inflow patches, or
-///    the box centre), coloured by a fluid array (default `smoke_density` if the scene emits
-///    smoke, else `pressure`; a vector array by its magnitude), with a colour bar on the
-///    right; tet frames (.vtu) and grid frames (.vti) alike;
+///  - the fluid, by default as
+///     - the smoke (a scene that emits smoke): a volume rendering of `smoke_density`, grey to
+///       white smoke on a dark background, its opacity rising from 0 to the largest smoke
+///       density the scene emits. A tet frame (.vtu) is sampled onto voxels of the scene's
+///       fluid.mesh.surface_size (io/export.hpp's voxelize) and smoothed by one voxel; a grid
+///       frame's (.vti) cells are the voxels;
+///     - a liquid (liquid.pvd): its surface, water blue and semi-opaque, closed along the
+///       box's walls (the contour of the grid frame's φ);
+///     - otherwise a plane slice coloured by a fluid array (default `pressure`);
+///  - on request (`RenderOptions::slice_view` or `slice`, or `color` naming another fluid
+///    array than `smoke_density`) the slice instead: a plane (default normal z through the
+///    centre of the inflow patches, or the box centre; with a liquid normal y through the box
+///    centre) coloured by a fluid array (default `smoke_density` if the scene emits smoke,
+///    else `pressure`; a vector array by its magnitude), with a colour bar on the right; tet
+///    frames (.vtu) and grid frames (.vti) alike;
 ///  - the box's outline, the obstacles (planes within the box, boxes), the scene's name, the
-///    time and step, and what the slice shows.
-/// Colour ranges are the same for every frame of a run: `smoke_density` from 0 to the largest
-/// smoke density the scene emits; any other array from its 0.5th to 99.5th percentile over
-/// the *last* frame (from 0 when it is non-negative there with its 0.5th percentile below a
-/// quarter of its 99.5th: stresses, speeds); `RenderOptions::range` overrides.
+///    time and step, and what the fluid shows.
+/// Colour ranges are the same for every frame of a run: `smoke_density` (the slice's colours
+/// and the volume's opacity) from 0 to the largest smoke density the scene emits; any other
+/// array from its 0.5th to 99.5th percentile over the *last* frame (from 0 when it is
+/// non-negative there with its 0.5th percentile below a quarter of its 99.5th: stresses,
+/// speeds); `RenderOptions::range` overrides.
 ///
 /// VTK stays in render.cpp; this header only has plain types.
 #include <array>
@@ -43,13 +55,16 @@ struct SlicePlane {
 SlicePlane parse_slice(const std::string& text);
 
 struct RenderOptions {
-  std::optional<int> step;                     ///< the frame of this step; default: the last frame
-  bool all = false;                            ///< every frame (then `output` is a folder)
-  std::optional<SlicePlane> slice;             ///< default: see the file comment
+  std::optional<int> step;          ///< the frame of this step; default: the last frame
+  bool all = false;                 ///< every frame (then `output` is a folder)
+  std::optional<SlicePlane> slice;  ///< the slice's plane (implies slice_view)
+  /// The slice picture instead of the smoke's volume or the liquid's surface alone.
+  bool slice_view = false;
   std::string color;                           ///< fluid array of the slice ("": the default); the
                                                ///< bodies' array instead if only they have it
   std::string body_color;                      ///< bodies' array ("": von_mises_stress)
-  std::optional<std::array<double, 2>> range;  ///< the slice's colour range (else fixed per run)
+  std::optional<std::array<double, 2>> range;  ///< the slice's colour range or the volume's
+                                               ///< opacity range (else fixed per run)
   /// One frame: the PNG (default OUT/pictures/<scene>_<step>.png); `all`: the folder of the
   /// PNGs (default OUT/pictures), named <scene>_<step>.png.
   std::filesystem::path output;
@@ -75,8 +90,9 @@ struct RenderReport {
   std::vector<RenderedFrame> frames;  ///< in step order
   int width = 0, height = 0;
   SlicePlane slice;
-  bool has_slice = false;  ///< false: no fluid frames (bodies only)
-  std::string color;       ///< the slice's array ("" without a slice)
+  bool has_slice = false;   ///< a slice of the fluid was drawn
+  bool has_volume = false;  ///< the smoke's volume was drawn (color: smoke_density)
+  std::string color;        ///< the slice's or the volume's array ("" without either)
   std::array<double, 2> color_range = {0, 1};
   std::string body_color;  ///< the bodies' array ("" without bodies)
   std::array<double, 2> body_range = {0, 1};

@@ -1,8 +1,10 @@
 // `tetfsi render`, `tetfsi plot` and `tetfsi run --preview` (render/render.hpp, render/plot.hpp)
-// on coarse runs of the shipped scenes: the PNG's size, that it is not blank, that the slice's
-// colours change where the smoke is (through the picture's own world-to-pixel map), one PNG
-// per frame with --all, the --movie hint without ffmpeg and ffmpeg's command line with it,
-// grid (.vti) frames, plots with the columns a run has, and one-line errors.
+// on coarse runs of the shipped scenes: the PNG's size, that it is not blank, that the smoke's
+// volume is grey-white at the inflow on the dark background and the slice's colours change
+// where the smoke is (through the picture's own world-to-pixel map), one PNG per frame with
+// --all, the --movie hint without ffmpeg and ffmpeg's command line with it, grid (.vti)
+// frames, plots with the columns a run has, and one-line errors.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -121,8 +123,8 @@ void one_line_error(const Result& r, const std::vector<std::string>& parts) {
 }  // namespace
 
 TEST_CASE(
-    "tetfsi render: a coarse smoke_jet frame has its size, is not blank, and its slice is "
-    "bright where the smoke is") {
+    "tetfsi render --slice: a coarse smoke_jet frame has its size, is not blank, and its slice "
+    "is bright where the smoke is") {
   TempDir dir("render_jet");
   // 10 steps of 0.02 s at 2 m/s: the smoke reaches ~0.4 m into the box; --preview renders the
   // last frame at the end of the run.
@@ -137,6 +139,7 @@ TEST_CASE(
   opt.width = 640;
   opt.height = 360;
   opt.step = 10;
+  opt.slice_view = true;
   opt.output = dir.path / "f10.png";
   const app::RenderReport r10 = app::render_output(dir.path / "o", opt);
   opt.step = 0;
@@ -145,6 +148,8 @@ TEST_CASE(
   REQUIRE(r10.frames.size() == 1);
   REQUIRE(r0.frames.size() == 1);
   CHECK(r10.scene_name == "smoke_jet");
+  CHECK(r10.has_slice);
+  CHECK_FALSE(r10.has_volume);
   CHECK(r10.color == "smoke_density");
   CHECK(r10.body_color.empty());  // the paddle is kinematic: no stress to colour
   // The slice: normal z through the jet patch's centre, coloured 0..1 (the emitted smoke).
@@ -184,6 +189,64 @@ TEST_CASE(
   CHECK(jet10 > jet0 + 50.0);
   CHECK(std::abs(beside10 - beside0) < 30.0);
   CHECK(jet10 - jet0 > 3.0 * std::abs(beside10 - beside0));
+}
+
+TEST_CASE(
+    "tetfsi render: a smoke scene's frame is a volume of grey-white smoke at the inflow on a "
+    "dark background away from it, and --slice still gives the slice") {
+  TempDir dir("render_volume");
+  run_scene(dir.path, "smoke_jet.json", "--steps 10 --set output.every=10 " + kCoarseJet);
+  app::RenderOptions opt;
+  opt.width = 640;
+  opt.height = 360;
+  opt.output = dir.path / "v10.png";
+  const app::RenderReport r10 = app::render_output(dir.path / "o", opt);
+  opt.step = 0;
+  opt.output = dir.path / "v0.png";
+  const app::RenderReport r0 = app::render_output(dir.path / "o", opt);
+  REQUIRE(r10.frames.size() == 1);
+  CHECK(r10.frames[0].step == 10);
+  CHECK(r10.has_volume);
+  CHECK_FALSE(r10.has_slice);
+  CHECK(r10.color == "smoke_density");
+  CHECK(r10.color_range[0] == 0.0);
+  CHECK(r10.color_range[1] == doctest::Approx(1.0));  // the smoke the jet emits
+
+  // In the jet near the inflow (y = z = 0.5 m on the -x wall, 2 m/s for 0.2 s) the smoke is
+  // dense at step 10: a light, unsaturated grey; at step 0 the same pixel is the dark
+  // background. Far from it (low, near the outlet) both frames show the background.
+  const Picture v10 = read_png(dir.path / "v10.png"), v0 = read_png(dir.path / "v0.png");
+  const Vec3 inflow(0.1, 0.5, 0.5), far(1.6, 0.6, 0.15);
+  const auto p_in = app::pixel_of(r10.frames[0], inflow, 640, 360);
+  const auto p_far = app::pixel_of(r10.frames[0], far, 640, 360);
+  const auto smoke = v10.mean(p_in[0], p_in[1]), clear = v0.mean(p_in[0], p_in[1]);
+  const auto far10 = v10.mean(p_far[0], p_far[1]), far0 = v0.mean(p_far[0], p_far[1]);
+  INFO("at the inflow: step 10 " << smoke[0] << " " << smoke[1] << " " << smoke[2]
+                                 << ", step 0 grey " << grey(clear) << "; far: " << grey(far10)
+                                 << " and " << grey(far0));
+  CHECK(grey(smoke) > grey(clear) + 60.0);  // 145 against 47 (10 cm voxels blur the jet)
+  CHECK(*std::max_element(smoke.begin(), smoke.end()) -
+            *std::min_element(smoke.begin(), smoke.end()) <
+        25.0);  // grey-white, not coloured
+  CHECK(grey(clear) < 90.0);
+  CHECK(grey(far10) < 90.0);
+  CHECK(std::abs(grey(far10) - grey(far0)) < 8.0);
+
+  // --slice (no plane): the slice picture of before; --slice z=0.4 the plane asked for.
+  const Result s =
+      tetfsi::test::run_tetfsi(dir.path, "render o --slice --size 320x180 -o s.png", kLimits);
+  INFO("stdout: " << s.out << "\nstderr: " << s.err);
+  CHECK(s.code == 0);
+  CHECK(contains(s.out, "slice z = 0.5 m by smoke_density in [0, 1]"));
+  const Result z =
+      tetfsi::test::run_tetfsi(dir.path, "render o -o z.png --size 320x180 --slice z=0.4", kLimits);
+  CHECK(contains(z.out, "slice z = 0.4 m by smoke_density"));
+  const Result v = tetfsi::test::run_tetfsi(dir.path, "render o --size 320x180 -o v.png", kLimits);
+  CHECK(contains(v.out, "smoke volume of smoke_density (opacity from 0 to 1)"));
+  // Another fluid array than the smoke is drawn on the slice.
+  const Result p = tetfsi::test::run_tetfsi(
+      dir.path, "render o --color pressure --size 320x180 -o p.png", kLimits);
+  CHECK(contains(p.out, "slice z = 0.5 m by pressure"));
 }
 
 // (No ';' in test names: ctest's discovery cuts them there and then runs no case.)
@@ -278,7 +341,7 @@ TEST_CASE(
   INFO("stderr: " << ok.err);
   CHECK(ok.code == 0);
   CHECK(contains(ok.out, "bodies by volume_ratio"));
-  CHECK(contains(ok.out, "by smoke_density"));
+  CHECK(contains(ok.out, "smoke volume of smoke_density"));
 }
 
 TEST_CASE(
