@@ -400,10 +400,13 @@ Lattice voxel_box(const TetVolume& f, const VoxelOptions& o, VoxelFrame& v) {
                  "larger voxel size",
                  h, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], n[0], n[1], n[2], o.subsamples,
                  total);
-  v.origin = lo + Vec3::Constant(h / 2);
+  // Centred on the box: the voxels stick out of it by at most h/2 on each side.
+  Vec3 start = lo;
+  for (int a = 0; a < 3; ++a) start[a] -= 0.5 * (n[a] * h - (hi[a] - lo[a]));
+  v.origin = start + Vec3::Constant(h / 2);
   v.spacing = Vec3::Constant(h);
   Lattice l;
-  l.lo = lo;
+  l.lo = start;
   l.step = h / o.subsamples;
   l.s = o.subsamples;
   for (int a = 0; a < 3; ++a) {
@@ -472,7 +475,8 @@ struct TetFrameCache {
 };
 
 VoxelSums sum_voxel(const TetVolume& f, const Lattice& l, const UnfilledVector<std::int32_t>& owner,
-                    Index i, Index j, Index k, double ambient, TetFrameCache& cache) {
+                    const VecX& point_density, Index i, Index j, Index k, double ambient,
+                    TetFrameCache& cache) {
   VoxelSums sum;
   for (int c = 0; c < l.s; ++c)
     for (int b = 0; b < l.s; ++b)
@@ -481,7 +485,7 @@ VoxelSums sum_voxel(const TetVolume& f, const Lattice& l, const UnfilledVector<s
         const std::int32_t t = owner[static_cast<std::size_t>(l.index(gx, gy, gz))];
         if (t == k_no_tet) continue;
         ++sum.count;
-        sum.density += f.density.size() > 0 ? f.density[t] : 0.0;
+        sum.density += point_density.size() > 0 ? point_density[t] : 0.0;
         sum.temperature += f.temperature.size() > 0 ? f.temperature[t] : ambient;
         sum.pressure += f.pressure.size() > 0 ? f.pressure[t] : 0.0;
         if (f.vertex_velocity.rows() == 0) continue;
@@ -492,9 +496,67 @@ VoxelSums sum_voxel(const TetVolume& f, const Lattice& l, const UnfilledVector<s
   return sum;
 }
 
+/// |volume| of every tet (m³), in parallel.
+VecX tet_volumes(const TetVolume& f) {
+  VecX vol(f.tets.rows());
+  parallel_for_chunks(static_cast<Index>(f.tets.rows()), 4096, [&](Index begin, Index end) {
+    for (Index t = begin; t < end; ++t) {
+      const Vec3 p0 = f.vertices.row(f.tets(t, 0));
+      Mat3 e;
+      for (int k = 0; k < 3; ++k) e.col(k) = f.vertices.row(f.tets(t, k + 1)).transpose() - p0;
+      vol[t] = std::abs(e.determinant()) / 6.0;
+    }
+  });
+  return vol;
+}
+
+/// The smoke mass of the tets as densities of the sub-samples: each tet's mass ρ_t V_t shared
+/// equally among the sub-samples it owns, as a density over a sub-sample's cell (step³), so
+/// that the voxels carry Σ ρ_t V_t exactly. A tet that owns none is left out here (its mass:
+/// deposit_unsampled_mass). Empty without a density field.
+VecX point_densities(const TetVolume& f, const Lattice& l,
+                     const UnfilledVector<std::int32_t>& owner, const VecX& volume) {
+  if (f.density.size() == 0) return {};
+  std::vector<std::int64_t> points(static_cast<std::size_t>(f.tets.rows()), 0);
+  for (std::size_t p = 0; p < owner.size(); ++p)
+    if (owner[p] != k_no_tet) ++points[static_cast<std::size_t>(owner[p])];
+  VecX d = VecX::Zero(f.tets.rows());
+  const double cell = std::pow(l.step, 3);
+  for (Index t = 0; t < d.size(); ++t) {
+    const auto n = points[static_cast<std::size_t>(t)];
+    if (n > 0) d[t] = f.density[t] * volume[t] / (static_cast<double>(n) * cell);
+  }
+  return d;
+}
+
+/// The smoke mass of the tets that own no sub-sample (smaller than the lattice's spacing),
+/// added to the voxel of their centroid.
+void deposit_unsampled_mass(const TetVolume& f, const UnfilledVector<std::int32_t>& owner,
+                            const VecX& volume, VoxelFrame& v) {
+  if (f.density.size() == 0) return;
+  std::vector<char> sampled(static_cast<std::size_t>(f.tets.rows()), 0);
+  for (std::size_t p = 0; p < owner.size(); ++p)
+    if (owner[p] != k_no_tet) sampled[static_cast<std::size_t>(owner[p])] = 1;
+  const double voxel = v.spacing.prod();
+  for (Index t = 0; t < f.tets.rows(); ++t) {
+    if (sampled[static_cast<std::size_t>(t)] || f.density[t] == 0.0) continue;
+    Vec3 x = Vec3::Zero();
+    for (int k = 0; k < 4; ++k) x += 0.25 * f.vertices.row(f.tets(t, k)).transpose();
+    Index c = 0, stride = 1;
+    for (int a = 0; a < 3; ++a) {
+      const double u = (x[a] - v.origin[a]) / v.spacing[a] + 0.5;
+      c += stride * std::clamp<Index>(static_cast<Index>(std::floor(u)), 0, v.dims[a] - 1);
+      stride *= v.dims[a];
+    }
+    v.density[c] += f.density[t] * volume[t] / voxel;
+  }
+}
+
 /// Every voxel's fields from its sub-samples' owners (in parallel over z-slabs).
 void average_voxels(const TetVolume& f, const Lattice& l, const UnfilledVector<std::int32_t>& owner,
                     VoxelFrame& v) {
+  const VecX volume = tet_volumes(f);
+  const VecX point_density = point_densities(f, l, owner, volume);
   const double per_voxel = std::pow(l.s, 3);
   const Index nx = v.dims[0], ny = v.dims[1], nz = v.dims[2];
   parallel_for_chunks(nz, 1, [&](Index k0, Index k1) {
@@ -503,7 +565,8 @@ void average_voxels(const TetVolume& f, const Lattice& l, const UnfilledVector<s
       for (Index j = 0; j < ny; ++j)
         for (Index i = 0; i < nx; ++i) {
           const Index c = i + nx * (j + ny * k);
-          const VoxelSums s = sum_voxel(f, l, owner, i, j, k, v.ambient_temperature, cache);
+          const VoxelSums s =
+              sum_voxel(f, l, owner, point_density, i, j, k, v.ambient_temperature, cache);
           v.fluid_fraction[c] = s.count / per_voxel;
           v.density[c] = s.density / per_voxel;
           v.temperature[c] = s.count > 0 ? s.temperature / s.count : v.ambient_temperature;
@@ -511,6 +574,7 @@ void average_voxels(const TetVolume& f, const Lattice& l, const UnfilledVector<s
           v.velocity.row(c) = s.count > 0 ? Vec3(s.velocity / s.count) : Vec3::Zero();
         }
   });
+  deposit_unsampled_mass(f, owner, volume, v);
 }
 
 }  // namespace

@@ -88,7 +88,7 @@ struct VoxelFrame {
   /// Per voxel: the fraction of it in the fluid (0 inside a body or outside the box, 1 fully
   /// in the fluid; a grid cell is 0 or 1).
   VecX fluid_fraction;
-  VecX density;      ///< smoke density (kg/m³), 0 outside the fluid (volume average)
+  VecX density;      ///< smoke density (kg/m³): the voxel's smoke mass / its volume
   VecX temperature;  ///< K, the average over the voxel's fluid part (ambient outside it)
   VecX pressure;     ///< Pa, the average over the voxel's fluid part (0 outside it)
   MatX3 velocity;    ///< #voxels × 3 (m/s), the average over its fluid part (0 outside it)
@@ -125,11 +125,17 @@ struct VoxelOptions {
 /// takes the fields of the tet containing it (density, temperature, pressure per tet; the
 /// velocity interpolated from the vertices); a point in no tet (inside a body) is outside.
 /// The box [lo, hi] gets n_a = ceil((hi_a − lo_a) / h) voxels per axis (at least 1; a whole
-/// number up to a relative 1e-12 is not rounded up), voxel (0, 0, 0) centred at lo + h/2;
-/// sub-sample a of a voxel's s per axis lies at its centre + ((a + ½)/s − ½) h. A point on a
-/// face shared by tets (barycentric coordinates ≥ −1e-10) belongs to the smallest tet index.
-/// Per voxel: fluid_fraction = (points in the fluid) / s³, density = Σ ρ / s³ (volume
-/// average), temperature, pressure and velocity the mean over its points in the fluid. A mesh
+/// number up to a relative 1e-12 is not rounded up), centred on the box (sticking out by at
+/// most h/2 on each side); sub-sample a of a voxel's s per axis lies at its centre +
+/// ((a + ½)/s − ½) h. A point on a face shared by tets (barycentric coordinates ≥ −1e-10)
+/// belongs to the smallest tet index. Per voxel: fluid_fraction = (points in the fluid) / s³;
+/// temperature, pressure and velocity the mean over its points in the fluid; density the smoke
+/// mass of its points / h³, where each tet's mass ρ_t V_t is shared equally among the points it
+/// holds (a tet that holds none puts it in the voxel of its centroid): the voxels carry the
+/// mesh's smoke mass Σ ρ_t V_t exactly (to rounding), at any voxel size, where point values
+/// would err by O(h) at the smoke's edges (measured on smoke_sheets: 3 % at s = 2). The price:
+/// where tets are much smaller than a voxel, a voxel may read above the densest tet (1.21 for
+/// 1.0 at smoke_sheets' inflow with 3 cm voxels, s = 2; 1.13 at s = 4). A mesh
 /// without vertices gives no voxels (dims 0).
 /// @throws InputError if voxel_size is not > 0 and finite, subsamples is not in 1 .. 16, or the
 ///   grid would exceed 2^31 sub-samples (naming the voxel size and the box: choose a larger one);

@@ -517,8 +517,10 @@ void write_grid_vti(const fs::path& path, const GridFrameFields& g, Compression 
 
 namespace {
 
-/// The liquid's surface: VTK's contour of φ = 0 on the cell centres and the box's walls.
-vtkSmartPointer<vtkPolyData> liquid_surface_polydata(const GridFrameFields& g) {
+/// The liquid's surface: VTK's contour of φ = 0 on the cell centres and the box's walls. A
+/// wall point takes φ of the centre beside it (the surface meets the wall: open there), or
+/// with `closed` air where that centre is liquid (the surface closes on the wall).
+vtkSmartPointer<vtkPolyData> liquid_surface_polydata(const GridFrameFields& g, bool closed) {
   mesh::route_vtk_messages_to_log();
   const Index nc = check_grid_cells(g);
   TETFSI_CHECK(g.phi.size() == nc, "liquid surface: phi has {} values for {} cells", g.phi.size(),
@@ -550,7 +552,9 @@ vtkSmartPointer<vtkPolyData> liquid_surface_polydata(const GridFrameFields& g) {
         const auto in = [&](Index v, int a) { return std::clamp<Index>(v - 1, 0, g.cells[a] - 1); };
         const Index c = in(i, 0) + g.cells[0] * (in(j, 1) + g.cells[1] * in(k, 2));
         const Index p = i + np[0] * (j + np[1] * k);
-        phi[p] = g.phi[c];
+        const bool wall =
+            i == 0 || j == 0 || k == 0 || i == np[0] - 1 || j == np[1] - 1 || k == np[2] - 1;
+        phi[p] = closed && wall ? std::max(g.phi[c], 0.0) + 1e-3 * g.spacing.minCoeff() : g.phi[c];
         vel.row(p) = g.velocity.row(c);
       }
   grid->GetPointData()->SetScalars(scalar_array("phi", phi));
@@ -610,13 +614,13 @@ void orient_out_of_liquid(const GridFrameFields& g, vtkDataArray* normals, Expor
 
 void write_liquid_surface_vtp(const fs::path& path, const GridFrameFields& g,
                               Compression compression) {
-  const vtkSmartPointer<vtkPolyData> surface = liquid_surface_polydata(g);
+  const vtkSmartPointer<vtkPolyData> surface = liquid_surface_polydata(g, false);
   vtkNew<vtkXMLPolyDataWriter> writer;
   write_xml_atomic(writer, surface, path, compression);
 }
 
 ExportSurface liquid_surface(const GridFrameFields& g) {
-  const vtkSmartPointer<vtkPolyData> poly = liquid_surface_polydata(g);
+  const vtkSmartPointer<vtkPolyData> poly = liquid_surface_polydata(g, true);
   ExportSurface s;
   const Index np = static_cast<Index>(poly->GetNumberOfPoints());
   s.points.resize(np, 3);

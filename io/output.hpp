@@ -154,8 +154,9 @@ void write_grid_vti(const std::filesystem::path& path, const GridFrameFields& g,
 void write_liquid_surface_vtp(const std::filesystem::path& path, const GridFrameFields& g,
                               Compression compression);
 
-/// The liquid's surface of write_liquid_surface_vtp as plain arrays (points, outward
-/// triangles, point velocity), for the renderer export.
+/// The liquid's surface as plain arrays (points, outward triangles, point velocity), for the
+/// renderer export: as write_liquid_surface_vtp's but closed where the liquid touches the box's
+/// walls (a cap on the wall), so that a renderer's water or glass material has a closed mesh.
 /// @throws InternalError if `phi` is not #C long.
 ExportSurface liquid_surface(const GridFrameFields& g);
 

@@ -5,6 +5,7 @@
 #include "io/export.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <exception>
@@ -85,8 +86,30 @@ typename GridT::Ptr make_grid(const VoxelFrame& v, const VoxelMask& mask,
   return grid;
 }
 
+/// Air (+h/2, h the largest spacing) on the layer of voxels just outside the box's six sides,
+/// active: the liquid's surface closes at the walls it touches, and the flood fill finds air
+/// beyond the box (not the sign of the liquid beside a wall).
+void add_air_beyond_walls(const VoxelFrame& v, openvdb::FloatGrid& grid) {
+  const float air = static_cast<float>(0.5 * v.spacing.maxCoeff());
+  openvdb::FloatGrid::Accessor acc = grid.getAccessor();
+  const std::array<Index, 3> n = v.dims;
+  for (int a = 0; a < 3; ++a) {
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    for (Index j = -1; j <= n[b]; ++j)
+      for (Index k = -1; k <= n[c]; ++k)
+        for (const Index i : {Index(-1), n[a]}) {
+          openvdb::Coord x;
+          x[a] = i;
+          x[b] = j;
+          x[c] = k;
+          acc.setValue(x, air);
+        }
+  }
+}
+
 /// `surface`: the level set φ on the voxels with |φ| < 3h (h the largest spacing), clamped to
-/// ±3h, inside and outside told apart beyond the band (signed flood fill).
+/// ±3h, air just beyond the box's walls (add_air_beyond_walls), inside and outside told apart
+/// beyond the band (signed flood fill).
 openvdb::FloatGrid::Ptr surface_grid(const VoxelFrame& v) {
   const double band = 3.0 * v.spacing.maxCoeff();
   VoxelMask mask(static_cast<std::size_t>(v.size()), 0);
@@ -96,6 +119,7 @@ openvdb::FloatGrid::Ptr surface_grid(const VoxelFrame& v) {
   openvdb::FloatGrid::Ptr grid =
       make_grid<openvdb::FloatGrid>(v, mask, static_cast<float>(band), value, "surface", "m");
   grid->setGridClass(openvdb::GRID_LEVEL_SET);
+  add_air_beyond_walls(v, *grid);
   openvdb::tools::signedFloodFill(grid->tree());
   return grid;
 }

@@ -272,20 +272,29 @@ TEST_CASE("voxelize: a meshed unit cube keeps its smoke mass and volume, and the
   CHECK(v.fluid_fraction.sum() * h3 == rel(1.0, 1e-12));
   const double mass = tet_smoke_mass(f);
   CHECK(mass == rel(1.5, 1e-12));  // the centroid rule is exact for ρ linear
-  CHECK(v.smoke_mass() == rel(mass, 0.01));
-  CHECK(v.density.minCoeff() > 1.0 - 1e-12);
+  // each tet's mass shared among its sub-samples: exact (to rounding)
+  CHECK(v.smoke_mass() == rel(mass, 1e-12));
+  CHECK(v.density.minCoeff() > 0.0);
+  // and local: the mean over each slab x = const is ρ = 1 + x there, within 5 %
+  for (Index i = 0; i < 12; ++i) {
+    double slab = 0.0;
+    for (Index k = 0; k < 12; ++k)
+      for (Index j = 0; j < 12; ++j) slab += v.density[i + 12 * (j + 12 * k)];
+    CAPTURE(i);
+    CHECK(slab / 144 == rel(1.0 + (i + 0.5) / 12, 0.05));
+  }
   CHECK(v.temperature.minCoeff() >= 300.0 - 1e-9);
   CHECK(v.temperature.maxCoeff() <= 310.0 + 1e-9);
   CHECK(v.pressure.maxCoeff() <= 5.0 + 1e-9);
 }
 
-/// The sub-sample points along an axis (n of them at (g + ½) step) with x0 ≤ x ≤ x1 (closed)
-/// or x0 < x < x1 (open), up to 1e-9.
-double points_in(Index n, double step, double x0, double x1, bool closed) {
+/// The sub-sample points along an axis (n of them at start + (g + ½) step) with x0 ≤ x ≤ x1
+/// (closed) or x0 < x < x1 (open), up to 1e-9.
+double points_in(Index n, double start, double step, double x0, double x1, bool closed) {
   const double tol = closed ? 1e-9 : -1e-9;
   double count = 0;
   for (Index g = 0; g < n; ++g) {
-    const double x = (g + 0.5) * step;
+    const double x = start + (g + 0.5) * step;
     count += x >= x0 - tol && x <= x1 + tol ? 1 : 0;
   }
   return count;
@@ -309,22 +318,23 @@ TEST_CASE("voxelize: a hollow box's cavity and the box's margin are outside the 
   CHECK(aligned.dims == std::array<Index, 3>{10, 10, 7});
   CHECK(aligned.fluid_fraction.sum() * 1e-3 == rel(volume, 1e-12));
   CHECK(aligned.smoke_mass() == rel(2.0 * volume, 1e-12));
-  // h = 0.08, s = 3: 13 × 13 × 9 voxels (the last of each axis sticks out of the box) and
-  // sub-samples on the outer walls x = 1, y = 1 (they count as inside); the fluid fraction
-  // counts exactly the sub-samples in the box but not strictly in the cavity (3.2 % more than
-  // the volume here: point sampling of walls along the axes)
+  // h = 0.08, s = 3: 13 × 13 × 9 voxels centred on the box (sticking out by 0.02 in x and y,
+  // 0.01 in z on each side); the fluid fraction counts exactly the sub-samples in the box but
+  // not strictly in the cavity (point sampling of walls along the axes: within 4 % of the
+  // volume), the smoke mass is the tets' exactly
   o.voxel_size = 0.08;
   o.subsamples = 3;
   const VoxelFrame v = voxelize(f, o);
   CHECK(v.dims == std::array<Index, 3>{13, 13, 9});
+  CHECK((v.origin - Vec3(-0.02 + 0.04, -0.02 + 0.04, -0.01 + 0.04)).norm() < 1e-12);
   const double step = o.voxel_size / 3;
-  const double inside = points_in(39, step, 0, 1, true) * points_in(39, step, 0, 1, true) *
-                            points_in(27, step, 0, 0.7, true) -
-                        points_in(39, step, 0.2, 0.8, false) *
-                            points_in(39, step, 0.2, 0.8, false) *
-                            points_in(27, step, 0.2, 0.5, false);
+  const double inside =
+      points_in(39, -0.02, step, 0, 1, true) * points_in(39, -0.02, step, 0, 1, true) *
+          points_in(27, -0.01, step, 0, 0.7, true) -
+      points_in(39, -0.02, step, 0.2, 0.8, false) * points_in(39, -0.02, step, 0.2, 0.8, false) *
+          points_in(27, -0.01, step, 0.2, 0.5, false);
   CHECK(v.fluid_fraction.sum() * 27 == rel(inside, 1e-12));
-  CHECK(v.smoke_mass() == rel(2.0 * inside * std::pow(step, 3), 1e-12));
+  CHECK(v.smoke_mass() == rel(2.0 * volume, 1e-12));
   CHECK(v.fluid_fraction.sum() * std::pow(o.voxel_size, 3) == rel(volume, 0.04));
   // the voxel at the cavity's centre is empty: ambient temperature, no density, no velocity
   const Index c = 6 + 13 * (6 + 13 * 4);
@@ -332,10 +342,13 @@ TEST_CASE("voxelize: a hollow box's cavity and the box's margin are outside the 
   CHECK(v.density[c] == 0.0);
   CHECK(v.temperature[c] == 280.0);
   CHECK(v.velocity.row(c).norm() == 0.0);
-  // a corner voxel is all fluid, with the tets' (missing) temperature: the ambient
-  CHECK(v.fluid_fraction[0] == 1.0);
-  CHECK(v.density[0] == 2.0);
-  CHECK(v.temperature[0] == 280.0);
+  // a corner voxel is part outside the box; the next one in is all fluid, with smoke and the
+  // tets' (missing) temperature: the ambient
+  CHECK(v.fluid_fraction[0] == rel(4.0 / 9, 1e-12));
+  const Index w = 1 + 13 * (1 + 13 * 1);
+  CHECK(v.fluid_fraction[w] == 1.0);
+  CHECK(v.density[w] > 0.0);
+  CHECK(v.temperature[w] == 280.0);
 }
 
 TEST_CASE("voxelize: a linear velocity is exact at the voxel centres inside the fluid") {
@@ -464,9 +477,17 @@ TEST_CASE("write_vdb and read_vdb_summary: grids, active voxels, ranges, bounds,
     CHECK(u.max == rel(v.velocity.rowwise().norm().maxCoeff(), 1e-6));
     CHECK(grid_named(r.grids, "temperature").unit == "K");
     CHECK(grid_named(r.grids, "pressure").unit == "Pa");
-    // the fluid fills the unit cube; above ρ = 1.5 it is x > 0.5: the tets' centroids there
-    // are at x > 0.52 and those of the cells before at x < 0.48 (jitter included)
-    const std::array<double, 6> box = {threshold > 0 ? 0.5 : 0.0, 0, 0, 1, 1, 1};
+    // the bounds: the outer faces of the voxels above the threshold (the unit cube with 0)
+    std::array<double, 6> box = {1e9, 1e9, 1e9, -1e9, -1e9, -1e9};
+    for (Index c = 0; c < v.size(); ++c) {
+      if (v.density[c] <= threshold) continue;
+      const Index ijk[3] = {c % 12, (c / 12) % 12, c / 144};
+      for (std::size_t a = 0; a < 3; ++a) {
+        box[a] = std::min(box[a], (static_cast<double>(ijk[a]) / 12));
+        box[a + 3] = std::max(box[a + 3], (static_cast<double>(ijk[a]) + 1) / 12);
+      }
+    }
+    if (threshold == 0.0) CHECK(box == std::array<double, 6>{0, 0, 0, 1, 1, 1});
     for (std::size_t a = 0; a < 6; ++a) CHECK(std::abs(d.bounds[a] - box[a]) < 1e-12);
     // what write_vdb returns is what the reader sees
     REQUIRE(written.size() == 4);
@@ -502,14 +523,17 @@ TEST_CASE("write_vdb: a grid fluid's liquid as a level set, velocity on the liqu
   // world bounds: the lower layer of cells, [1, 1.4] × [2, 2.6] × [3, 3.25]
   const std::array<double, 6> lower = {1, 2, 3, 1.4, 2.6, 3.25};
   for (int a = 0; a < 6; ++a) CHECK(u.bounds[static_cast<std::size_t>(a)] == rel(lower[a], 1e-12));
-  // surface: every cell is within 3 h = 0.75 of the surface
+  // surface: every cell is within 3 h = 0.75 of the surface, and the layer of voxels around
+  // the box is air (h/2 = 0.125, h the largest spacing): 6 × 5 × 4 − 24 = 96 more voxels, one
+  // beyond each side
   const VdbGridSummary& s = grid_named(r.grids, "surface");
   CHECK(s.grid_class == "level set");
   CHECK(s.unit == "m");
-  CHECK(s.active_voxels == 24);
+  CHECK(s.active_voxels == 24 + 96);
   CHECK(s.min == rel(-0.175, 1e-6));
-  CHECK(s.max == rel(0.075, 1e-6));
-  CHECK(s.bounds[5] == rel(3.5, 1e-12));
+  CHECK(s.max == rel(0.125, 1e-6));
+  CHECK(s.bounds[2] == rel(3.0 - 0.25, 1e-12));
+  CHECK(s.bounds[5] == rel(3.5 + 0.25, 1e-12));
   CHECK_THROWS_AS(vdb_grid_integral(p, "velocity"), InputError);
   CHECK(message_of<InputError>([&] { vdb_grid_integral(p, "smoke"); }).find("smoke") !=
         std::string::npos);

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -130,13 +131,15 @@ TEST_CASE("export of smoke_sheets: the .vdb read back carries the run's smoke ma
   CHECK(mass > 0.0);
   CHECK(std::abs(sampled - mass) <= 0.01 * mass);
 
-  // Averages of the tets' values: within the VTU's range (float rounding aside).
+  // Each voxel holds the smoke mass of its sub-samples (every tet's mass shared among its
+  // sub-samples): where tets are much smaller than the voxels (at the inflow, 3 cm voxels) a
+  // voxel may read up to ~20 % above the densest tet (measured 1.21 at s = 2, 1.13 at s = 4).
   vtkNew<vtkXMLUnstructuredGridReader> reader;
   reader->SetFileName((out / "fluid" / "fluid_000008.vtu").string().c_str());
   reader->Update();
   const std::vector<double> rho = cell_values(reader->GetOutput(), "smoke_density");
   const double rho_max = *std::max_element(rho.begin(), rho.end());
-  CHECK(density->max <= rho_max * (1 + 1e-6));
+  CHECK(density->max <= rho_max * 1.3);
   CHECK(density->max >= 0.5 * rho_max);  // the source's voxels are full of smoke
   CHECK(density->min >= 0.0);
 
@@ -180,10 +183,14 @@ TEST_CASE(
   const std::vector<double> phi = cell_values(image, "phi");
   const std::vector<double> speed = cell_values(image, "velocity");
   double h = image->GetSpacing()[0];
-  // The narrow band: the cells with |φ| < 3 h, one voxel each.
+  // The narrow band: the cells with |φ| < 3 h, one voxel each, and the layer of air voxels
+  // around the box (the surface closes on the walls).
   const auto band =
       std::count_if(phi.begin(), phi.end(), [&](double v) { return std::abs(v) < 3 * h; });
-  CHECK(surface->active_voxels == band);
+  int dims[3];
+  image->GetDimensions(dims);  // points: cells + 1
+  const std::int64_t nx = dims[0] - 1, ny = dims[1] - 1, nz = dims[2] - 1;
+  CHECK(surface->active_voxels == band + (nx + 2) * (ny + 2) * (nz + 2) - nx * ny * nz);
   // Velocity on the liquid's cells (no smoke): its largest magnitude is the VTI's there.
   double vmax = 0.0;
   std::int64_t liquid = 0;
@@ -193,19 +200,40 @@ TEST_CASE(
   REQUIRE(velocity != nullptr);
   CHECK(velocity->active_voxels == liquid);
   CHECK(velocity->max == doctest::Approx(vmax).epsilon(1e-6));
-  // The level set's bounds lie in the box (outer faces of its voxels).
+  // The level set's voxels: the box and its layer of air, one voxel beyond each wall.
   double bounds[6];
   image->GetBounds(bounds);  // the points: the cells' outer faces
   for (int a = 0; a < 3; ++a) {
-    CHECK(surface->bounds[a] >= bounds[2 * a] - 1e-9);
-    CHECK(surface->bounds[3 + a] <= bounds[2 * a + 1] + 1e-9);
+    CHECK(surface->bounds[a] == doctest::Approx(bounds[2 * a] - h).epsilon(1e-6));
+    CHECK(surface->bounds[3 + a] == doctest::Approx(bounds[2 * a + 1] + h).epsilon(1e-6));
   }
-  // The liquid's surface mesh.
+  // The liquid's surface mesh: closed (every edge shared by two triangles, capped on the
+  // walls), its normals out of the liquid (the enclosed volume, by the divergence theorem,
+  // positive and that of the cells with φ < 0 within 10 %).
   bool has_liquid = false;
   for (const json& mesh : last["meshes"])
     if (mesh["name"] == "liquid") {
       has_liquid = true;
-      CHECK(mesh["triangles"].get<Index>() > 100);
+      const ExportSurface ply = read_ply(out / mesh["file"].get<std::string>());
+      CHECK(ply.triangles.rows() > 100);
+      std::map<std::pair<int, int>, int> edges;
+      double volume = 0.0;
+      for (Index t = 0; t < ply.triangles.rows(); ++t) {
+        for (int e = 0; e < 3; ++e) {
+          const int a = ply.triangles(t, e), b = ply.triangles(t, (e + 1) % 3);
+          ++edges[{std::min(a, b), std::max(a, b)}];
+        }
+        const Vec3 p0 = ply.points.row(ply.triangles(t, 0));
+        const Vec3 p1 = ply.points.row(ply.triangles(t, 1));
+        const Vec3 p2 = ply.points.row(ply.triangles(t, 2));
+        volume += p0.dot(p1.cross(p2)) / 6.0;
+      }
+      CHECK(std::count_if(edges.begin(), edges.end(),
+                          [](const auto& e) { return e.second != 2; }) == 0);
+      const auto cells = std::count_if(phi.begin(), phi.end(), [](double v) { return v < 0; });
+      const double liquid_volume = static_cast<double>(cells) * h * h * h;
+      INFO("enclosed " << volume << " m^3, liquid cells " << liquid_volume << " m^3");
+      CHECK(volume == doctest::Approx(liquid_volume).epsilon(0.1));
     }
   CHECK(has_liquid);
 }
