@@ -6,6 +6,7 @@
 #   make bench      the solver benchmark
 #   make sanitize   an ASan + UBSan build in build-sanitize/ and its test run (skips "long")
 #   make pictures   regenerate the pictures docs/*.png (scripts/make_pictures.sh, ~12 min)
+#   make figures    the paper's Figs. 1-6 as frame sequences, docs/figures/ (scripts/paper_figures.sh)
 BUILD ?= build
 # ccache (when present) rewrites absolute paths under base_dir as relative ones, so two clones
 # of the repository (a fresh one per CI run, a worktree beside this one) share their objects.
@@ -24,7 +25,7 @@ SAN_ENV = OMPI_MCA_mca_base_component_disable_dlclose=1 \
   LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0:fast_unwind_on_malloc=0 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 
-.PHONY: setup configure build run test test-long test-all test-blender bench sanitize format clean pictures
+.PHONY: setup configure build run test test-long test-all test-blender bench sanitize format clean pictures figures
 
 setup:
 	@bash scripts/setup.sh
@@ -56,6 +57,10 @@ test-blender: build
 
 pictures: build
 	BUILD=$(BUILD) bash scripts/make_pictures.sh
+
+figures: build
+	@bash scripts/setup.sh --blender
+	BUILD=$(BUILD) bash scripts/paper_figures.sh
 
 bench: build
 	$(BUILD)/cli/tetfsi bench solvers --n 250000

@@ -373,7 +373,7 @@ def load_meshes(out, frame):
                                   f"{path}: the file has {len(points)} vertices")
         # A body's surface is the boundary of its tets: closed, every edge in two triangles (a
         # renderer's inside and outside, a volume or glass material, depend on it). The liquid's
-        # is its free surface, open where the liquid meets the box's walls: counted only.
+        # is its free surface, closed by caps on the box's walls; open edges are counted only.
         loops = np.empty(nf * 3, np.int64)
         mesh.loops.foreach_get("vertex_index", loops)
         tri = loops.reshape(-1, 3)

@@ -25,7 +25,8 @@ packages=(
   libpetsc-real-dev libhypre-dev openmpi-bin   # mpirun: MPI ranks (tetfsi run under mpirun -np N)
   xvfb python3-numpy python3-matplotlib   # tetfsi render (VTK needs X: Xvfb), tetfsi plot
   libcgal-demo                            # CGAL's data: the Stanford bunny of data/scenes/bunny.json
-  libopenvdb-dev                          # OpenVDB: bench step's particle level set comparison
+  libopenvdb-dev libopenvdb-tools         # OpenVDB: the .vdb export, the particle level set;
+                                          # vdb_print reads the export back in the tests
 )
 if ((with_blender)); then
   packages+=(blender)                     # Blender headless: make test-blender
