@@ -137,4 +137,15 @@ inline CliResult run_tetfsi(const std::filesystem::path& cwd, const std::string&
 }
 #endif
 
+#ifdef DOCTEST_LIBRARY_INCLUDED
+/// Checks that a CLI run failed (exit code 1) with one line `error: ...` that holds every part.
+inline void check_one_line_error(const CliResult& r, const std::vector<std::string>& parts) {
+  INFO("stdout: " << r.out << "\nstderr: " << r.err);
+  CHECK(r.code == 1);
+  REQUIRE(r.err_lines().size() == 1);
+  CHECK(r.err_lines()[0].rfind("error: ", 0) == 0);
+  for (const std::string& p : parts) CHECK(contains(r.err, p));
+}
+#endif
+
 }  // namespace tetfsi::test
