@@ -98,7 +98,6 @@ size_t boundary_vertices(const MatX4i& tets) {
   return vertices.size();
 }
 
-
 }  // namespace
 
 TEST_CASE(
@@ -201,16 +200,19 @@ TEST_CASE(
     "frame file, --vdb without a fluid and an unwritable target are one-line errors") {
   TempDir dir("export_errors");
   coarse_jet(dir.path);
-  tetfsi::test::check_one_line_error(cli(dir.path, "export nope"), {"no such output folder 'nope'", "tetfsi run"});
+  tetfsi::test::check_one_line_error(cli(dir.path, "export nope"),
+                                     {"no such output folder 'nope'", "tetfsi run"});
   tetfsi::test::check_one_line_error(cli(dir.path, "export o/fluid"), {"'o/fluid' holds no run"});
   tetfsi::test::check_one_line_error(cli(dir.path, "export o --frames 2:9"),
-                 {"--frames 2:9", "the run has frames 0..3"});
-  tetfsi::test::check_one_line_error(cli(dir.path, "export o --frames 3:3"), {"--frames 3:3", "selects no frame"});
+                                     {"--frames 2:9", "the run has frames 0..3"});
+  tetfsi::test::check_one_line_error(cli(dir.path, "export o --frames 3:3"),
+                                     {"--frames 3:3", "selects no frame"});
   tetfsi::test::check_one_line_error(cli(dir.path, "export o --subsamples 0"), {"--subsamples"});
   tetfsi::test::check_one_line_error(cli(dir.path, "export o --voxel-size -1"), {"--voxel-size"});
   // An unwritable target: a file where the folder should be.
   { std::ofstream(dir.path / "a_file") << "x"; }
-  tetfsi::test::check_one_line_error(cli(dir.path, "export o --to a_file/sub"), {"a_file/sub", "--to"});
+  tetfsi::test::check_one_line_error(cli(dir.path, "export o --to a_file/sub"),
+                                     {"a_file/sub", "--to"});
 
   // A run whose collections list no frame.
   fs::copy(dir.path / "o", dir.path / "empty", fs::copy_options::recursive);
@@ -222,11 +224,12 @@ TEST_CASE(
   // A frame file missing, another one damaged: the message names the frame, step and file.
   fs::copy(dir.path / "o", dir.path / "broken", fs::copy_options::recursive);
   fs::remove(dir.path / "broken" / "paddle" / "paddle_000004.vtu");
-  tetfsi::test::check_one_line_error(cli(dir.path, "export broken --to x"),
-                 {"frame 2 (step 4)", "paddle_000004.vtu", "missing", "--frames"});
+  tetfsi::test::check_one_line_error(
+      cli(dir.path, "export broken --to x"),
+      {"frame 2 (step 4)", "paddle_000004.vtu", "missing", "--frames"});
   std::ofstream(dir.path / "broken" / "fluid" / "fluid_000002.vtu") << "<VTKFile garbage";
   tetfsi::test::check_one_line_error(cli(dir.path, "export broken --vdb --frames 1 --to y"),
-                 {"frame 1 (step 2)", "fluid_000002.vtu"});
+                                     {"frame 1 (step 2)", "fluid_000002.vtu"});
   const Result ok = cli(dir.path, "export broken --frames :1 --to z");  // the good frame
   INFO("stderr: " << ok.err);
   CHECK(ok.code == 0);
@@ -234,7 +237,8 @@ TEST_CASE(
   // A run without a fluid: --vdb alone is an error, the default exports the bodies.
   TempDir solid("export_solid");
   run_scene(solid.path, "sheets_drop.json", "--steps 2 --set output.every=1");
-  tetfsi::test::check_one_line_error(cli(solid.path, "export o --vdb"), {"--vdb", "has no fluid", "--ply"});
+  tetfsi::test::check_one_line_error(cli(solid.path, "export o --vdb"),
+                                     {"--vdb", "has no fluid", "--ply"});
   const Result s = cli(solid.path, "export o");
   INFO("stdout: " << s.out << "\nstderr: " << s.err);
   REQUIRE(s.code == 0);

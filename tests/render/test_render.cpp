@@ -111,7 +111,6 @@ double grey(const std::array<double, 3>& c) {
   return (c[0] + c[1] + c[2]) / 3.0;
 }
 
-
 }  // namespace
 
 TEST_CASE(
@@ -315,18 +314,26 @@ TEST_CASE(
   auto cli = [&](const std::string& args) {
     return tetfsi::test::run_tetfsi(dir.path, args, kLimits);
   };
-  tetfsi::test::check_one_line_error(cli("render no_such_run"), {"no such output folder 'no_such_run'", "tetfsi run"});
-  tetfsi::test::check_one_line_error(cli("plot no_such_run"), {"no such output folder 'no_such_run'"});
-  tetfsi::test::check_one_line_error(cli("render o --color nope"),
-                 {"--color: no array 'nope'", "smoke_density", "pressure", "von_mises_stress"});
-  tetfsi::test::check_one_line_error(cli("render o --body-color nope"), {"--body-color: no array 'nope'"});
+  tetfsi::test::check_one_line_error(cli("render no_such_run"),
+                                     {"no such output folder 'no_such_run'", "tetfsi run"});
+  tetfsi::test::check_one_line_error(cli("plot no_such_run"),
+                                     {"no such output folder 'no_such_run'"});
+  tetfsi::test::check_one_line_error(
+      cli("render o --color nope"),
+      {"--color: no array 'nope'", "smoke_density", "pressure", "von_mises_stress"});
+  tetfsi::test::check_one_line_error(cli("render o --body-color nope"),
+                                     {"--body-color: no array 'nope'"});
   tetfsi::test::check_one_line_error(cli("render o --step 1"),
-                 {"no frame of step 1 was written", "steps 0, 2", "--all"});
-  tetfsi::test::check_one_line_error(cli("render o --slice w=3"), {"--slice", "AXIS=VALUE", "'w=3'"});
-  tetfsi::test::check_one_line_error(cli("render o --slice z=7"), {"outside the fluid box", "[0, 1]"});
+                                     {"no frame of step 1 was written", "steps 0, 2", "--all"});
+  tetfsi::test::check_one_line_error(cli("render o --slice w=3"),
+                                     {"--slice", "AXIS=VALUE", "'w=3'"});
+  tetfsi::test::check_one_line_error(cli("render o --slice z=7"),
+                                     {"outside the fluid box", "[0, 1]"});
   tetfsi::test::check_one_line_error(cli("render o --movie m.mp4"), {"--movie needs --all"});
-  tetfsi::test::check_one_line_error(cli("render o -o no_such_folder/x.png"), {"cannot write 'no_such_folder/x.png'"});
-  tetfsi::test::check_one_line_error(cli("render o/fluid"), {"holds no run", "scene.resolved.json"});
+  tetfsi::test::check_one_line_error(cli("render o -o no_such_folder/x.png"),
+                                     {"cannot write 'no_such_folder/x.png'"});
+  tetfsi::test::check_one_line_error(cli("render o/fluid"),
+                                     {"holds no run", "scene.resolved.json"});
 
   // An array of the bodies colours them (the slice keeps smoke_density).
   const Result ok = cli("render o --color volume_ratio --size 320x180 -o v.png");
