@@ -310,16 +310,20 @@ double VoxelFrame::smoke_mass() const {
   return density.sum() * spacing.prod();
 }
 
+TetVolume tet_volume_of(const mesh::TetMesh& mesh, const fluid::MeshFrameFields& fields) {
+  TetVolume v;
+  v.vertices = mesh.vertices;
+  v.tets = mesh.tets;
+  v.density = fields.density;
+  v.temperature = fields.temperature;
+  v.pressure = fields.pressure;
+  v.vertex_velocity = fields.vertex_velocity;
+  return v;
+}
+
 TetVolume tet_volume_of(const fluid::MeshFrame& frame) {
   TETFSI_CHECK(frame.mesh != nullptr, "tet_volume_of: the frame has no mesh");
-  TetVolume v;
-  v.vertices = frame.mesh->vertices;
-  v.tets = frame.mesh->tets;
-  v.density = frame.fields.density;
-  v.temperature = frame.fields.temperature;
-  v.pressure = frame.fields.pressure;
-  v.vertex_velocity = frame.fields.vertex_velocity;
-  return v;
+  return tet_volume_of(*frame.mesh, frame.fields);
 }
 
 namespace {

@@ -111,6 +111,8 @@ struct TetVolume {
 };
 /// The mesh and fields of a run's frame, copied. @throws InternalError if it has no mesh
 TetVolume tet_volume_of(const fluid::MeshFrame& frame);
+/// The same from a mesh and its fields (the writer of a run's frame holds them apart).
+TetVolume tet_volume_of(const mesh::TetMesh& mesh, const fluid::MeshFrameFields& fields);
 
 struct VoxelOptions {
   /// Voxel edge (m); must be > 0 (the run and `tetfsi export` default it to the scene's

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <system_error>
 
 #include <vtkCellArray.h>
@@ -570,44 +571,48 @@ vtkSmartPointer<vtkPolyData> liquid_surface_polydata(const GridFrameFields& g, b
   return surface;
 }
 
-/// φ of the cell whose centre is nearest to x (clamped to the box).
-double nearest_phi(const GridFrameFields& g, const Vec3& x) {
-  Index c = 0, stride = 1;
-  for (int a = 0; a < 3; ++a) {
-    const double u = (x[a] - g.origin[a]) / g.spacing[a];
-    const Index i = std::clamp<Index>(static_cast<Index>(std::floor(u)), 0, g.cells[a] - 1);
-    c += stride * i;
-    stride *= g.cells[a];
-  }
-  return g.phi[c];
-}
-
-/// Orient the contour's triangles out of the liquid (φ grows along the right-hand normal):
-/// each one as the mean of its points' `normals`, then all of them by the vote of φ one cell
-/// either side of their centroids.
-void orient_out_of_liquid(const GridFrameFields& g, vtkDataArray* normals, ExportSurface& s) {
+/// Orient the closed surface `s` out of the liquid. VTK's contour does not orient its
+/// triangles consistently, so each connected piece is made consistent from one triangle
+/// (across a shared edge two triangles run it in opposite directions), then turned as a
+/// whole if the volume it encloses (Σ a·(b × c) / 6, the divergence theorem) is negative.
+void orient_out_of_liquid(ExportSurface& s) {
   const Index nt = static_cast<Index>(s.triangles.rows());
-  const double h = g.spacing.minCoeff();
-  Index agree = 0;
-  for (Index t = 0; t < nt; ++t) {
-    const Vec3 a = s.points.row(s.triangles(t, 0)), b = s.points.row(s.triangles(t, 1)),
-               c = s.points.row(s.triangles(t, 2));
-    Vec3 n = (b - a).cross(c - a);
-    if (normals) {
-      Vec3 m = Vec3::Zero();
-      for (int k = 0; k < 3; ++k)
-        for (int d = 0; d < 3; ++d) m[d] += normals->GetComponent(s.triangles(t, k), d);
-      if (n.dot(m) < 0.0) {
-        std::swap(s.triangles(t, 1), s.triangles(t, 2));
-        n = -n;
-      }
+  std::map<std::pair<int, int>, std::vector<Index>> edge_triangles;
+  for (Index t = 0; t < nt; ++t)
+    for (int e = 0; e < 3; ++e) {
+      const int a = s.triangles(t, e), b = s.triangles(t, (e + 1) % 3);
+      edge_triangles[{std::min(a, b), std::max(a, b)}].push_back(t);
     }
-    const double len = n.norm();
-    if (len == 0.0) continue;
-    const Vec3 x = (a + b + c) / 3.0, e = h * n / len;
-    agree += nearest_phi(g, x + e) >= nearest_phi(g, x - e) ? 1 : -1;
+  const auto runs = [&](Index t, int a, int b) {  // does triangle t run the edge a → b?
+    for (int e = 0; e < 3; ++e)
+      if (s.triangles(t, e) == a && s.triangles(t, (e + 1) % 3) == b) return true;
+    return false;
+  };
+  std::vector<char> seen(static_cast<std::size_t>(nt), 0);
+  for (Index t0 = 0; t0 < nt; ++t0) {
+    if (seen[static_cast<std::size_t>(t0)]) continue;
+    std::vector<Index> piece{t0};
+    seen[static_cast<std::size_t>(t0)] = 1;
+    for (std::size_t q = 0; q < piece.size(); ++q)
+      for (int e = 0; e < 3; ++e) {
+        const Index t = piece[q];
+        const int a = s.triangles(t, e), b = s.triangles(t, (e + 1) % 3);
+        for (const Index u : edge_triangles[{std::min(a, b), std::max(a, b)}]) {
+          if (seen[static_cast<std::size_t>(u)]) continue;
+          if (runs(u, a, b)) std::swap(s.triangles(u, 1), s.triangles(u, 2));
+          seen[static_cast<std::size_t>(u)] = 1;
+          piece.push_back(u);
+        }
+      }
+    double volume = 0.0;
+    for (const Index t : piece) {
+      const Vec3 a = s.points.row(s.triangles(t, 0)), b = s.points.row(s.triangles(t, 1)),
+                 c = s.points.row(s.triangles(t, 2));
+      volume += a.dot(b.cross(c)) / 6.0;
+    }
+    if (volume < 0.0)
+      for (const Index t : piece) std::swap(s.triangles(t, 1), s.triangles(t, 2));
   }
-  if (agree < 0) s.triangles.col(1).swap(s.triangles.col(2));
 }
 
 }  // namespace
@@ -642,7 +647,7 @@ ExportSurface liquid_surface(const GridFrameFields& g) {
   s.triangles.resize(static_cast<Index>(tris.size()), 3);
   for (size_t t = 0; t < tris.size(); ++t)
     for (int a = 0; a < 3; ++a) s.triangles(static_cast<Index>(t), a) = tris[t][a];
-  orient_out_of_liquid(g, poly->GetPointData()->GetArray("Normals"), s);
+  orient_out_of_liquid(s);
   return s;
 }
 
@@ -1016,7 +1021,7 @@ void OutputWriter::write_frame(const solid::SolidWorld& world, int step, double 
   }
   std::optional<VoxelFrame> voxels;
   if (with_fluid && fluid_fields && m_manifest && m_export.vdb)
-    voxels = voxelize(tet_volume_of(fluid::MeshFrame{fluid, *fluid_fields}), m_export.voxels);
+    voxels = voxelize(tet_volume_of(*fluid, *fluid_fields), m_export.voxels);
   std::optional<ExportedFrame> exported =
       export_files(world, step, time, voxels ? &*voxels : nullptr, nullptr);
   add_bodies_to_pvds(rel, time);

@@ -133,23 +133,26 @@ ExportManifest open_manifest(const fs::path& folder, const RunIndex& run) {
   return manifest;
 }
 
-/// The surfaces of frame `fr`: each body's boundary, then the liquid's surface.
-std::vector<NamedSurface> surfaces_of(const RunIndex& run, const FrameFiles& fr) {
+/// The surfaces of frame `fr`: each body's boundary, then the liquid's surface (io's
+/// liquid_surface of the grid frame `grid`, as the run's own export writes it).
+std::vector<NamedSurface> surfaces_of(const RunIndex& run, const FrameFiles& fr,
+                                      const fluid::GridFrameFields* grid) {
   std::vector<NamedSurface> out;
   for (size_t b = 0; b < fr.bodies.size(); ++b) {
     const TetBodyFrame body = read_body_frame(fr.bodies[b]);
     out.push_back({run.body_names[b],
                    tet_boundary_surface(body.points, body.tets, body.velocity, body.von_mises)});
   }
-  if (!fr.liquid.empty()) out.push_back({"liquid", read_liquid_frame(fr.liquid)});
+  if (!fr.liquid.empty() && grid) out.push_back({"liquid", liquid_surface(*grid)});
   return out;
 }
 
-/// The fluid of frame `fr` on voxels: the tet fluid sampled, the grid's cells as they are.
-std::optional<VoxelFrame> voxels_of(const FrameFiles& fr, const ExportRequest& request) {
+/// The fluid of frame `fr` on voxels: the grid frame `grid`'s cells as they are, or the tet
+/// fluid sampled.
+std::optional<VoxelFrame> voxels_of(const FrameFiles& fr, const ExportRequest& request,
+                                    const fluid::GridFrameFields* grid) {
+  if (grid) return voxel_frame_of(*grid, request.voxels.ambient_temperature);
   if (fr.fluid.empty()) return std::nullopt;
-  if (fr.fluid.extension() == ".vti")
-    return voxel_frame_of(read_grid_fluid_frame(fr.fluid), request.voxels.ambient_temperature);
   return voxelize(read_tet_fluid_frame(fr.fluid), request.voxels);
 }
 
@@ -161,8 +164,11 @@ ExportedFrame export_one(const RunIndex& run, int index, const ExportRequest& re
   std::vector<NamedSurface> surfaces;
   std::optional<VoxelFrame> voxels;
   try {
-    if (request.ply) surfaces = surfaces_of(run, fr);
-    if (request.vdb) voxels = voxels_of(fr, request);
+    std::optional<fluid::GridFrameFields> grid;  // read once for the voxels and the liquid
+    if (fr.fluid.extension() == ".vti" && (request.vdb || (request.ply && !fr.liquid.empty())))
+      grid = read_grid_fluid_frame(fr.fluid);
+    if (request.ply) surfaces = surfaces_of(run, fr, grid ? &*grid : nullptr);
+    if (request.vdb) voxels = voxels_of(fr, request, grid ? &*grid : nullptr);
   } catch (const InputError& e) {
     throw InputError(fmt::format(
         "frame {} (step {}) of the run in '{}': {}; re-run the scene to write it again, or "

@@ -8,7 +8,9 @@
 /// Per frame (the run's frames in step order, numbered 0, 1, 2, ... as the files are):
 ///  - each body's `.vtu` (points, tets, point `velocity`, cell `von_mises_stress`) →
 ///    tet_boundary_surface → `ply/<body>_<frame>.ply`;
-///  - the liquid's `.vtp` (a free surface) → `ply/liquid_<frame>.ply`;
+///  - a liquid: the grid fluid's `.vti` (its `phi`) → liquid_surface (io/output.hpp, as the
+///    run's own export: closed on the box's walls) → `ply/liquid_<frame>.ply`, for the frames
+///    whose liquid `.vtp` the run wrote;
 ///  - the tet fluid's `.vtu` (cell `smoke_density`, `temperature`, `pressure`, point
 ///    `velocity`) → TetVolume → voxelize (voxel size default: the resolved scene's
 ///    `fluid.mesh.surface_size`) → `vdb/fluid_<frame>.vdb`; the grid fluid's `.vti` →

@@ -19,7 +19,6 @@
 #include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLImageDataReader.h>
-#include <vtkXMLPolyDataReader.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <Eigen/Geometry>
 
@@ -33,11 +32,11 @@ namespace tetfsi::app {
 
 namespace {
 
-/// `file` read by a new `Reader`; its output stays valid as long as the reader. Without
-/// `may_be_empty`, a file without points is an error (a liquid's surface may have none yet).
+/// `file` read by a new `Reader`; its output stays valid as long as the reader. A file without
+/// points is an error.
 /// @throws InputError naming the file if it is missing or VTK cannot read it.
 template <class Reader>
-vtkSmartPointer<Reader> read_xml(const fs::path& file, bool may_be_empty = false) {
+vtkSmartPointer<Reader> read_xml(const fs::path& file) {
   std::error_code ec;
   if (!fs::is_regular_file(file, ec))
     throw InputError(
@@ -52,8 +51,7 @@ vtkSmartPointer<Reader> read_xml(const fs::path& file, bool may_be_empty = false
     throw InputError(fmt::format("{}: VTK could not read the frame ({})", file.string(), e.what()));
   }
   vtkDataSet* out = reader->GetOutput();
-  if (!capture.first_message().empty() || out == nullptr ||
-      (out->GetNumberOfPoints() == 0 && !may_be_empty))
+  if (!capture.first_message().empty() || out == nullptr || out->GetNumberOfPoints() == 0)
     throw InputError(
         fmt::format("{}: VTK could not read the frame: {}", file.string(),
                     capture.first_message().empty() ? "no points" : capture.first_message()));
@@ -188,34 +186,6 @@ fluid::GridFrameFields read_grid_fluid_frame(const fs::path& vti) {
   for (Index c = 0; c < nc; ++c) g.solid[static_cast<size_t>(c)] = solid[c] != 0.0 ? 1 : 0;
   g.phi = scalars(cd, "phi", nc, vti);
   return g;
-}
-
-ExportSurface read_liquid_frame(const fs::path& vtp) {
-  const auto reader = read_xml<vtkXMLPolyDataReader>(vtp, true);
-  vtkPolyData* poly = reader->GetOutput();
-  ExportSurface s;
-  s.points = points_of(poly);
-  const Index np = static_cast<Index>(s.points.rows());
-  s.velocity = vectors(poly->GetPointData(), "velocity", np, vtp);
-  const MatX3 normals = vectors(poly->GetPointData(), "Normals", np, vtp);
-  vtkCellArray* polys = poly->GetPolys();
-  s.triangles.resize(static_cast<Index>(polys->GetNumberOfCells()), 3);
-  vtkNew<vtkIdList> ids;
-  polys->InitTraversal();
-  for (Index t = 0; polys->GetNextCell(ids); ++t) {
-    if (ids->GetNumberOfIds() != 3)
-      throw InputError(fmt::format("{}: polygon {} has {} corners, expected a triangle",
-                                   vtp.string(), t, ids->GetNumberOfIds()));
-    for (int k = 0; k < 3; ++k) s.triangles(t, k) = static_cast<int>(ids->GetId(k));
-    if (normals.rows() == 0) continue;
-    const Vec3 a = s.points.row(s.triangles(t, 0)), b = s.points.row(s.triangles(t, 1)),
-               c = s.points.row(s.triangles(t, 2));
-    const Vec3 n = normals.row(s.triangles(t, 0)) + normals.row(s.triangles(t, 1)) +
-                   normals.row(s.triangles(t, 2));
-    // VTK's contour normals point down φ's gradient, into the liquid: face the other way.
-    if ((b - a).cross(c - a).dot(n) > 0.0) std::swap(s.triangles(t, 1), s.triangles(t, 2));
-  }
-  return s;
 }
 
 }  // namespace tetfsi::app

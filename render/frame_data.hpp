@@ -1,8 +1,9 @@
 #pragma once
 /// @file frame_data.hpp
 /// A run's frame files read back into plain arrays (the files io/output.hpp writes): a body's
-/// `.vtu`, the tet fluid's `.vtu`, the grid fluid's `.vti` and the liquid's `.vtp`. For
-/// `tetfsi export` (render/export_cmd.hpp) and the smoke volume of `tetfsi render`.
+/// `.vtu`, the tet fluid's `.vtu` and the grid fluid's `.vti`. For `tetfsi export`
+/// (render/export_cmd.hpp) and the pictures of `tetfsi render` (the smoke volume, a liquid's
+/// closed surface through io's liquid_surface).
 ///
 /// Every reader checks the file first as the other readers do (a `.vtu` through
 /// mesh::check_vtk_xml_header), keeps VTK's messages off stderr, and throws one InputError
@@ -37,11 +38,5 @@ TetVolume read_tet_fluid_frame(const std::filesystem::path& vtu, bool only_densi
 /// (0 if absent) and `phi` (empty if absent); no bodies' surface (the `.vti` has none).
 /// @throws InputError naming the file if it is missing or unreadable or lacks an array.
 fluid::GridFrameFields read_grid_fluid_frame(const std::filesystem::path& vti);
-
-/// The liquid's surface `.vtp` (triangles, point `velocity`), each triangle turned to face
-/// out of the liquid: against the file's point `Normals`, which VTK's contour of φ points
-/// down φ's gradient, into the liquid. @throws InputError naming the file if it is missing or
-/// unreadable or has a polygon that is not a triangle.
-ExportSurface read_liquid_frame(const std::filesystem::path& vtp);
 
 }  // namespace tetfsi::app

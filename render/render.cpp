@@ -21,17 +21,16 @@
 #include <unistd.h>
 #include <vtkActor.h>
 #include <vtkCamera.h>
+#include <vtkCellArray.h>
 #include <vtkCellData.h>
 #include <vtkCellDataToPointData.h>
 #include <vtkColorTransferFunction.h>
-#include <vtkContourFilter.h>
 #include <vtkCubeSource.h>
 #include <vtkCutter.h>
 #include <vtkDataArray.h>
 #include <vtkDataArraySelection.h>
 #include <vtkDataSet.h>
 #include <vtkDataSetSurfaceFilter.h>
-#include <vtkDoubleArray.h>
 #include <vtkErrorCode.h>
 #include <vtkFloatArray.h>
 #include <vtkImageData.h>
@@ -44,10 +43,11 @@
 #include <vtkPlane.h>
 #include <vtkPlaneSource.h>
 #include <vtkPointData.h>
+#include <vtkPoints.h>
 #include <vtkPolyData.h>
 #include <vtkPolyDataMapper.h>
+#include <vtkPolyDataNormals.h>
 #include <vtkProperty.h>
-#include <vtkRectilinearGrid.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkScalarBarActor.h>
@@ -547,54 +547,31 @@ vtkSmartPointer<vtkImageData> smoke_image(const fs::path& file, FrameReader& rea
   return image;
 }
 
-/// The liquid's closed surface from a grid frame's φ (cell array `phi`, < 0 in the liquid):
-/// the contour φ = 0 over the cell centres and a layer of points on the box's walls where φ
-/// is at least a little positive (air), so that the surface closes along the walls and the
-/// floor (the run's liquid.vtp, a free surface, is open there). Empty if `grid` has no φ.
-vtkSmartPointer<vtkPolyData> closed_liquid_surface(vtkImageData* grid) {
-  vtkDataArray* phi = grid->GetCellData()->GetArray("phi");
-  if (phi == nullptr) return vtkSmartPointer<vtkPolyData>::New();
-  int dims[3];
-  double origin[3], h[3];
-  grid->GetDimensions(dims);
-  grid->GetOrigin(origin);
-  grid->GetSpacing(h);
-  const int n[3] = {dims[0] - 1, dims[1] - 1, dims[2] - 1};  // cells
-  vtkNew<vtkRectilinearGrid> padded;
-  padded->SetDimensions(n[0] + 2, n[1] + 2, n[2] + 2);
-  for (int a = 0; a < 3; ++a) {
-    vtkNew<vtkDoubleArray> c;
-    c->SetNumberOfTuples(n[a] + 2);
-    c->SetValue(0, origin[a]);
-    for (int i = 0; i < n[a]; ++i) c->SetValue(i + 1, origin[a] + (i + 0.5) * h[a]);
-    c->SetValue(n[a] + 1, origin[a] + n[a] * h[a]);
-    (a == 0   ? padded->SetXCoordinates(c)
-     : a == 1 ? padded->SetYCoordinates(c)
-              : padded->SetZCoordinates(c));
+/// The liquid's closed surface of a grid frame (`.vti`): io's liquid_surface, the one
+/// construction the export's PLY uses too (the contour φ = 0 capped on the box's walls, so that
+/// the water reads as a body; the run's liquid.vtp, a free surface, is open there), with point
+/// normals for the shading.
+vtkSmartPointer<vtkPolyData> closed_liquid_surface(const fs::path& vti) {
+  const ExportSurface s = liquid_surface(read_grid_fluid_frame(vti));
+  vtkNew<vtkPoints> points;
+  points->SetNumberOfPoints(static_cast<vtkIdType>(s.points.rows()));
+  for (Index i = 0; i < s.points.rows(); ++i)
+    points->SetPoint(i, s.points(i, 0), s.points(i, 1), s.points(i, 2));
+  vtkNew<vtkCellArray> triangles;
+  for (Index t = 0; t < s.triangles.rows(); ++t) {
+    const vtkIdType ids[3] = {s.triangles(t, 0), s.triangles(t, 1), s.triangles(t, 2)};
+    triangles->InsertNextCell(3, ids);
   }
-  const double air = 1e-3 * std::min({h[0], h[1], h[2]});
-  vtkNew<vtkDoubleArray> values;
-  values->SetName("phi");
-  values->SetNumberOfTuples(vtkIdType(n[0] + 2) * (n[1] + 2) * (n[2] + 2));
-  vtkIdType p = 0;
-  for (int k = 0; k < n[2] + 2; ++k)
-    for (int j = 0; j < n[1] + 2; ++j)
-      for (int i = 0; i < n[0] + 2; ++i, ++p) {
-        const int ci = std::clamp(i - 1, 0, n[0] - 1), cj = std::clamp(j - 1, 0, n[1] - 1),
-                  ck = std::clamp(k - 1, 0, n[2] - 1);
-        const double v = phi->GetComponent(ci + vtkIdType(n[0]) * (cj + vtkIdType(n[1]) * ck), 0);
-        const bool wall =
-            i == 0 || j == 0 || k == 0 || i == n[0] + 1 || j == n[1] + 1 || k == n[2] + 1;
-        values->SetValue(p, wall ? std::max(v, air) : v);
-      }
-  padded->GetPointData()->SetScalars(values);
-  vtkNew<vtkContourFilter> contour;
-  contour->SetInputData(padded);
-  contour->SetValue(0, 0.0);
-  contour->ComputeNormalsOn();
-  contour->ComputeScalarsOff();
-  contour->Update();
-  return contour->GetOutput();
+  vtkNew<vtkPolyData> poly;
+  poly->SetPoints(points);
+  poly->SetPolys(triangles);
+  vtkNew<vtkPolyDataNormals> normals;  // the triangles face out of the liquid already
+  normals->SetInputData(poly);
+  normals->SplittingOff();
+  normals->ConsistencyOff();
+  normals->AutoOrientNormalsOff();
+  normals->Update();
+  return normals->GetOutput();
 }
 
 /// Everything drawn: one window reused for every frame.
@@ -691,8 +668,7 @@ class FrameRenderer {
     if (!m_run.has_liquid) return;
     m_liquid_actor->SetVisibility(!frame.liquid.empty());
     if (frame.fluid.extension() == ".vti") {  // closed along the walls: see the water's body
-      auto* grid = vtkImageData::SafeDownCast(m_liquid_grid_reader.read(frame.fluid, "phi"));
-      m_liquid_mapper->SetInputData(closed_liquid_surface(grid));
+      m_liquid_mapper->SetInputData(closed_liquid_surface(frame.fluid));
     } else if (!frame.liquid.empty()) {
       m_liquid_reader->SetFileName(frame.liquid.string().c_str());
       m_liquid_reader->Update();
@@ -904,7 +880,6 @@ class FrameRenderer {
   vtkNew<vtkVolumeProperty> m_volume_property;
   vtkNew<vtkVolume> m_volume;
   vtkNew<vtkXMLPolyDataReader> m_liquid_reader;
-  FrameReader m_liquid_grid_reader;  ///< the grid frame's φ (the closed surface)
   vtkNew<vtkPolyDataMapper> m_liquid_mapper;
   vtkNew<vtkActor> m_liquid_actor;
   std::vector<std::unique_ptr<Body>> m_bodies;

@@ -137,6 +137,20 @@ inline CliResult run_tetfsi(const std::filesystem::path& cwd, const std::string&
 }
 #endif
 
+#if defined(DOCTEST_LIBRARY_INCLUDED) && defined(TETFSI_EXE) && defined(TETFSI_SOURCE_DIR)
+/// `tetfsi run <the shipped scene> --out o --progress off <extra>` in `dir` under `limits`;
+/// REQUIREs exit code 0 (stderr shown if not).
+inline CliResult run_shipped_scene(const std::filesystem::path& dir, const std::string& scene,
+                                   const std::string& extra, const std::string& limits) {
+  const CliResult r = run_tetfsi(
+      dir, fmt::format("run '{}' --out o --progress off {}", shipped_scene(scene).string(), extra),
+      limits);
+  INFO("stderr: " << r.err);
+  REQUIRE(r.code == 0);
+  return r;
+}
+#endif
+
 #ifdef DOCTEST_LIBRARY_INCLUDED
 /// Checks that a CLI run failed (exit code 1) with one line `error: ...` that holds every part.
 inline void check_one_line_error(const CliResult& r, const std::vector<std::string>& parts) {

@@ -51,11 +51,7 @@ const std::string kFluidLimits = "ulimit -v 4000000; timeout 300";
 
 /// `tetfsi run <scene> --out o --progress off <extra>` in `dir`; REQUIREs exit code 0.
 void run_scene(const fs::path& dir, const std::string& scene, const std::string& extra) {
-  const Result r = tetfsi::test::run_tetfsi(
-      dir, fmt::format("run '{}' --out o --progress off {}", shipped_scene(scene).string(), extra),
-      kFluidLimits);
-  INFO("stderr: " << r.err);
-  REQUIRE(r.code == 0);
+  tetfsi::test::run_shipped_scene(dir, scene, extra, kFluidLimits);
 }
 
 /// stats.csv as columns: name → one value per step (row order).

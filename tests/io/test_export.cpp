@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "core/error.hpp"
 #include "core/parallel.hpp"
 #include "io/export.hpp"
+#include "io/output.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/tet_mesh.hpp"
 #include "solid/solid_body.hpp"
@@ -424,6 +426,47 @@ TEST_CASE("voxelize: a bad voxel size or too many sub-samples is an InputError")
   bad.density.resize(3);
   o.voxel_size = 0.25;
   CHECK_THROWS_AS(voxelize(bad, o), InternalError);
+}
+
+TEST_CASE("liquid_surface: closed on the box's walls, facing out of the liquid; none without") {
+  // A pool: 20 × 20 × 10 cells of 0.05 m, the liquid below z = 0.3 (φ = z − 0.3 at the
+  // centres), so the surface is the pool's top capped on the floor and the four walls.
+  fluid::GridFrameFields g;
+  g.spacing = Vec3::Constant(0.05);
+  g.cells = {20, 20, 10};
+  const Index n = 4000;
+  g.pressure = g.density = g.divergence = g.vorticity = VecX::Zero(n);
+  g.temperature = VecX::Constant(n, 293.0);
+  g.velocity = MatX3::Zero(n, 3);
+  g.solid.assign(n, 0);
+  g.phi.resize(n);
+  for (Index c = 0; c < n; ++c) g.phi[c] = (c / 400 + 0.5) * 0.05 - 0.3;
+  const ExportSurface s = liquid_surface(g);
+  REQUIRE(s.triangles.rows() > 0);
+  CHECK(s.velocity.rows() == s.points.rows());
+  // closed: every edge in two triangles, run in opposite directions (consistently oriented)
+  std::map<std::pair<int, int>, int> directed;
+  double volume = 0.0;
+  for (Index t = 0; t < s.triangles.rows(); ++t) {
+    for (int e = 0; e < 3; ++e) ++directed[{s.triangles(t, e), s.triangles(t, (e + 1) % 3)}];
+    const Vec3 p0 = s.points.row(s.triangles(t, 0)), p1 = s.points.row(s.triangles(t, 1)),
+               p2 = s.points.row(s.triangles(t, 2));
+    volume += p0.dot(p1.cross(p2)) / 6.0;  // > 0 for normals out of the enclosed liquid
+  }
+  for (const auto& [edge, count] : directed) {
+    CHECK(count == 1);
+    CHECK(directed.count({edge.second, edge.first}) == 1);
+  }
+  // the pool's 1 × 1 × 0.3 m³, less the contour's chamfers along the walls' edges (< 1 %)
+  CHECK(volume == rel(0.3, 0.01));
+  // no liquid yet (a stream still to arrive): no surface, and its PLY round trips empty
+  g.phi = VecX::Constant(n, 0.1);
+  const ExportSurface none = liquid_surface(g);
+  CHECK(none.points.rows() == 0);
+  CHECK(none.triangles.rows() == 0);
+  TempDir dir("export_liquid_none");
+  write_ply(dir.path / "liquid.ply", none);
+  CHECK(read_ply(dir.path / "liquid.ply").triangles.rows() == 0);
 }
 
 TEST_CASE("voxel_frame_of: the grid's cells are the voxels") {

@@ -13,11 +13,6 @@
 
 #include <doctest/doctest.h>
 #include <fmt/format.h>
-#include <vtkCellArray.h>
-#include <vtkNew.h>
-#include <vtkPoints.h>
-#include <vtkPolyData.h>
-#include <vtkXMLPolyDataWriter.h>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
@@ -42,11 +37,7 @@ const std::string kLimits = "ulimit -v 4000000; timeout 120";
 
 /// `tetfsi run <scene> --out o --progress off <extra>` in `dir`; REQUIREs exit code 0.
 void run_scene(const fs::path& dir, const std::string& scene, const std::string& extra) {
-  const Result r = tetfsi::test::run_tetfsi(
-      dir, fmt::format("run '{}' --out o --progress off {}", shipped_scene(scene).string(), extra),
-      kLimits);
-  INFO("stderr: " << r.err);
-  REQUIRE(r.code == 0);
+  tetfsi::test::run_shipped_scene(dir, scene, extra, kLimits);
 }
 
 /// A coarse smoke_jet run: 6 steps, a frame every 2 (4 frames: steps 0, 2, 4, 6).
@@ -252,26 +243,31 @@ TEST_CASE(
 
 TEST_CASE(
     "tetfsi export: a grid liquid's cells as voxels and its surface as a PLY facing out of "
-    "the water, an empty surface read as none") {
+    "the water, the same PLY as the run's own export") {
   TempDir dir("export_liquid");
   run_scene(dir.path, "dam_break.json",
-            "--steps 10 --set output.every=10 --set fluid.grid.cells=[36,12,15]");
-  const Result r = cli(dir.path, "export o --voxel-size 0.2");
+            "--steps 10 --set output.every=10 --set fluid.grid.cells=[36,12,15] --set "
+            "'output.export=[\"ply\"]'");
+  const Result r = cli(dir.path, "export o --to e --voxel-size 0.2");
   INFO("stdout: " << r.out << "\nstderr: " << r.err);
   REQUIRE(r.code == 0);
   CHECK(contains(r.out, "voxels: the grid's cells"));
   CHECK(contains(r.err, "hint: the fluid is a grid"));  // --voxel-size does not apply
-  const std::vector<app::ExportedFrame> frames = manifest_frames(dir.path / "o");
+  const std::vector<app::ExportedFrame> frames = manifest_frames(dir.path / "e");
   REQUIRE(frames.size() == 2);
   REQUIRE(frames[1].meshes.size() == 1);
   CHECK(frames[1].meshes[0].name == "liquid");
-  const app::ExportSurface ply = app::read_ply(dir.path / "o" / frames[0].meshes[0].file);
-  CHECK(ply.points.rows() == frames[0].meshes[0].vertices);
-  // The water column's top, as read for the PLY: its triangles' normals point up (out of the
-  // water).
-  const app::RunIndex run = app::read_run(dir.path / "o");
-  const app::ExportSurface s = app::read_liquid_frame(run.frames[0].liquid);
-  REQUIRE(s.triangles.rows() == ply.triangles.rows());
+  // One construction of the liquid's surface: the export of the run's files writes the PLY the
+  // run itself wrote (from the .vti's φ, which holds the run's doubles), byte for byte.
+  for (const app::ExportedFrame& f : frames)
+    for (const app::ExportedFrame::Mesh& m : f.meshes) {
+      CAPTURE(m.file);
+      CHECK(tetfsi::test::read_text(dir.path / "e" / m.file) ==
+            tetfsi::test::read_text(dir.path / "o" / m.file));
+    }
+  const app::ExportSurface s = app::read_ply(dir.path / "e" / frames[0].meshes[0].file);
+  CHECK(s.points.rows() == frames[0].meshes[0].vertices);
+  // The water column's top: its triangles' normals point up (out of the water).
   const double top = s.points.col(2).maxCoeff();
   int up = 0, down = 0;
   for (Index t = 0; t < s.triangles.rows(); ++t) {
@@ -283,21 +279,8 @@ TEST_CASE(
   INFO("top triangles facing up " << up << ", down " << down);
   CHECK(up > 0);
   CHECK(down == 0);
-  // Before the first liquid arrives (a poured stream), its surface has no points: no error.
-  vtkNew<vtkPolyData> none;  // as the contour of a φ > 0 everywhere: points and cells, none
-  vtkNew<vtkPoints> no_points;
-  vtkNew<vtkCellArray> no_triangles;
-  none->SetPoints(no_points);
-  none->SetPolys(no_triangles);
-  vtkNew<vtkXMLPolyDataWriter> writer;
-  writer->SetInputData(none);
-  writer->SetFileName((dir.path / "none.vtp").c_str());
-  REQUIRE(writer->Write() == 1);
-  const app::ExportSurface empty = app::read_liquid_frame(dir.path / "none.vtp");
-  CHECK(empty.points.rows() == 0);
-  CHECK(empty.triangles.rows() == 0);
   // The .vdb: the liquid's level set beside the fog volumes.
-  const app::VdbFileSummary vdb = app::read_vdb_summary(dir.path / "o" / frames[1].vdb_file);
+  const app::VdbFileSummary vdb = app::read_vdb_summary(dir.path / "e" / frames[1].vdb_file);
   CHECK(std::any_of(vdb.grids.begin(), vdb.grids.end(),
                     [](const auto& g) { return g.name == "surface"; }));
 }

@@ -44,12 +44,7 @@ const std::string kCoarseJet =
 
 /// `tetfsi run <scene> --out o --progress off <extra>` in `dir`; REQUIREs exit code 0.
 Result run_scene(const fs::path& dir, const std::string& scene, const std::string& extra) {
-  const Result r = tetfsi::test::run_tetfsi(
-      dir, fmt::format("run '{}' --out o --progress off {}", shipped_scene(scene).string(), extra),
-      kLimits);
-  INFO("stderr: " << r.err);
-  REQUIRE(r.code == 0);
-  return r;
+  return tetfsi::test::run_shipped_scene(dir, scene, extra, kLimits);
 }
 
 /// An 8-bit RGB(A) PNG read back: width, height and RGB per pixel, rows from the top.
